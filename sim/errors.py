@@ -1,0 +1,30 @@
+"""Errors raised for invalid user input and for failed simulations."""
+
+from __future__ import annotations
+
+
+class DesignError(ValueError):
+    """Invalid design or material input.
+
+    ``field`` is the dotted path of the offending key (``layers[1].material.nu``) so the CLI can
+    print one line naming it; ``message`` says what is allowed.
+    """
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+class SimulationError(RuntimeError):
+    """A protocol that did not converge even after step cutting.
+
+    ``protocol`` names the loading protocol and ``time_s`` the simulated time at which the solver
+    gave up.
+    """
+
+    def __init__(self, protocol: str, time_s: float, reason: str) -> None:
+        super().__init__(f"{protocol}: failed at t = {time_s:.4g} s: {reason}")
+        self.protocol = protocol
+        self.time_s = time_s
+        self.reason = reason
