@@ -1,0 +1,247 @@
+"""Total-Lagrangian P2 plane-strain discretisation with a lean, vectorised assembly.
+
+scikit-fem supplies the P2 basis (shape-function gradients and quadrature weights on the reference
+configuration) and the degree-of-freedom map. The Newton loop then needs the residual and the
+tangent thousands of times per design, so they are assembled here directly from those arrays:
+one batched evaluation of the constitutive law per layer, element matrices from a few ``einsum``
+calls, and a scatter into a CSR pattern that is built once (``np.bincount`` into fixed positions).
+``tests/test_fe.py`` checks this assembly against scikit-fem's own ``BilinearForm``/``LinearForm``
+assembly of the same weak form and against finite differences.
+
+Array conventions: nodal displacements ``u`` have shape (n_nodes, 2); the global dof of node ``i``
+and component ``c`` is ``2 * i + c``. Dirichlet conditions are homogeneous (the bonded base and the
+symmetry axis), so fixed dofs are simply left out of the free-dof system.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+from skfem import Basis, ElementTriP2
+
+from .mesh import FingertipMesh
+
+if TYPE_CHECKING:
+    from .materials import Material
+
+__all__ = ["Discretization", "LayerState"]
+
+INTORDER = 2  # 3-point rule: exact for the P2 stiffness in small strain, no spurious modes
+
+
+@dataclass
+class LayerState:
+    """History of one layer at the quadrature points (shapes (3, n_el, n_q) and (N_G, 3, ...))."""
+
+    S0: np.ndarray
+    H: np.ndarray
+
+
+@dataclass
+class Evaluation:
+    """Residual (free dofs) and, optionally, tangent data at one displacement state."""
+
+    residual: np.ndarray
+    tangent: np.ndarray | None  # CSR data in the fixed pattern
+    states: list[LayerState]
+    ok: bool = True
+    min_J: float = field(default=1.0)
+
+
+class Discretization:
+    """P2 triangles on a ``FingertipMesh`` with one material per layer.
+
+    Elements are reordered so that each layer is a contiguous slice.
+    """
+
+    def __init__(self, fmesh: FingertipMesh, materials: list[Material]) -> None:
+        order = np.argsort(fmesh.layer, kind="stable")
+        mesh = fmesh.mesh.__class__(fmesh.mesh.p, fmesh.mesh.t[:, order])
+        self.fmesh = fmesh
+        self.mesh = mesh
+        self.materials = materials
+        basis = Basis(mesh, ElementTriP2(), intorder=INTORDER)
+        self.basis = basis
+        self.n_nodes = basis.N
+        self.X = basis.doflocs.T.copy()  # (n_nodes, 2) reference coordinates
+        layer = fmesh.layer[order]
+        counts = np.bincount(layer, minlength=len(materials))
+        bounds = np.concatenate([[0], np.cumsum(counts)])
+        self.slices = [slice(int(bounds[k]), int(bounds[k + 1])) for k in range(len(materials))]
+        # shape-function gradients (6, 2, n_el, n_q) and weights (n_el, n_q)
+        self.dN = np.stack([basis.basis[a][0].grad for a in range(6)])
+        self.w = basis.dx
+        self.edofs_scalar = basis.element_dofs.T.copy()  # (n_el, 6)
+        self.n_el, self.n_q = self.w.shape
+
+        # boundary nodes (P2 numbering): vertices keep their index; midside nodes are found by
+        # position on the straight boundary facets
+        fixed = np.zeros((self.n_nodes, 2), dtype=bool)
+        base_nodes = self._boundary_nodes(fmesh.base)
+        axis_nodes = self._boundary_nodes(fmesh.axis)
+        fixed[base_nodes, :] = True
+        fixed[axis_nodes, 0] = True
+        self.surface_nodes = self._ordered_surface_nodes(fmesh.surface)
+        self.apex_node = int(self.surface_nodes[0])
+        self.free = np.flatnonzero(~fixed.ravel())
+        self.n_free = len(self.free)
+        gmap = -np.ones(2 * self.n_nodes, dtype=np.int64)
+        gmap[self.free] = np.arange(self.n_free)
+        self.gmap = gmap
+
+        # element dofs (n_el, 12) in free numbering (-1 for fixed), local order a*2+i
+        edofs = (2 * self.edofs_scalar[:, :, None] + np.arange(2)[None, None, :]).reshape(
+            self.n_el, 12
+        )
+        fe = gmap[edofs]
+        self.edofs_free = fe
+        rows = np.broadcast_to(fe[:, :, None], (self.n_el, 12, 12)).ravel()
+        cols = np.broadcast_to(fe[:, None, :], (self.n_el, 12, 12)).ravel()
+        keep = (rows >= 0) & (cols >= 0)
+        keys = rows[keep] * self.n_free + cols[keep]
+        ukeys = np.unique(keys)
+        # contact penalties couple the two dofs of a surface node: make sure they are in the pattern
+        self.pattern_rows = ukeys // self.n_free
+        self.pattern_cols = ukeys % self.n_free
+        self.nnz = len(ukeys)
+        self.scatter_K = np.full(rows.shape, self.nnz, dtype=np.int64)
+        self.scatter_K[keep] = np.searchsorted(ukeys, keys)
+        self._ukeys = ukeys
+        indptr = np.searchsorted(self.pattern_rows, np.arange(self.n_free + 1))
+        self.indptr = indptr.astype(np.int32)
+        self.indices = self.pattern_cols.astype(np.int32)
+        self.scatter_r = np.where(fe >= 0, fe, self.n_free).ravel()
+        self.diag_pos = np.searchsorted(ukeys, np.arange(self.n_free) * (self.n_free + 1))
+
+    # ------------------------------------------------------------------ helpers
+    def _boundary_nodes(self, vertices: np.ndarray) -> np.ndarray:
+        """P2 nodes on the boundary chain through ``vertices`` (vertices + midside nodes)."""
+        mesh = self.mesh
+        vset = np.zeros(mesh.p.shape[1], dtype=bool)
+        vset[vertices] = True
+        bf = mesh.boundary_facets()
+        f = mesh.facets[:, bf]
+        on = vset[f[0]] & vset[f[1]]
+        mids = mesh.p.shape[1] + bf[on]  # P2 facet dofs follow the vertex dofs
+        return np.concatenate([vertices, mids])
+
+    def _ordered_surface_nodes(self, surface_vertices: np.ndarray) -> np.ndarray:
+        mesh = self.mesh
+        pos = {int(v): k for k, v in enumerate(surface_vertices)}
+        bf = mesh.boundary_facets()
+        f = mesh.facets[:, bf]
+        nodes = [(2.0 * pos[int(v)], int(v)) for v in surface_vertices]
+        for j in range(f.shape[1]):
+            a, b = int(f[0, j]), int(f[1, j])
+            if a in pos and b in pos and abs(pos[a] - pos[b]) == 1:
+                nodes.append((pos[a] + pos[b], mesh.p.shape[1] + int(bf[j])))
+        nodes.sort()
+        return np.array([n for _, n in nodes], dtype=np.int64)
+
+    def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The free-dof tangent as a CSC matrix (the pattern is symmetric, so CSR = CSC^T)."""
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n_free, self.n_free))
+
+    def initial_states(self) -> list[LayerState]:
+        states = []
+        for mat, sl in zip(self.materials, self.slices, strict=True):
+            n = sl.stop - sl.start
+            ng = len(mat.prony.g)
+            states.append(
+                LayerState(np.zeros((3, n, self.n_q)), np.zeros((ng, 3, n, self.n_q)))
+            )
+        return states
+
+    # ------------------------------------------------------------------ kinematics
+    def deformation_gradient(self, u: np.ndarray) -> np.ndarray:
+        """F with shape (2, 2, n_el, n_q) for nodal displacements u (n_nodes, 2)."""
+        ue = u[self.edofs_scalar]  # (n_el, 6, 2)
+        F = np.einsum("eai,aJeq->iJeq", ue, self.dN, optimize=True)
+        F[0, 0] += 1.0
+        F[1, 1] += 1.0
+        return F
+
+    # ------------------------------------------------------------------ assembly
+    def evaluate(
+        self,
+        u: np.ndarray,
+        states: list[LayerState],
+        dt_s: float,
+        tangent: bool = True,
+        frozen_history: bool = False,
+    ) -> Evaluation:
+        """Internal-force residual (free dofs), tangent data and trial history at ``u``.
+
+        ``states`` is the history committed at the start of the step and ``dt_s`` the step size.
+        With ``frozen_history`` the Prony internal stresses keep their committed values
+        (S = g_inf S0(u) + sum g_i H_i): used to re-equilibrate after a cycle jump.
+        """
+        F = self.deformation_gradient(u)
+        J = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+        min_J = float(J.min())
+        if min_J <= 1e-8:
+            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
+        C = np.empty((3, self.n_el, self.n_q))
+        C[0] = F[0, 0] ** 2 + F[1, 0] ** 2
+        C[1] = F[0, 1] ** 2 + F[1, 1] ** 2
+        C[2] = F[0, 0] * F[0, 1] + F[1, 0] * F[1, 1]
+        S = np.empty_like(C)
+        D = np.empty((3, 3, self.n_el, self.n_q)) if tangent else None
+        new_states = []
+        for mat, sl, st in zip(self.materials, self.slices, states, strict=True):
+            law = mat.instantaneous
+            if tangent:
+                _, S0, D0 = law.evaluate(C[:, sl])
+            else:
+                S0 = law.stress(C[:, sl])
+            if frozen_history:
+                g = np.asarray(mat.prony.g, dtype=float)
+                Hk = st.H
+                Sk = mat.prony.g_inf * S0 + np.tensordot(g, Hk, axes=1)
+                factor = mat.prony.g_inf
+            else:
+                Sk, Hk, factor = mat.prony.update(S0, st.S0, st.H, dt_s)
+            S[:, sl] = Sk
+            if tangent:
+                D[:, :, sl] = factor * D0
+            new_states.append(LayerState(S0, Hk))
+        w = self.w
+        # first Piola-Kirchhoff P = F S  (2x2), residual r_ai = sum_q w P_iL dN_aL
+        P00 = F[0, 0] * S[0] + F[0, 1] * S[2]
+        P01 = F[0, 0] * S[2] + F[0, 1] * S[1]
+        P10 = F[1, 0] * S[0] + F[1, 1] * S[2]
+        P11 = F[1, 0] * S[2] + F[1, 1] * S[1]
+        Pw = np.stack([np.stack([P00 * w, P01 * w]), np.stack([P10 * w, P11 * w])])
+        re = np.einsum("iLeq,aLeq->eai", Pw, self.dN, optimize=True).reshape(-1)
+        residual = np.bincount(self.scatter_r, weights=re, minlength=self.n_free + 1)[:-1]
+        data = None
+        if tangent:
+            data = self._tangent(F, S, D)
+        return Evaluation(residual, data, new_states, ok=True, min_J=min_J)
+
+    def _tangent(self, F: np.ndarray, S: np.ndarray, D: np.ndarray) -> np.ndarray:
+        dN = self.dN
+        w = self.w
+        # B[v, a, i] (Voigt strain variation of node a, component i)
+        B = np.empty((3, 6, 2, self.n_el, self.n_q))
+        for i in range(2):
+            B[0, :, i] = F[i, 0] * dN[:, 0]
+            B[1, :, i] = F[i, 1] * dN[:, 1]
+            B[2, :, i] = F[i, 0] * dN[:, 1] + F[i, 1] * dN[:, 0]
+        Bm = B.reshape(3, 12, self.n_el, self.n_q).transpose(2, 3, 0, 1)  # (e, q, 3, 12)
+        Dw = (D * w).transpose(2, 3, 0, 1)  # (e, q, 3, 3)
+        DB = Dw @ Bm
+        Ke = np.einsum("eqvA,eqvB->eAB", Bm, DB, optimize=True)
+        # geometric stiffness  G_ab = sum_q w dN_aJ S_JL dN_bL, on both components
+        SdN0 = S[0] * dN[:, 0] + S[2] * dN[:, 1]
+        SdN1 = S[2] * dN[:, 0] + S[1] * dN[:, 1]
+        G = np.einsum("aeq,beq->eab", SdN0 * w, dN[:, 0], optimize=True) + np.einsum(
+            "aeq,beq->eab", SdN1 * w, dN[:, 1], optimize=True
+        )
+        Ke4 = Ke.reshape(self.n_el, 6, 2, 6, 2)
+        Ke4[:, :, 0, :, 0] += G
+        Ke4[:, :, 1, :, 1] += G
+        return np.bincount(self.scatter_K, weights=Ke.reshape(-1), minlength=self.nnz + 1)[:-1]

@@ -1,0 +1,151 @@
+"""Conforming triangle meshes of the layered half cross-section (Triangle + scikit-fem).
+
+The half x >= 0 is meshed with quality triangles (no angle below 30 degrees) that conform to the
+layer interfaces. The target element size grows linearly with the distance from the apex, where
+the plate and the wedge touch: ``h = min(h_max, h_apex + grading * distance)``. The elements are
+P2 (six-node) triangles in the solver; the boundary is the polygon through the sampled nodes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import triangle
+from skfem import MeshTri
+
+from .geometry import Geometry, sample_curve
+
+__all__ = ["DEFAULT_MESH", "FingertipMesh", "MeshOptions", "build_mesh"]
+
+
+@dataclass(frozen=True)
+class MeshOptions:
+    """Element sizes in mm: at the apex, growth per mm of distance from it, and the cap."""
+
+    h_apex_mm: float = 0.05
+    grading: float = 0.3
+    h_max_mm: float = 0.6
+
+    def size(self, points: np.ndarray, apex: tuple[float, float]) -> np.ndarray:
+        d = np.hypot(points[..., 0] - apex[0], points[..., 1] - apex[1])
+        return np.minimum(self.h_max_mm, self.h_apex_mm + self.grading * d)
+
+    def refined(self, factor: float) -> MeshOptions:
+        """All sizes divided by ``factor`` (for convergence studies)."""
+        return MeshOptions(self.h_apex_mm / factor, self.grading / factor, self.h_max_mm / factor)
+
+
+DEFAULT_MESH = MeshOptions()
+
+
+@dataclass(frozen=True)
+class FingertipMesh:
+    """A linear triangle mesh of the half section with its labelled boundaries.
+
+    Attributes:
+        mesh: scikit-fem ``MeshTri`` (vertices ``p`` (2, n), triangles ``t`` (3, m)).
+        layer: (m,) layer index of each triangle, 0 = outermost.
+        surface: vertex indices of the free outer surface ordered from the apex to the base
+            corner.
+        base: vertex indices on the bonded base y = 0 (fully fixed).
+        axis: vertex indices on the symmetry axis x = 0 (u_x = 0).
+    """
+
+    mesh: MeshTri
+    layer: np.ndarray
+    surface: np.ndarray
+    base: np.ndarray
+    axis: np.ndarray
+
+
+def build_mesh(
+    geometry: Geometry, thicknesses_mm: tuple[float, ...] = (), options: MeshOptions = DEFAULT_MESH
+) -> FingertipMesh:
+    """Mesh the half section with interfaces at the cumulative depths of ``thicknesses_mm``.
+
+    ``thicknesses_mm`` are the thicknesses of all layers but the last (outermost first).
+    """
+    a, b, n = geometry.half_width_mm, geometry.height_mm, geometry.exponent
+    apex = (0.0, b)
+
+    def size(p: np.ndarray) -> np.ndarray:
+        return options.size(p, apex)
+
+    depths = np.cumsum(thicknesses_mm) if thicknesses_mm else np.zeros(0)
+    curves = [sample_curve(a, b, n, size)]
+    curves += [sample_curve(a - d, b - d, n, size) for d in depths]
+
+    vertices: list[np.ndarray] = []
+    segments: list[np.ndarray] = []
+    offset = 0
+    for curve in curves:
+        vertices.append(curve)
+        idx = np.arange(offset, offset + len(curve))
+        segments.append(np.column_stack([idx[:-1], idx[1:]]))
+        offset += len(curve)
+    origin = offset
+    vertices.append(np.array([[0.0, 0.0]]))
+    # curve k starts at the apex (0, b_k) on the axis and ends at (a_k, 0) on the base
+    starts = [0, *np.cumsum([len(c) for c in curves])[:-1]]
+    ends = [s + len(c) - 1 for s, c in zip(starts, curves, strict=True)]
+    chain_axis = [*starts, origin]
+    chain_base = [*ends, origin]
+    for chain in (chain_axis, chain_base):
+        segments.append(np.column_stack([chain[:-1], chain[1:]]))
+    pts = np.vstack(vertices)
+    segs = np.vstack(segments)
+
+    # one region point per layer, just right of the axis, halfway between its bounding curves
+    bounds = [0.0, *depths.tolist(), b]
+    regions = [
+        [1e-3 * options.h_apex_mm, b - 0.5 * (bounds[k] + bounds[k + 1]), k, 0]
+        for k in range(len(bounds) - 1)
+    ]
+    area0 = np.sqrt(3) / 4 * options.h_max_mm**2
+    tri = triangle.triangulate(
+        {"vertices": pts, "segments": segs, "regions": np.array(regions)}, f"pq30Aa{area0:.8f}"
+    )
+    for _ in range(8):
+        p, t = tri["vertices"], tri["triangles"]
+        centroid = p[t].mean(axis=1)
+        target = np.sqrt(3) / 4 * size(centroid) ** 2
+        area = _areas(p, t)
+        if np.all(area <= 1.05 * target):
+            break
+        tri = triangle.triangulate(
+            {
+                "vertices": p,
+                "segments": tri["segments"],
+                "triangles": t,
+                "triangle_attributes": tri["triangle_attributes"],
+                "triangle_max_area": target,
+            },
+            "rpq30Aa",
+        )
+    p, t = tri["vertices"], tri["triangles"]
+    layer = tri["triangle_attributes"][:, 0].astype(int)
+    mesh = MeshTri(p.T.copy(), t.T.copy())
+    return FingertipMesh(mesh, layer, *_boundaries(mesh, a, b, n))
+
+
+def _areas(p: np.ndarray, t: np.ndarray) -> np.ndarray:
+    e1 = p[t[:, 1]] - p[t[:, 0]]
+    e2 = p[t[:, 2]] - p[t[:, 0]]
+    return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
+def _boundaries(mesh: MeshTri, a: float, b: float, n: float):
+    tol = 1e-9 * max(a, b)
+    facets = mesh.facets[:, mesh.boundary_facets()]
+    p = mesh.p
+    on_base = np.all(np.abs(p[1, facets]) < tol, axis=0)
+    on_axis = np.all(np.abs(p[0, facets]) < tol, axis=0)
+    base = np.unique(facets[:, on_base])
+    axis = np.unique(facets[:, on_axis])
+    surf = np.unique(facets[:, ~(on_base | on_axis)])
+    # order the outer surface from the apex to the base corner by the superellipse angle
+    x, y = p[0, surf], p[1, surf]
+    angle = np.arctan2((np.clip(y / b, 0, 1)) ** (n / 2), (np.clip(x / a, 0, 1)) ** (n / 2))
+    surf = surf[np.argsort(-angle)]
+    return surf, base, axis

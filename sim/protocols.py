@@ -1,0 +1,338 @@
+"""The paper's three loading protocols and their metrics.
+
+All forces are reported for the stated out-of-plane length L (the plane-strain force per unit
+thickness times L, times 2 for the symmetric half model); displacements in mm, time in s.
+
+- ``tapping`` (§4.1.1): force-controlled taps, each a half sine to ``peak_force_N`` lasting
+  ``1 / (2 f)`` s, then ``rest_s`` with the plate lifted off; L = 10 mm. Taps repeat until the
+  quasi-steady state: after each tap the slow Prony internal stresses are extrapolated to their
+  periodic values (a per-term Aitken jump, exact for a linear response), and taps stop when the
+  metrics change by less than ``settle_tol`` between taps. Metrics come from the last tap.
+- ``plate`` (§3.2.2): the plate pushed 1 mm at 0.2 mm/s from first touch; L = 22 mm.
+- ``wedge`` (§3.1, §4.1.2): the wedge pushed 1 mm in 1 s, then held for 100 s; L = 10 mm.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import PchipInterpolator
+
+from .contact import Plate, Wedge
+from .errors import SimulationError
+from .solver import Body, Control
+
+__all__ = [
+    "PlateOptions",
+    "ProtocolResult",
+    "TappingOptions",
+    "WedgeOptions",
+    "run_plate",
+    "run_tapping",
+    "run_wedge",
+]
+
+
+@dataclass(frozen=True)
+class TappingOptions:
+    peak_force_N: float = 5.0
+    frequency_Hz: float = 0.5  # of the half-sine: loaded for 1 / (2 f) seconds
+    rest_s: float = 1.0
+    length_mm: float = 10.0
+    steps_loaded: int = 24  # steps per tap while the plate is in contact
+    steps_rest: int = 4
+    max_taps: int = 25
+    min_taps: int = 3
+    settle_tol: float = 2e-3  # relative change of the metrics between the last two taps
+    accelerate: bool = True  # Aitken jump of the slow Prony terms after each tap
+
+
+@dataclass(frozen=True)
+class PlateOptions:
+    depth_mm: float = 1.0
+    speed_mm_per_s: float = 0.2
+    length_mm: float = 22.0
+    steps: int = 10
+
+
+@dataclass(frozen=True)
+class WedgeOptions:
+    depth_mm: float = 1.0
+    ramp_s: float = 1.0
+    hold_s: float = 100.0
+    length_mm: float = 10.0
+    tip_width_mm: float = 0.05
+    half_angle_deg: float = 30.0
+    ramp_steps: int = 10
+    hold_steps: int = 16
+    profile_length_mm: float = 7.0
+    profile_points: int = 71
+
+
+@dataclass
+class ProtocolResult:
+    """Metrics (names carry units), curves (name -> column name -> list) and solver figures."""
+
+    protocol: str
+    metrics: dict[str, float]
+    curves: dict[str, dict[str, list[float]]]
+    newton_iterations: int
+    steps: int
+    wall_time_s: float
+    info: dict = field(default_factory=dict)
+
+
+# ---------------------------------------------------------------------------- stepping
+def _march(
+    body: Body,
+    times: np.ndarray,
+    control: Callable[[float], Control],
+    protocol: str,
+    on_step: Callable[[float], None] | None = None,
+    max_cuts: int = 10,
+    frozen_first: bool = False,
+) -> int:
+    """Advance through ``times``; a failed step is halved until it converges (or gives up)."""
+    steps = 0
+    for t_target in times:
+        t_start = body.t
+        pending = [t_target]
+        cuts = 0
+        while pending:
+            t_next = pending[-1]
+            snap = body.snapshot()
+            res = body.advance(t_next, control(t_next))
+            if res.converged:
+                pending.pop()
+                steps += 1
+                if on_step is not None:
+                    on_step(t_next)
+                continue
+            body.restore(snap)
+            cuts += 1
+            if cuts > max_cuts:
+                raise SimulationError(protocol, body.t, res.reason + " after step cutting")
+            pending.append(0.5 * (body.t + t_next))
+        del t_start
+    return steps
+
+
+def _result(protocol, body, t0, it0, steps, metrics, curves, info=None) -> ProtocolResult:
+    return ProtocolResult(
+        protocol=protocol,
+        metrics=metrics,
+        curves=curves,
+        newton_iterations=body.newton_iterations - it0,
+        steps=steps,
+        wall_time_s=time.perf_counter() - t0,
+        info=info or {},
+    )
+
+
+# ---------------------------------------------------------------------------- tapping
+def _tap_times(t_load: float, n: int) -> np.ndarray:
+    """Times in [0, t_load] for a half-sine tap, dense where the displacement changes fast.
+
+    Steps are even along the curve (t / t_load, sqrt(F / F_peak)): the square root puts more steps
+    near first touch and lift-off, where a soft pulp's displacement grows like a power < 1 of the
+    force.
+    """
+    theta = np.linspace(0.0, np.pi, 4001)
+    arc = np.concatenate(
+        [[0.0], np.cumsum(np.hypot(np.diff(theta / np.pi), np.diff(np.sqrt(np.sin(theta)))))]
+    )
+    th = np.interp(np.linspace(0.0, arc[-1], n + 1), arc, theta)
+    return th / np.pi * t_load
+
+
+def _tap_metrics(t, delta, force, t_load, peak, omega):
+    """Displacements at 1 N and 4 N on the loading branch and the loop area (N mm)."""
+    t = np.asarray(t)
+    delta = np.asarray(delta)
+    force = np.asarray(force)
+    load = t <= 0.5 * t_load + 1e-12
+    fl, dl = force[load], delta[load]
+    order = np.argsort(fl)
+    d_of_f = PchipInterpolator(fl[order], dl[order])
+    d1 = float(d_of_f(1.0)) if peak >= 1.0 else float("nan")
+    d4 = float(d_of_f(4.0)) if peak >= 4.0 else float("nan")
+    # loop area = -closed integral of delta dF, F(t) = peak sin(omega t) known exactly
+    d_of_t = PchipInterpolator(t, delta)
+    tt = np.linspace(t[0], t[-1], 4001)
+    dF = peak * omega * np.cos(omega * tt)
+    hyst = -float(np.trapezoid(d_of_t(tt) * dF, tt))
+    return d1, d4, hyst
+
+
+def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> ProtocolResult:
+    """Tap until the quasi-steady state; metrics of the last tap."""
+    t0, it0 = time.perf_counter(), body.newton_iterations
+    if not isinstance(body.indenter, Plate):
+        raise ValueError("tapping needs a Plate indenter")
+    top0 = body.top_height()
+    t_load = 0.5 / opts.frequency_Hz
+    omega = np.pi / t_load
+    period = t_load + opts.rest_s
+    scale = 1.0 / (2.0 * opts.length_mm)  # N -> N/mm on the half model
+    s_load = _tap_times(t_load, opts.steps_loaded)[1:]
+    s_load[-1] = t_load * (1.0 - 1e-4)  # stop just short of zero force; the plate then lifts
+    s_rest = t_load + opts.rest_s * (np.arange(1, opts.steps_rest + 1) / opts.steps_rest) ** 1.5
+    steps = 0
+    history: list[tuple[float, float, float]] = []
+    taps: list[dict] = []
+    settled = False
+    change = float("inf")
+    for k in range(opts.max_taps):
+        t_start = body.t
+        touch = body.top_height()
+        rec_t, rec_d, rec_f = [0.0], [top0 - touch], [0.0]
+        H_start = [s.H.copy() for s in body.states]
+
+        def record(t: float, _ts=t_start, _rt=rec_t, _rd=rec_d, _rf=rec_f) -> None:
+            _rt.append(t - _ts)
+            _rd.append(top0 - body.indenter_position)
+            _rf.append(body.force / scale)
+
+        def force_at(t: float, _ts=t_start) -> Control:
+            return Control.force(opts.peak_force_N * np.sin(omega * (t - _ts)) * scale)
+
+        steps += _march(body, t_start + s_load, force_at, "tapping", record)
+        rec_t.append(t_load)
+        rec_d.append(rec_d[-1])
+        rec_f.append(0.0)
+        body.indenter_position = np.inf
+        steps += _march(body, t_start + s_rest, lambda t: Control.free(), "tapping")
+        d1, d4, hyst = _tap_metrics(rec_t, rec_d, rec_f, t_load, opts.peak_force_N, omega)
+        taps.append({"t": rec_t, "disp": rec_d, "force": rec_f, "touch": top0 - touch})
+        history.append((d1, d4, hyst))
+        if len(history) >= 2:
+            prev, cur = np.array(history[-2]), np.array(history[-1])
+            change = float(np.max(np.abs(cur - prev) / np.maximum(np.abs(cur), 1e-6)))
+            if change < opts.settle_tol and len(history) >= opts.min_taps:
+                settled = True
+                break
+        if opts.accelerate and k + 1 < opts.max_taps:
+            _jump(body, H_start, period)
+    last = taps[-1]
+    d1, d4, hyst = history[-1]
+    touch = last["touch"]
+    metrics = {
+        "disp_at_1N_mm": d1,
+        "disp_at_4N_mm": d4,
+        "disp_at_1N_from_touch_mm": d1 - touch,
+        "disp_at_4N_from_touch_mm": d4 - touch,
+        "hysteresis_Nmm": hyst,
+    }
+    curves = {
+        "tapping": {
+            "time_s": last["t"],
+            "displacement_mm": last["disp"],
+            "force_N": last["force"],
+        }
+    }
+    info = {
+        "taps": len(taps),
+        "settled": settled,
+        "last_relative_change": change,
+        "touch_mm": touch,
+        "history": [list(h) for h in history],
+    }
+    return _result("tapping", body, t0, it0, steps, metrics, curves, info)
+
+
+def _jump(body: Body, H_start: list[np.ndarray], period: float) -> None:
+    """Extrapolate each Prony internal stress to its periodic value and re-equilibrate."""
+    snap = body.snapshot()
+    for state, mat, Hs in zip(body.states, body.disc.materials, H_start, strict=True):
+        if not len(mat.prony.g):
+            continue
+        e = np.exp(-period / np.asarray(mat.prony.tau_s, dtype=float))[:, None, None, None]
+        state.H = (state.H - e * Hs) / (1.0 - e)
+    res = body.advance(body.t, Control.free(), frozen_history=True)
+    if not res.converged:  # keep the plain (unaccelerated) state rather than fail
+        body.restore(snap)
+
+
+# ---------------------------------------------------------------------------- plate
+def run_plate(body: Body, opts: PlateOptions = PlateOptions()) -> ProtocolResult:
+    """Quasi-static plate indentation from first touch to ``depth_mm``."""
+    t0, it0 = time.perf_counter(), body.newton_iterations
+    top = body.top_height()
+    duration = opts.depth_mm / opts.speed_mm_per_s
+    times = body.t + duration * np.arange(1, opts.steps + 1) / opts.steps
+    t_start = body.t
+    scale = 2.0 * opts.length_mm
+    rec_d, rec_f = [0.0], [0.0]
+
+    def position(t: float) -> Control:
+        return Control.position(top - opts.speed_mm_per_s * (t - t_start))
+
+    def record(t: float) -> None:
+        rec_d.append(top - body.indenter_position)
+        rec_f.append(body.force * scale)
+
+    steps = _march(body, times, position, "plate", record)
+    metrics = {"plate_force_at_1mm_N": float(np.interp(1.0, rec_d, rec_f))}
+    curves = {"plate": {"displacement_mm": rec_d, "force_N": rec_f}}
+    return _result("plate", body, t0, it0, steps, metrics, curves)
+
+
+# ---------------------------------------------------------------------------- wedge
+def surface_profile(body: Body, tip_half_width_mm: float, length_mm: float, n: int) -> dict:
+    """Vertical deflection of the top surface vs horizontal distance from the wedge's corner."""
+    s = body.disc.surface_nodes
+    X = body.disc.X[s]
+    x_def = X[:, 0] + body.u[s, 0]
+    y_def = X[:, 1] + body.u[s, 1]
+    order = np.argsort(x_def)
+    dist = np.linspace(0.0, length_mm, n)
+    x = tip_half_width_mm + dist
+    keep = x <= min(X[:, 0].max(), x_def.max())
+    x, dist = x[keep], dist[keep]
+    y0 = np.interp(x, X[np.argsort(X[:, 0]), 0], X[np.argsort(X[:, 0]), 1])
+    y1 = np.interp(x, x_def[order], y_def[order])
+    return {"distance_mm": dist.tolist(), "deflection_mm": (y0 - y1).tolist()}
+
+
+def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult:
+    """Wedge ramp to ``depth_mm`` in ``ramp_s`` and hold for ``hold_s``."""
+    t0, it0 = time.perf_counter(), body.newton_iterations
+    if not isinstance(body.indenter, Wedge):
+        raise ValueError("wedge protocol needs a Wedge indenter")
+    top = body.top_height()
+    t_start = body.t
+    scale = 2.0 * opts.length_mm
+    ramp = t_start + opts.ramp_s * np.arange(1, opts.ramp_steps + 1) / opts.ramp_steps
+    # hold: geometric steps from 1 % of the ramp time, hitting t = 100 s exactly
+    t_prof = 100.0 if opts.ramp_s < 100.0 < opts.ramp_s + opts.hold_s else opts.ramp_s + opts.hold_s
+    geo = np.geomspace(0.01 * opts.ramp_s, opts.hold_s, opts.hold_steps)
+    hold = np.unique(np.concatenate([opts.ramp_s + geo, [t_prof, opts.ramp_s + opts.hold_s]]))
+    hold = t_start + hold[hold > opts.ramp_s]
+    rec_t, rec_f = [0.0], [0.0]
+    profiles: dict[str, dict] = {}
+
+    def position(t: float) -> Control:
+        frac = min(1.0, (t - t_start) / opts.ramp_s)
+        return Control.position(top - opts.depth_mm * frac)
+
+    def record(t: float) -> None:
+        rec_t.append(t - t_start)
+        rec_f.append(body.force * scale)
+        for label, when in (("profile_1s", opts.ramp_s), ("profile_100s", t_prof)):
+            if abs(t - t_start - when) < 1e-9:
+                profiles[label] = surface_profile(
+                    body, 0.5 * opts.tip_width_mm, opts.profile_length_mm, opts.profile_points
+                )
+
+    steps = _march(body, ramp, position, "wedge", record)
+    steps += _march(body, hold, position, "wedge", record)
+    rec_t_arr = np.array(rec_t)
+    metrics = {
+        "wedge_peak_force_N": float(np.max(rec_f)),
+        "wedge_force_at_100s_N": float(np.interp(t_prof, rec_t_arr, rec_f)),
+    }
+    curves = {"wedge": {"time_s": rec_t, "force_N": rec_f}, **profiles}
+    return _result("wedge", body, t0, it0, steps, metrics, curves)

@@ -1,0 +1,310 @@
+"""Newton solver with penalty contact, displacement or force control, and step cutting.
+
+A ``Body`` holds the discretisation, the committed state (displacements, material history, time)
+and the contact obstacles. ``Body.advance`` takes one time step to ``t_new`` under a given control:
+
+- ``Control.position(d)``: the indenter's lowest point is at height ``d`` (mm);
+- ``Control.force(F)``: the indenter (a plate) carries the force ``F`` per unit thickness of the
+  half model (N/mm); its position is an extra unknown, solved for with a bordered (Schur
+  complement) Newton system that reuses the one factorisation for both right-hand sides;
+- ``Control.free()``: no indenter (lifted off), the body relaxes.
+
+The LDL^T factorisation (qdldl) keeps its symbolic analysis across all iterations and steps
+because the sparsity pattern never changes. Failed steps are cut by the caller
+(``sim.protocols``), never here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import qdldl
+
+from .contact import Base, surface_weights
+from .fe import Discretization, LayerState
+
+DEBUG = False
+__all__ = ["Body", "Control", "NewtonOptions", "StepResult"]
+
+
+@dataclass(frozen=True)
+class Control:
+    """How the indenter is driven during a step (see module docstring)."""
+
+    kind: str  # "position" | "force" | "free"
+    value: float = 0.0
+
+    @staticmethod
+    def position(d_mm: float) -> Control:
+        return Control("position", float(d_mm))
+
+    @staticmethod
+    def force(f_N_per_mm: float) -> Control:
+        return Control("force", float(f_N_per_mm))
+
+    @staticmethod
+    def free() -> Control:
+        return Control("free")
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    max_iterations: int = 20
+    line_search_eta: float = 0.8  # accept when |g(alpha)| <= eta |g(0)|
+    rtol: float = 1e-9  # residual tolerance relative to E0 * a (N/mm)
+    max_backtracks: int = 6
+    penalty_factor: float = 10.0  # kappa = factor * E0_max / h_apex  (N/mm^3)
+
+
+@dataclass(frozen=True)
+class StepResult:
+    converged: bool
+    iterations: int
+    reason: str = ""
+
+
+class Body:
+    """A meshed fingertip with its materials, contact obstacles and committed state."""
+
+    def __init__(
+        self,
+        disc: Discretization,
+        indenter=None,
+        options: NewtonOptions = NewtonOptions(),
+        h_apex_mm: float = 0.05,
+    ) -> None:
+        self.disc = disc
+        self.indenter = indenter
+        self.options = options
+        self.base = Base()
+        e0 = max(
+            2.0 * m.instantaneous.initial_shear_modulus_MPa * (1.0 + m.instantaneous.nu)
+            for m in disc.materials
+        )
+        self.E0_MPa = e0
+        self.kappa = options.penalty_factor * e0 / h_apex_mm
+        size = float(np.max(disc.X))
+        self.atol = options.rtol * e0 * size
+        s = disc.surface_nodes
+        self.kappa_nodes = self.kappa * surface_weights(disc.X[s])
+        dof_x = disc.gmap[2 * s]
+        dof_y = disc.gmap[2 * s + 1]
+        self._sdof = (dof_x, dof_y)
+        pos = lambda r, c: np.where(  # noqa: E731
+            (r >= 0) & (c >= 0),
+            np.searchsorted(disc._ukeys, np.maximum(r, 0) * disc.n_free + np.maximum(c, 0)),
+            -1,
+        )
+        self._kpos = (pos(dof_x, dof_x), pos(dof_x, dof_y), pos(dof_y, dof_x), pos(dof_y, dof_y))
+        # committed state
+        self.u = np.zeros((disc.n_nodes, 2))
+        self.states: list[LayerState] = disc.initial_states()
+        self.t = 0.0
+        self.indenter_position = np.inf
+        self._solver = None
+        self._last = None  # (kind, previous value, value, du, dd) of the last committed step
+        self._last_control: Control | None = None
+        self.force = 0.0
+        self.newton_iterations = 0
+        self.factorizations = 0
+
+    # ------------------------------------------------------------------ contact
+    def _contact(self, u: np.ndarray, control: Control, d: float):
+        """Contact residual contributions per surface node and the active sets."""
+        disc = self.disc
+        s = disc.surface_nodes
+        xy = disc.X[s] + u[s]
+        p_b, n_b = self.base.penetration(xy)
+        parts = [(p_b, n_b, False)]
+        if control.kind != "free" and self.indenter is not None:
+            p_i, n_i = self.indenter.penetration(xy, d)
+            parts.append((p_i, n_i, True))
+        return parts
+
+    def _add_contact(self, r: np.ndarray, data: np.ndarray | None, parts) -> tuple[float, np.ndarray]:
+        """Add penalty forces to r and stiffness to data; return indenter force and its dofs."""
+        dof_x, dof_y = self._sdof
+        k = self.kappa_nodes
+        force = 0.0
+        coupling = np.zeros(0)
+        for p, n, is_indenter in parts:
+            act = p > 0
+            if not np.any(act):
+                if is_indenter:
+                    coupling = np.zeros(len(p))
+                continue
+            f = np.where(act, k * p, 0.0)  # pushes the node along n
+            fx, fy = f * n[:, 0], f * n[:, 1]
+            ok_x, ok_y = dof_x >= 0, dof_y >= 0
+            np.add.at(r, dof_x[ok_x], -fx[ok_x])
+            np.add.at(r, dof_y[ok_y], -fy[ok_y])
+            if data is not None:
+                ka = np.where(act, k, 0.0)
+                for pos, val in zip(
+                    self._kpos,
+                    (ka * n[:, 0] ** 2, ka * n[:, 0] * n[:, 1], ka * n[:, 1] * n[:, 0], ka * n[:, 1] ** 2),
+                    strict=True,
+                ):
+                    ok = pos >= 0
+                    np.add.at(data, pos[ok], val[ok])
+            if is_indenter:
+                force = float(np.sum(-f * n[:, 1]))  # vertical force on the indenter (up > 0)
+                coupling = np.where(act, k, 0.0)
+        return force, coupling
+
+    # ------------------------------------------------------------------ evaluation
+    def _evaluate(self, u, control, d, dt, tangent, frozen=False):
+        ev = self.disc.evaluate(u, self.states, dt, tangent=tangent, frozen_history=frozen)
+        if not ev.ok:
+            return None
+        r = ev.residual.copy()
+        data = ev.tangent.copy() if tangent else None
+        force, coupling = self._add_contact(r, data, self._contact(u, control, d))
+        rd = 0.0
+        if control.kind == "force":
+            rd = control.value - force
+        return r, data, force, coupling, rd, ev.states
+
+    def _norm(self, r, rd):
+        return max(float(np.max(np.abs(r))) if r.size else 0.0, abs(rd))
+
+    def _factor(self, data):
+        A = self.disc.pattern_matrix(data)
+        if self._solver is None:
+            self._solver = qdldl.Solver(A)
+        else:
+            self._solver.update(A)
+        self.factorizations += 1
+        return self._solver
+
+    def top_height(self, u: np.ndarray | None = None) -> float:
+        """Highest point of the current outer surface (mm)."""
+        u = self.u if u is None else u
+        s = self.disc.surface_nodes
+        return float(np.max(self.disc.X[s, 1] + u[s, 1]))
+
+    # ------------------------------------------------------------------ stepping
+    def advance(self, t_new: float, control: Control, frozen_history: bool = False) -> StepResult:
+        """Solve the step to ``t_new``; commit the state only if Newton converges."""
+        disc = self.disc
+        opts = self.options
+        dt = t_new - self.t
+        u = self.u.copy()
+        d = control.value if control.kind == "position" else self.indenter_position
+        if control.kind == "force" and not np.isfinite(d):
+            d = self.top_height()
+        u, d = self._predict(u, d, control)
+        free = disc.free
+        ev = self._evaluate(u, control, d, dt, True, frozen_history)
+        if ev is None:
+            return StepResult(False, 0, "inverted element at start of step")
+        for it in range(1, opts.max_iterations + 1):
+            r, data, force, coupling, rd, states = ev
+            if control.kind == "force" and not np.any(coupling > 0):
+                # the plate lost contact: re-seat it on the highest point with a small overlap
+                s = disc.surface_nodes
+                top = int(np.argmax(disc.X[s, 1] + u[s, 1]))
+                d = self.top_height(u) - control.value / self.kappa_nodes[top]
+                ev = self._evaluate(u, control, d, dt, True, frozen_history)
+                if ev is None:
+                    return StepResult(False, it, "inverted element")
+                continue
+            norm0 = self._norm(r, rd)
+            if DEBUG: print(f"   it{it} |r|={float(np.max(np.abs(r))):.3e} rd={rd:.3e} d={d:.5f} nact={int(np.sum(coupling>0)) if control.kind=='force' else -1}")
+            if norm0 <= self.atol:
+                self._commit(u, states, t_new, d, control, force)
+                self.newton_iterations += it - 1
+                return StepResult(True, it - 1)
+            solver = self._factor(data)
+            du = solver.solve(-r)
+            dd = 0.0
+            if control.kind == "force":
+                dof_y = self._sdof[1]
+                kcol = np.zeros(disc.n_free)
+                ok = dof_y >= 0
+                np.add.at(kcol, dof_y[ok], -coupling[ok])
+                x2 = solver.solve(kcol)
+                c = float(np.sum(coupling))
+                dd = (-rd - kcol @ du) / (c - kcol @ x2)
+                du = du - x2 * dd
+            # Line search on the directional derivative g(a) = [du, dd] . residual(a), i.e. on the
+            # incremental potential (hyperelasticity, the Prony update within a step, penalty
+            # contact and the dead load on the plate are all variational). The full step is taken
+            # when it does not overshoot the minimum along the line by much; otherwise the root of
+            # g is bracketed (regula falsi). Inverted elements halve the step.
+            g0 = float(du @ r) + dd * rd
+            a_lo, g_lo = 0.0, g0
+            alpha = 1.0
+            accepted = None
+            for bt in range(opts.max_backtracks + 1):
+                u_try = u.copy()
+                u_try.reshape(-1)[free] += alpha * du
+                d_try = d + alpha * dd
+                trial = self._evaluate(u_try, control, d_try, dt, bt == 0, frozen_history)
+                if trial is None:
+                    alpha = 0.5 * (a_lo + alpha)
+                    continue
+                g = float(du @ trial[0]) + dd * trial[4]
+                if g0 >= 0.0 or abs(g) <= opts.line_search_eta * abs(g0) or bt == opts.max_backtracks:
+                    accepted = (u_try, d_try, trial)
+                    break
+                if g < 0.0:  # still descending: the minimum lies beyond alpha
+                    if alpha >= 1.0:
+                        accepted = (u_try, d_try, trial)
+                        break
+                    a_lo, g_lo = alpha, g
+                    alpha = min(1.0, 2.0 * alpha)
+                else:  # overshoot: regula falsi between a_lo and alpha
+                    alpha = a_lo - g_lo * (alpha - a_lo) / (g - g_lo)
+            if accepted is None:
+                self.newton_iterations += it
+                return StepResult(False, it, "line search failed")
+            u, d, ev = accepted
+            if ev[1] is None:  # accepted a backtracked step: its tangent is still needed
+                ev = self._evaluate(u, control, d, dt, True, frozen_history)
+        self.newton_iterations += opts.max_iterations
+        return StepResult(False, opts.max_iterations, "no convergence")
+
+    def _predict(self, u, d, control):
+        """Extrapolate the last increment in proportion to the change of the control value."""
+        prev = self._last
+        if prev is None or prev[0] != control.kind or control.kind == "free":
+            return u, d
+        kind, v_prev, v_now, du_prev, dd_prev = prev
+        if abs(v_now - v_prev) < 1e-14 * max(abs(v_now), 1e-30):
+            return u, d
+        ratio = float(np.clip((control.value - v_now) / (v_now - v_prev), -2.0, 2.0))
+        u_pred = u + ratio * du_prev
+        if control.kind == "force":
+            d = d + ratio * dd_prev
+        return u_pred, d
+
+    def _commit(self, u, states, t_new, d, control, force):
+        if self._last_control is not None and self._last_control.kind == control.kind:
+            self._last = (
+                control.kind,
+                self._last_control.value,
+                control.value,
+                u - self.u,
+                d - self.indenter_position if np.isfinite(self.indenter_position) else 0.0,
+            )
+        else:
+            self._last = None
+        self._last_control = control
+        self.u = u
+        self.states = states
+        self.t = t_new
+        self.indenter_position = d if control.kind != "free" else np.inf
+        self.force = force
+
+    def snapshot(self):
+        """Everything needed to return to the current committed state."""
+        return (self.u.copy(), [LayerState(s.S0.copy(), s.H.copy()) for s in self.states],
+                self.t, self.indenter_position)
+
+    def restore(self, snap) -> None:
+        self.u, states, self.t, self.indenter_position = snap
+        self.states = [LayerState(s.S0.copy(), s.H.copy()) for s in states]
+        self._last = None
+        self._last_control = None
