@@ -1,0 +1,231 @@
+"""Invariant-based laws (Abaqus forms): neo-Hookean, Mooney-Rivlin, Yeoh.
+
+``U = U_iso(I1b, I2b) + K/2 (J - 1)^2`` with ``I1b = J^(-2/3) I1``, ``I2b = J^(-4/3) I2`` and
+the 3D invariants of ``C`` with ``C33 = 1``: ``I1 = t + 1``, ``I2 = d + t``, ``J = sqrt(d)``
+(``t``, ``d`` = trace, determinant of the in-plane block).  ``K = 2 mu0 (1 + nu)/(3 (1 - 2 nu))``.
+Each law supplies only ``U_iso`` and its first and second derivatives; the chain rule to
+``W(t, d)`` and then to ``S`` and ``D`` is shared (:mod:`sim.materials._law`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+
+from sim.errors import DesignError
+from sim.materials import _validate as v
+from sim.materials._law import Array, Law, as_C, td_stress, td_tangent
+
+_Derivs = tuple[Any, Any]  # (U_a, U_b); None = identically zero
+_Derivs2 = tuple[Any, Any, Any]  # (U_aa, U_ab, U_bb); None = identically zero
+
+
+class InvariantLaw(Law):
+    """``U(I1b, I2b, J)`` with the isochoric part given by the subclass (MPa)."""
+
+    def _iso(self, a: Array, b: Array) -> Array:
+        """``U_iso(I1b = a, I2b = b)`` (MPa)."""
+        raise NotImplementedError
+
+    def _iso_d1(self, a: Array, b: Array) -> _Derivs:
+        """``(dU/dI1b, dU/dI2b)``."""
+        raise NotImplementedError
+
+    def _iso_d2(self, a: Array, b: Array) -> _Derivs2:
+        """``(d2U/dI1b2, d2U/dI1bdI2b, d2U/dI2b2)``."""
+        raise NotImplementedError
+
+    # -- shared chain rule --------------------------------------------------------------------
+    def _first(self, C: Array) -> tuple[Any, ...]:
+        C11, C22, C12 = C
+        t = C11 + C22
+        d = C11 * C22 - C12 * C12
+        inv_d = 1.0 / d
+        J = np.sqrt(d)
+        a_t = 1.0 / np.cbrt(d)  # d^(-1/3)
+        b_t = a_t * a_t  # d^(-2/3)
+        a = (t + 1.0) * a_t
+        b = (d + t) * b_t
+        K = self.bulk_modulus_MPa
+        U_a, U_b = self._iso_d1(a, b)
+        U_J = K * (J - 1.0)
+        a_d = -a * inv_d / 3.0
+        J_d = 0.5 * J * inv_d
+        W_t = U_a * a_t
+        W_d = U_a * a_d + U_J * J_d
+        b_d = None
+        if U_b is not None:
+            b_d = b_t * (d - 2.0 * t) * inv_d / 3.0
+            W_t = W_t + U_b * b_t
+            W_d = W_d + U_b * b_d
+        return t, d, inv_d, J, a, b, a_t, b_t, a_d, b_d, J_d, U_a, U_b, U_J, W_t, W_d
+
+    def stress(self, C: Any) -> Array:
+        """In-plane 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(3, *batch)``."""
+        C = as_C(C)
+        *_, W_t, W_d = self._first(C)
+        return td_stress(C, W_t, W_d)
+
+    def evaluate(self, C: Any) -> tuple[Array, Array, Array]:
+        """``(W, S, D)`` (MPa) at ``C``; shapes ``batch``, ``(3, *batch)``, ``(3, 3, *batch)``."""
+        C = as_C(C)
+        (t, d, inv_d, J, a, b, a_t, b_t, a_d, b_d, J_d, U_a, U_b, U_J, W_t, W_d) = self._first(C)
+        K = self.bulk_modulus_MPa
+        W = self._iso(a, b) + 0.5 * K * (J - 1.0) ** 2
+        S = td_stress(C, W_t, W_d)
+
+        U_aa, U_ab, U_bb = self._iso_d2(a, b)
+        inv_d2 = inv_d * inv_d
+        # Second derivatives of a = I1b, b = I2b, J w.r.t. (t, d) (a_tt = b_tt = 0).
+        a_td = -a_t * inv_d / 3.0
+        a_dd = (4.0 / 9.0) * a * inv_d2
+        J_dd = -0.25 * J * inv_d2
+        W_tt = 0.0
+        W_td = U_a * a_td
+        W_dd = U_a * a_dd + K * J_d * J_d + U_J * J_dd
+        if U_aa is not None:
+            W_tt = W_tt + U_aa * a_t * a_t
+            W_td = W_td + U_aa * a_t * a_d
+            W_dd = W_dd + U_aa * a_d * a_d
+        if U_b is not None:
+            b_td = -(2.0 / 3.0) * b_t * inv_d
+            b_dd = b_t * (10.0 * t - 2.0 * d) * inv_d2 / 9.0
+            W_td = W_td + U_b * b_td
+            W_dd = W_dd + U_b * b_dd
+            if U_ab is not None:
+                W_tt = W_tt + 2.0 * U_ab * a_t * b_t
+                W_td = W_td + U_ab * (a_t * b_d + a_d * b_t)
+                W_dd = W_dd + 2.0 * U_ab * a_d * b_d
+            if U_bb is not None:
+                W_tt = W_tt + U_bb * b_t * b_t
+                W_td = W_td + U_bb * b_t * b_d
+                W_dd = W_dd + U_bb * b_d * b_d
+        D = np.zeros((3, 3, *C.shape[1:]))
+        td_tangent(C, W_d, W_tt, W_td, W_dd, out=D)
+        return W, S, D
+
+    def S33(self, C: Any) -> Array:
+        """Out-of-plane 2nd Piola-Kirchhoff stress ``S33`` (MPa), shape ``batch``.
+
+        ``S33 = 2 dW/dC33`` at ``C33 = 1``: ``dI1b/dC33 = d^(-1/3) - I1b/3``,
+        ``dI2b/dC33 = t d^(-2/3) - 2 I2b/3``, ``dJ/dC33 = J/2``.
+        """
+        C = as_C(C)
+        t, _, _, J, a, b, a_t, b_t, _, _, _, U_a, U_b, U_J, _, _ = self._first(C)
+        S33 = U_a * (a_t - a / 3.0) + 0.5 * U_J * J
+        if U_b is not None:
+            S33 = S33 + U_b * (t * b_t - (2.0 / 3.0) * b)
+        return 2.0 * S33
+
+
+@dataclasses.dataclass(frozen=True)
+class NeoHookean(InvariantLaw):
+    """Compressible neo-Hookean: ``U = mu/2 (I1b - 3) + K/2 (J - 1)^2``.
+
+    ``mu_MPa``: initial shear modulus (MPa); ``nu``: initial Poisson's ratio (sets ``K``).
+    """
+
+    mu_MPa: float
+    nu: float
+
+    model: ClassVar[str] = "neo_hookean"
+    moduli_fields: ClassVar[tuple[str, ...]] = ("mu_MPa",)
+
+    @classmethod
+    def _check(cls, values: Mapping[str, Any], field: str) -> None:
+        v.positive(values["mu_MPa"], f"{field}.mu_MPa")
+        v.poisson(values["nu"], f"{field}.nu")
+
+    @property
+    def initial_shear_modulus_MPa(self) -> float:
+        """``mu0 = mu`` (MPa)."""
+        return self.mu_MPa
+
+    def _iso(self, a: Array, b: Array) -> Array:
+        return 0.5 * self.mu_MPa * (a - 3.0)
+
+    def _iso_d1(self, a: Array, b: Array) -> _Derivs:
+        return 0.5 * self.mu_MPa, None
+
+    def _iso_d2(self, a: Array, b: Array) -> _Derivs2:
+        return None, None, None
+
+
+@dataclasses.dataclass(frozen=True)
+class MooneyRivlin(InvariantLaw):
+    """Compressible Mooney-Rivlin: ``U = C10 (I1b - 3) + C01 (I2b - 3) + K/2 (J - 1)^2``.
+
+    ``c10_MPa``, ``c01_MPa`` (MPa), ``nu``; ``mu0 = 2 (C10 + C01)`` must be > 0.
+    """
+
+    c10_MPa: float
+    c01_MPa: float
+    nu: float
+
+    model: ClassVar[str] = "mooney_rivlin"
+    moduli_fields: ClassVar[tuple[str, ...]] = ("c10_MPa", "c01_MPa")
+
+    @classmethod
+    def _check(cls, values: Mapping[str, Any], field: str) -> None:
+        mu0 = 2.0 * (values["c10_MPa"] + values["c01_MPa"])
+        if not mu0 > 0.0:
+            raise DesignError(
+                f"{field}.c10_MPa",
+                f"initial shear modulus 2 (c10_MPa + c01_MPa) must be > 0, got {mu0:g}",
+            )
+        v.poisson(values["nu"], f"{field}.nu")
+
+    @property
+    def initial_shear_modulus_MPa(self) -> float:
+        """``mu0 = 2 (C10 + C01)`` (MPa)."""
+        return 2.0 * (self.c10_MPa + self.c01_MPa)
+
+    def _iso(self, a: Array, b: Array) -> Array:
+        return self.c10_MPa * (a - 3.0) + self.c01_MPa * (b - 3.0)
+
+    def _iso_d1(self, a: Array, b: Array) -> _Derivs:
+        return self.c10_MPa, self.c01_MPa
+
+    def _iso_d2(self, a: Array, b: Array) -> _Derivs2:
+        return None, None, None
+
+
+@dataclasses.dataclass(frozen=True)
+class Yeoh(InvariantLaw):
+    """Compressible Yeoh: ``U = sum_i Ci0 (I1b - 3)^i + K/2 (J - 1)^2``, ``i = 1..3``.
+
+    ``c10_MPa`` (> 0), ``c20_MPa``, ``c30_MPa`` (MPa, default 0), ``nu``; ``mu0 = 2 C10``.
+    """
+
+    c10_MPa: float
+    c20_MPa: float = 0.0
+    c30_MPa: float = 0.0
+    nu: float = dataclasses.field(kw_only=True)
+
+    model: ClassVar[str] = "yeoh"
+    moduli_fields: ClassVar[tuple[str, ...]] = ("c10_MPa", "c20_MPa", "c30_MPa")
+
+    @classmethod
+    def _check(cls, values: Mapping[str, Any], field: str) -> None:
+        v.positive(values["c10_MPa"], f"{field}.c10_MPa")
+        v.poisson(values["nu"], f"{field}.nu")
+
+    @property
+    def initial_shear_modulus_MPa(self) -> float:
+        """``mu0 = 2 C10`` (MPa)."""
+        return 2.0 * self.c10_MPa
+
+    def _iso(self, a: Array, b: Array) -> Array:
+        x = a - 3.0
+        return x * (self.c10_MPa + x * (self.c20_MPa + x * self.c30_MPa))
+
+    def _iso_d1(self, a: Array, b: Array) -> _Derivs:
+        x = a - 3.0
+        return self.c10_MPa + x * (2.0 * self.c20_MPa + 3.0 * self.c30_MPa * x), None
+
+    def _iso_d2(self, a: Array, b: Array) -> _Derivs2:
+        x = a - 3.0
+        return 2.0 * self.c20_MPa + 6.0 * self.c30_MPa * x, None, None

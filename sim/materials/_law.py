@@ -1,0 +1,198 @@
+"""Common machinery of the hyperelastic laws.
+
+Conventions (shared by every law, plane strain, total Lagrangian, ``C33 = 1``):
+
+* ``C`` has shape ``(3, *batch)`` = ``[C11, C22, C12]`` (in-plane right Cauchy-Green tensor).
+* ``W`` (MPa = N/mm^2) has shape ``batch``.
+* ``S`` = ``2 dW/dC`` (MPa) has shape ``(3, *batch)`` = ``[S11, S22, S12]``.
+* ``D`` = ``4 d2W/dCdC`` (MPa) has shape ``(3, 3, *batch)``, Voigt form with engineering shear:
+  ``dS_i = D_ij dE_j`` with ``dE = [dE11, dE22, 2 dE12]``; it is symmetric.
+
+Many laws are functions of ``t = tr C`` and ``d = det C`` of the 2x2 block only (``I1 = t + 1``,
+``I2 = d + t``, ``J = sqrt(d)``).  ``dt/dC = I`` and ``dd/dC = cof C`` (linear in ``C``), so the
+stress and tangent follow from the derivatives of ``W(t, d)`` exactly, without eigenvalues
+(:func:`td_stress`, :func:`td_tangent`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Mapping
+from typing import Any, ClassVar, Self
+
+import numpy as np
+
+from sim.errors import DesignError
+from sim.materials import _validate as v
+
+Array = np.ndarray
+
+# Maximum number of terms in a list-valued law parameter (hyperfoam N).
+MAX_TERMS = 3
+
+
+def as_C(C: Any) -> Array:
+    """``C`` as a float array of shape ``(3, *batch)``."""
+    C = np.asarray(C, dtype=float)
+    if C.ndim < 1 or C.shape[0] != 3:
+        raise ValueError(f"C must have shape (3, *batch) = [C11, C22, C12], got {C.shape}")
+    return C
+
+
+def td_stress(C: Array, W_t: Any, W_d: Any) -> Array:
+    """``S = 2 (W_t I + W_d cof C)`` for ``W(t, d)``; ``W_t`` may be ``None`` (zero)."""
+    C11, C22, C12 = C
+    S = np.empty_like(C)
+    S[0] = 2.0 * W_d * C22
+    S[1] = 2.0 * W_d * C11
+    S[2] = -2.0 * W_d * C12
+    if W_t is not None:
+        S[0] += 2.0 * W_t
+        S[1] += 2.0 * W_t
+    return S
+
+
+def td_tangent(C: Array, W_d: Any, W_tt: Any, W_td: Any, W_dd: Any, out: Array) -> Array:
+    """Add the Voigt tangent of ``W(t, d)`` to ``out`` (shape ``(3, 3, *batch)``) and return it.
+
+    ``D = 4 (W_tt I(x)I + W_td (I(x)cof + cof(x)I) + W_dd cof(x)cof) + 4 W_d dcof/dC`` where,
+    in Voigt form with engineering shear, ``4 dcof/dC = [[0, 4, 0], [4, 0, 0], [0, 0, -2]]``
+    (``cof = [C22, C11, -C12]`` and ``dC = 2 dE``, ``dC12 = gamma``).  ``W_tt`` and ``W_td`` may
+    be ``None`` (zero).
+    """
+    C11, C22, C12 = C
+    W_tt = 0.0 if W_tt is None else W_tt
+    W_td = 0.0 if W_td is None else W_td
+    out[0, 0] += 4.0 * (W_tt + C22 * (2.0 * W_td + W_dd * C22))
+    out[1, 1] += 4.0 * (W_tt + C11 * (2.0 * W_td + W_dd * C11))
+    d01 = 4.0 * (W_tt + W_td * (C11 + C22) + W_dd * C11 * C22 + W_d)
+    d02 = -4.0 * C12 * (W_td + W_dd * C22)
+    d12 = -4.0 * C12 * (W_td + W_dd * C11)
+    out[0, 1] += d01
+    out[1, 0] += d01
+    out[0, 2] += d02
+    out[2, 0] += d02
+    out[1, 2] += d12
+    out[2, 1] += d12
+    out[2, 2] += 4.0 * W_dd * C12 * C12 - 2.0 * W_d
+    return out
+
+
+def bulk_modulus(mu0: float, nu: float) -> float:
+    """Initial bulk modulus ``K = 2 mu0 (1 + nu) / (3 (1 - 2 nu))`` (MPa)."""
+    return 2.0 * mu0 * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu))
+
+
+def list_field(**kwargs: Any) -> Any:
+    """A dataclass field holding a tuple of floats (a list in the design file)."""
+    return dataclasses.field(metadata={"list": True}, **kwargs)
+
+
+class Law:
+    """Base of the hyperelastic laws (frozen dataclasses).
+
+    Subclasses define the dataclass fields (the design-file keys; tuple fields marked with
+    :func:`list_field` are lists there), ``model`` (registry name), ``moduli_fields`` (the fields
+    that scale with the moduli), ``_check`` (physical validation) and the evaluation methods.
+    """
+
+    model: ClassVar[str]
+    moduli_fields: ClassVar[tuple[str, ...]]
+    nu: float
+
+    # --- construction and validation -------------------------------------------------------
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            value = getattr(self, f.name)
+            if f.metadata.get("list"):
+                value = v.number_list(value, f"{self.model}.{f.name}", 1, MAX_TERMS)
+            else:
+                value = v.number(value, f"{self.model}.{f.name}")
+            object.__setattr__(self, f.name, value)
+        self._check(self._values(), self.model)
+
+    def _values(self) -> dict[str, Any]:
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+
+    @classmethod
+    def _check(cls, values: Mapping[str, Any], field: str) -> None:
+        """Raise ``DesignError(f"{field}.{key}", ...)`` for physically invalid parameters."""
+        raise NotImplementedError
+
+    @classmethod
+    def keys(cls) -> tuple[str, ...]:
+        """The design-file keys of this law (besides ``model``)."""
+        return tuple(f.name for f in dataclasses.fields(cls))
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], field: str) -> Self:
+        """Build the law from a design-file table; errors name ``f"{field}.{key}"``.
+
+        ``params`` holds the law's keys and optionally ``model`` (which must then be this
+        law's name).
+        """
+        params = dict(params)
+        model = params.pop("model", cls.model)
+        if model != cls.model:
+            raise DesignError(f"{field}.model", f"must be {cls.model!r}, got {model!r}")
+        v.known_keys(params, (*cls.keys(), "model"), field)
+        values: dict[str, Any] = {}
+        for f in dataclasses.fields(cls):
+            key = f"{field}.{f.name}"
+            if f.name not in params:
+                if f.default is dataclasses.MISSING:
+                    raise DesignError(key, "is required")
+                values[f.name] = f.default
+            elif f.metadata.get("list"):
+                values[f.name] = v.number_list(params[f.name], key, 1, MAX_TERMS)
+            else:
+                values[f.name] = v.number(params[f.name], key)
+        cls._check(values, field)
+        return cls(**values)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The design-file form (``model`` plus the law's keys); round-trips via ``from_params``."""
+        out: dict[str, Any] = {"model": self.model}
+        for name, value in self._values().items():
+            out[name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+    def scaled(self, factor: float) -> Self:
+        """The same law with every modulus multiplied by ``factor`` (> 0); ``nu`` is kept."""
+        if not factor > 0.0:
+            raise ValueError(f"factor must be > 0, got {factor}")
+        changes: dict[str, Any] = {}
+        for name in self.moduli_fields:
+            value = getattr(self, name)
+            if isinstance(value, tuple):
+                changes[name] = tuple(factor * x for x in value)
+            else:
+                changes[name] = factor * value
+        return dataclasses.replace(self, **changes)  # type: ignore[type-var]
+
+    # --- moduli ------------------------------------------------------------------------------
+    @property
+    def initial_shear_modulus_MPa(self) -> float:
+        """Initial (small-strain) shear modulus ``mu0`` (MPa)."""
+        raise NotImplementedError
+
+    @property
+    def bulk_modulus_MPa(self) -> float:
+        """Initial (small-strain) bulk modulus ``K0 = 2 mu0 (1 + nu) / (3 (1 - 2 nu))`` (MPa)."""
+        return bulk_modulus(self.initial_shear_modulus_MPa, self.nu)
+
+    # --- evaluation (overridden) --------------------------------------------------------------
+    def evaluate(self, C: Any) -> tuple[Array, Array, Array]:
+        """``(W, S, D)`` at ``C`` (shape ``(3, *batch)``); see the module docstring (MPa)."""
+        raise NotImplementedError
+
+    def stress(self, C: Any) -> Array:
+        """In-plane 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(3, *batch)``; no tangent."""
+        raise NotImplementedError
+
+    def S33(self, C: Any) -> Array:
+        """Out-of-plane 2nd Piola-Kirchhoff stress ``S33`` (MPa), shape ``batch``.
+
+        With ``F33 = 1`` the Cauchy stress is ``sigma33 = S33 / J``, ``J = sqrt(det C)``.
+        """
+        raise NotImplementedError
