@@ -5,12 +5,11 @@ Each obstacle reports, for the current positions of the surface nodes, the penet
 The contact force on a node is ``kappa_i * p * n`` with ``kappa_i = kappa * w_i``: a penalty per
 unit area ``kappa`` (N/mm^3, per unit thickness) times the node's share ``w_i`` of the surface
 length (the P2 boundary weights 1/6, 2/3, 1/6 of each edge), so that the penetration equals the
-contact pressure divided by ``kappa`` whatever the node. Every face is flat, so the penalty
-tangent ``kappa_i n n^T`` is exact away from the obstacles' corners.
+contact pressure divided by ``kappa`` whatever the node.
 
 Positions: an indenter's ``position_mm`` is the height y of its lowest point (plate face or wedge
-tip). The wedge has a flat tip of width ``tip_width_mm`` centred on x = 0 and flanks at
-``half_angle_deg`` from the vertical.
+tip). Where an obstacle's surface is curved (the wedge's rounded tip) the tangent includes the
+rotation of the normal, ``-kappa_i p / rho (I - n n^T)``.
 """
 
 from __future__ import annotations
@@ -37,29 +36,53 @@ class Plate:
 
 @dataclass(frozen=True)
 class Wedge:
-    """Sharp rigid wedge pressing down, tip at (0, position_mm); the half x >= 0 is modelled."""
+    """Rigid wedge pressing down: flanks at ``half_angle_deg`` from the vertical, and a tip
+    rounded to a circle tangent to both flanks whose tangent points are ``tip_width_mm`` apart
+    (radius R = tip_width / (2 cos(half_angle))). The rounding keeps the obstacle's surface C1,
+    so Newton's method sees a continuous normal. ``position_mm`` is the tip's lowest point.
+    """
 
     tip_width_mm: float = 0.05
     half_angle_deg: float = 30.0
     name = "wedge"
 
+    @property
+    def radius_mm(self) -> float:
+        return 0.5 * self.tip_width_mm / np.cos(np.radians(self.half_angle_deg))
+
     def surface_height(self, x: np.ndarray, position_mm: float) -> np.ndarray:
         """Height of the wedge's lower outline above x (mm)."""
-        cot = 1.0 / np.tan(np.radians(self.half_angle_deg))
-        return position_mm + np.maximum(0.0, np.abs(x) - 0.5 * self.tip_width_mm) * cot
+        th = np.radians(self.half_angle_deg)
+        R = self.radius_mm
+        yc = position_mm + R
+        xa = np.abs(x)
+        on_arc = xa <= R * np.cos(th)
+        arc = yc - np.sqrt(np.maximum(R**2 - xa**2, 0.0))
+        # flank: tangent to the circle at (R cos th, yc - R sin th)
+        flank = yc - R * np.sin(th) + (xa - R * np.cos(th)) / np.tan(th)
+        return np.where(on_arc, arc, flank)
 
     def penetration(self, xy: np.ndarray, position_mm: float):
-        th = np.radians(self.half_angle_deg)
-        x, y = xy[:, 0], xy[:, 1]
-        depth_tip = y - position_mm
-        depth_flank = (y - position_mm - (x - 0.5 * self.tip_width_mm) / np.tan(th)) * np.sin(th)
-        use_flank = depth_flank < depth_tip
-        p = np.minimum(depth_tip, depth_flank)
-        n = np.zeros_like(xy)
-        n[:, 1] = -1.0
-        n[use_flank, 0] = np.cos(th)
-        n[use_flank, 1] = -np.sin(th)
+        p, n, _ = self.penetration_curvature(xy, position_mm)
         return p, n
+
+    def penetration_curvature(self, xy: np.ndarray, position_mm: float):
+        """Penetration, normal, and curvature 1/rho of the normal field (0 on the flanks)."""
+        th = np.radians(self.half_angle_deg)
+        R = self.radius_mm
+        # the wedge is the set of points within R of the sharp core wedge with apex c
+        cy = position_mm + R / np.sin(th)
+        rel = xy - np.array([0.0, cy])
+        n_f = np.array([np.cos(th), -np.sin(th)])  # outward normal of the right flank
+        t_f = np.array([np.sin(th), np.cos(th)])  # flank direction, up and out
+        s = rel @ n_f
+        tau = rel @ t_f
+        rho = np.hypot(rel[:, 0], rel[:, 1])
+        near_apex = (tau < 0.0) & (s > 0.0)
+        dist = np.where(near_apex, rho, s)
+        n = np.where(near_apex[:, None], rel / np.maximum(rho, 1e-300)[:, None], n_f[None, :])
+        curvature = np.where(near_apex, 1.0 / np.maximum(rho, 1e-300), 0.0)
+        return R - dist, n, curvature
 
 
 @dataclass(frozen=True)

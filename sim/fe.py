@@ -115,6 +115,14 @@ class Discretization:
         self.indices = self.pattern_cols.astype(np.int32)
         self.scatter_r = np.where(fe >= 0, fe, self.n_free).ravel()
         self.diag_pos = np.searchsorted(ukeys, np.arange(self.n_free) * (self.n_free + 1))
+        # upper triangle in CSC order: for a symmetric pattern, the CSR lower triangle read as
+        # CSC is the upper triangle; qdldl factorises from it without any conversion per call
+        lower = self.pattern_cols <= self.pattern_rows
+        self.upper_data = np.flatnonzero(lower)
+        self.upper_indices = self.pattern_cols[lower].astype(np.int32)
+        self.upper_indptr = np.searchsorted(
+            self.pattern_rows[lower], np.arange(self.n_free + 1)
+        ).astype(np.int32)
 
     # ------------------------------------------------------------------ helpers
     def _boundary_nodes(self, vertices: np.ndarray) -> np.ndarray:
@@ -145,21 +153,26 @@ class Discretization:
         """The free-dof tangent as a CSC matrix (the pattern is symmetric, so CSR = CSC^T)."""
         return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n_free, self.n_free))
 
+    def upper_matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The upper triangle of the tangent as a CSC matrix (for the LDL^T factorisation)."""
+        return sp.csc_matrix(
+            (data[self.upper_data], self.upper_indices, self.upper_indptr),
+            shape=(self.n_free, self.n_free),
+        )
+
     def initial_states(self) -> list[LayerState]:
         states = []
         for mat, sl in zip(self.materials, self.slices, strict=True):
             n = sl.stop - sl.start
             ng = len(mat.prony.g)
-            states.append(
-                LayerState(np.zeros((3, n, self.n_q)), np.zeros((ng, 3, n, self.n_q)))
-            )
+            states.append(LayerState(np.zeros((3, n, self.n_q)), np.zeros((ng, 3, n, self.n_q))))
         return states
 
     # ------------------------------------------------------------------ kinematics
     def deformation_gradient(self, u: np.ndarray) -> np.ndarray:
         """F with shape (2, 2, n_el, n_q) for nodal displacements u (n_nodes, 2)."""
         ue = u[self.edofs_scalar]  # (n_el, 6, 2)
-        F = np.einsum("eai,aJeq->iJeq", ue, self.dN, optimize=True)
+        F = np.einsum("eai,aJeq->iJeq", ue, self.dN)
         F[0, 0] += 1.0
         F[1, 1] += 1.0
         return F
@@ -191,23 +204,26 @@ class Discretization:
         S = np.empty_like(C)
         D = np.empty((3, 3, self.n_el, self.n_q)) if tangent else None
         new_states = []
-        for mat, sl, st in zip(self.materials, self.slices, states, strict=True):
-            law = mat.instantaneous
-            if tangent:
-                _, S0, D0 = law.evaluate(C[:, sl])
-            else:
-                S0 = law.stress(C[:, sl])
-            if frozen_history:
-                g = np.asarray(mat.prony.g, dtype=float)
-                Hk = st.H
-                Sk = mat.prony.g_inf * S0 + np.tensordot(g, Hk, axes=1)
-                factor = mat.prony.g_inf
-            else:
-                Sk, Hk, factor = mat.prony.update(S0, st.S0, st.H, dt_s)
-            S[:, sl] = Sk
-            if tangent:
-                D[:, :, sl] = factor * D0
-            new_states.append(LayerState(S0, Hk))
+        with np.errstate(all="ignore"):  # extreme trial states are rejected, not warned about
+            for mat, sl, st in zip(self.materials, self.slices, states, strict=True):
+                law = mat.instantaneous
+                if tangent:
+                    _, S0, D0 = law.evaluate(C[:, sl])
+                else:
+                    S0 = law.stress(C[:, sl])
+                if frozen_history:
+                    g = np.asarray(mat.prony.g, dtype=float)
+                    Hk = st.H
+                    Sk = mat.prony.g_inf * S0 + np.tensordot(g, Hk, axes=1)
+                    factor = mat.prony.g_inf
+                else:
+                    Sk, Hk, factor = mat.prony.update(S0, st.S0, st.H, dt_s)
+                S[:, sl] = Sk
+                if tangent:
+                    D[:, :, sl] = factor * D0
+                new_states.append(LayerState(S0, Hk))
+        if not np.all(np.isfinite(S)) or (tangent and not np.all(np.isfinite(D))):
+            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
         w = self.w
         # first Piola-Kirchhoff P = F S  (2x2), residual r_ai = sum_q w P_iL dN_aL
         P00 = F[0, 0] * S[0] + F[0, 1] * S[2]
@@ -215,7 +231,7 @@ class Discretization:
         P10 = F[1, 0] * S[0] + F[1, 1] * S[2]
         P11 = F[1, 0] * S[2] + F[1, 1] * S[1]
         Pw = np.stack([np.stack([P00 * w, P01 * w]), np.stack([P10 * w, P11 * w])])
-        re = np.einsum("iLeq,aLeq->eai", Pw, self.dN, optimize=True).reshape(-1)
+        re = np.einsum("iLeq,aLeq->eai", Pw, self.dN).reshape(-1)
         residual = np.bincount(self.scatter_r, weights=re, minlength=self.n_free + 1)[:-1]
         data = None
         if tangent:
@@ -223,25 +239,32 @@ class Discretization:
         return Evaluation(residual, data, new_states, ok=True, min_J=min_J)
 
     def _tangent(self, F: np.ndarray, S: np.ndarray, D: np.ndarray) -> np.ndarray:
+        """Element stiffness (material + geometric) scattered into the fixed CSR pattern."""
         dN = self.dN
         w = self.w
-        # B[v, a, i] (Voigt strain variation of node a, component i)
-        B = np.empty((3, 6, 2, self.n_el, self.n_q))
+        ne, nq = self.n_el, self.n_q
+        # B[e, q, v, (a, i)]: Voigt strain variation of node a, component i
+        B = np.empty((ne, nq, 3, 6, 2))
+        dN0 = dN[:, 0].transpose(1, 2, 0)  # (e, q, a)
+        dN1 = dN[:, 1].transpose(1, 2, 0)
         for i in range(2):
-            B[0, :, i] = F[i, 0] * dN[:, 0]
-            B[1, :, i] = F[i, 1] * dN[:, 1]
-            B[2, :, i] = F[i, 0] * dN[:, 1] + F[i, 1] * dN[:, 0]
-        Bm = B.reshape(3, 12, self.n_el, self.n_q).transpose(2, 3, 0, 1)  # (e, q, 3, 12)
+            Fi0 = F[i, 0][:, :, None]
+            Fi1 = F[i, 1][:, :, None]
+            B[:, :, 0, :, i] = Fi0 * dN0
+            B[:, :, 1, :, i] = Fi1 * dN1
+            B[:, :, 2, :, i] = Fi0 * dN1 + Fi1 * dN0
+        B = B.reshape(ne, nq, 3, 12)
         Dw = (D * w).transpose(2, 3, 0, 1)  # (e, q, 3, 3)
-        DB = Dw @ Bm
-        Ke = np.einsum("eqvA,eqvB->eAB", Bm, DB, optimize=True)
+        DB = (Dw @ B).reshape(ne, 3 * nq, 12)
+        Ke = B.reshape(ne, 3 * nq, 12).transpose(0, 2, 1) @ DB  # (e, 12, 12)
         # geometric stiffness  G_ab = sum_q w dN_aJ S_JL dN_bL, on both components
-        SdN0 = S[0] * dN[:, 0] + S[2] * dN[:, 1]
-        SdN1 = S[2] * dN[:, 0] + S[1] * dN[:, 1]
-        G = np.einsum("aeq,beq->eab", SdN0 * w, dN[:, 0], optimize=True) + np.einsum(
-            "aeq,beq->eab", SdN1 * w, dN[:, 1], optimize=True
-        )
-        Ke4 = Ke.reshape(self.n_el, 6, 2, 6, 2)
+        Sw = S * w
+        SdN0 = Sw[0][:, :, None] * dN0 + Sw[2][:, :, None] * dN1  # (e, q, a)
+        SdN1 = Sw[2][:, :, None] * dN0 + Sw[1][:, :, None] * dN1
+        left = np.concatenate([SdN0, SdN1], axis=1).transpose(0, 2, 1)  # (e, a, 2q)
+        right = np.concatenate([dN0, dN1], axis=1)  # (e, 2q, b)
+        G = left @ right
+        Ke4 = Ke.reshape(ne, 6, 2, 6, 2)
         Ke4[:, :, 0, :, 0] += G
         Ke4[:, :, 1, :, 1] += G
         return np.bincount(self.scatter_K, weights=Ke.reshape(-1), minlength=self.nnz + 1)[:-1]

@@ -70,9 +70,7 @@ def superellipse_points(a: float, b: float, n: float, theta: np.ndarray) -> np.n
     return np.column_stack([a * c ** (2.0 / n), b * s ** (2.0 / n)])
 
 
-def sample_curve(
-    a: float, b: float, n: float, size_fn, n_fine: int = 4000
-) -> np.ndarray:
+def sample_curve(a: float, b: float, n: float, size_fn, n_fine: int = 4000) -> np.ndarray:
     """Sample the quarter superellipse from the apex (0, b) to the corner (a, 0).
 
     The spacing follows the target element size ``size_fn(points) -> h_mm`` (integrating

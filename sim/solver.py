@@ -52,7 +52,8 @@ class Control:
 class NewtonOptions:
     max_iterations: int = 20
     line_search_eta: float = 0.8  # accept when |g(alpha)| <= eta |g(0)|
-    rtol: float = 1e-9  # residual tolerance relative to E0 * a (N/mm)
+    min_step: float = 1e-3  # a line search ending below this fraction of the step fails
+    rtol: float = 1e-7  # residual tolerance relative to E0 * a (N/mm)
     max_backtracks: int = 6
     penalty_factor: float = 10.0  # kappa = factor * E0_max / h_apex  (N/mm^3)
 
@@ -111,28 +112,35 @@ class Body:
 
     # ------------------------------------------------------------------ contact
     def _contact(self, u: np.ndarray, control: Control, d: float):
-        """Contact residual contributions per surface node and the active sets."""
+        """(penetration, normal, normal curvature, is_indenter) per obstacle at the surface nodes."""
         disc = self.disc
         s = disc.surface_nodes
         xy = disc.X[s] + u[s]
         p_b, n_b = self.base.penetration(xy)
-        parts = [(p_b, n_b, False)]
+        parts = [(p_b, n_b, None, False)]
         if control.kind != "free" and self.indenter is not None:
-            p_i, n_i = self.indenter.penetration(xy, d)
-            parts.append((p_i, n_i, True))
+            if hasattr(self.indenter, "penetration_curvature"):
+                p_i, n_i, k_i = self.indenter.penetration_curvature(xy, d)
+            else:
+                (p_i, n_i), k_i = self.indenter.penetration(xy, d), None
+            parts.append((p_i, n_i, k_i, True))
         return parts
 
-    def _add_contact(self, r: np.ndarray, data: np.ndarray | None, parts) -> tuple[float, np.ndarray]:
-        """Add penalty forces to r and stiffness to data; return indenter force and its dofs."""
+    def _add_contact(
+        self, r: np.ndarray, data: np.ndarray | None, parts
+    ) -> tuple[float, np.ndarray]:
+        """Add penalty forces to r and stiffness to data; return indenter force and coupling.
+
+        The force on node i is f = kappa_i p n; its derivative is
+        kappa_i (n n^T - p * curvature * (I - n n^T)), curvature = 1/rho on a rounded surface.
+        """
         dof_x, dof_y = self._sdof
         k = self.kappa_nodes
         force = 0.0
-        coupling = np.zeros(0)
-        for p, n, is_indenter in parts:
+        coupling = np.zeros(len(k))
+        for p, n, curv, is_indenter in parts:
             act = p > 0
             if not np.any(act):
-                if is_indenter:
-                    coupling = np.zeros(len(p))
                 continue
             f = np.where(act, k * p, 0.0)  # pushes the node along n
             fx, fy = f * n[:, 0], f * n[:, 1]
@@ -141,11 +149,12 @@ class Body:
             np.add.at(r, dof_y[ok_y], -fy[ok_y])
             if data is not None:
                 ka = np.where(act, k, 0.0)
-                for pos, val in zip(
-                    self._kpos,
-                    (ka * n[:, 0] ** 2, ka * n[:, 0] * n[:, 1], ka * n[:, 1] * n[:, 0], ka * n[:, 1] ** 2),
-                    strict=True,
-                ):
+                c = 0.0 if curv is None else np.where(act, p * curv, 0.0)
+                nxx, nxy, nyy = n[:, 0] ** 2, n[:, 0] * n[:, 1], n[:, 1] ** 2
+                kxx = ka * (nxx - c * (1.0 - nxx))
+                kxy = ka * (nxy + c * nxy)
+                kyy = ka * (nyy - c * (1.0 - nyy))
+                for pos, val in zip(self._kpos, (kxx, kxy, kxy, kyy), strict=True):
                     ok = pos >= 0
                     np.add.at(data, pos[ok], val[ok])
             if is_indenter:
@@ -170,11 +179,11 @@ class Body:
         return max(float(np.max(np.abs(r))) if r.size else 0.0, abs(rd))
 
     def _factor(self, data):
-        A = self.disc.pattern_matrix(data)
+        A = self.disc.upper_matrix(data)
         if self._solver is None:
-            self._solver = qdldl.Solver(A)
+            self._solver = qdldl.Solver(A, upper=True)
         else:
-            self._solver.update(A)
+            self._solver.update(A, upper=True)
         self.factorizations += 1
         return self._solver
 
@@ -211,7 +220,10 @@ class Body:
                     return StepResult(False, it, "inverted element")
                 continue
             norm0 = self._norm(r, rd)
-            if DEBUG: print(f"   it{it} |r|={float(np.max(np.abs(r))):.3e} rd={rd:.3e} d={d:.5f} nact={int(np.sum(coupling>0)) if control.kind=='force' else -1}")
+            if DEBUG:
+                print(
+                    f"   it{it} |r|={float(np.max(np.abs(r))):.3e} rd={rd:.3e} d={d:.5f} nact={int(np.sum(coupling > 0)) if control.kind == 'force' else -1}"
+                )
             if norm0 <= self.atol:
                 self._commit(u, states, t_new, d, control, force)
                 self.newton_iterations += it - 1
@@ -246,7 +258,11 @@ class Body:
                     alpha = 0.5 * (a_lo + alpha)
                     continue
                 g = float(du @ trial[0]) + dd * trial[4]
-                if g0 >= 0.0 or abs(g) <= opts.line_search_eta * abs(g0) or bt == opts.max_backtracks:
+                if (
+                    g0 >= 0.0
+                    or abs(g) <= opts.line_search_eta * abs(g0)
+                    or bt == opts.max_backtracks
+                ):
                     accepted = (u_try, d_try, trial)
                     break
                 if g < 0.0:  # still descending: the minimum lies beyond alpha
@@ -257,7 +273,7 @@ class Body:
                     alpha = min(1.0, 2.0 * alpha)
                 else:  # overshoot: regula falsi between a_lo and alpha
                     alpha = a_lo - g_lo * (alpha - a_lo) / (g - g_lo)
-            if accepted is None:
+            if accepted is None or alpha < opts.min_step:
                 self.newton_iterations += it
                 return StepResult(False, it, "line search failed")
             u, d, ev = accepted
@@ -300,8 +316,12 @@ class Body:
 
     def snapshot(self):
         """Everything needed to return to the current committed state."""
-        return (self.u.copy(), [LayerState(s.S0.copy(), s.H.copy()) for s in self.states],
-                self.t, self.indenter_position)
+        return (
+            self.u.copy(),
+            [LayerState(s.S0.copy(), s.H.copy()) for s in self.states],
+            self.t,
+            self.indenter_position,
+        )
 
     def restore(self, snap) -> None:
         self.u, states, self.t, self.indenter_position = snap

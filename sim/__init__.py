@@ -1,0 +1,35 @@
+"""Finite-element model of a visco-hyperelastic fingertip skin under the paper's protocols.
+
+Public API: designs (``Design``, ``Layer``, ``load_design``, ``homogeneous_design``), the geometry,
+``simulate`` with its options and result, and the error types. ``sim`` never imports torch.
+"""
+
+from .design import Design, Layer, design_from_dict, homogeneous_design, load_design
+from .errors import DesignError, SimulationError
+from .geometry import REFERENCE_GEOMETRY, Geometry
+from .mesh import DEFAULT_MESH, MeshOptions
+from .protocols import PlateOptions, TappingOptions, WedgeOptions
+from .simulate import METRICS, PROTOCOLS, SOLVER_VERSION, SimOptions, SimResult, simulate
+
+__all__ = [
+    "DEFAULT_MESH",
+    "METRICS",
+    "PROTOCOLS",
+    "REFERENCE_GEOMETRY",
+    "SOLVER_VERSION",
+    "Design",
+    "DesignError",
+    "Geometry",
+    "Layer",
+    "MeshOptions",
+    "PlateOptions",
+    "SimOptions",
+    "SimResult",
+    "SimulationError",
+    "TappingOptions",
+    "WedgeOptions",
+    "design_from_dict",
+    "homogeneous_design",
+    "load_design",
+    "simulate",
+]

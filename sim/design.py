@@ -1,0 +1,158 @@
+"""Skin designs: TOML design files <-> frozen dataclasses, with validation.
+
+A design file::
+
+    [geometry]                    # optional: the reference geometry when left out
+    half_width_mm = 5.84
+    height_mm = 5.48
+    exponent = 1.5
+    [[layers]]                    # outermost first; the last layer fills the rest
+    thickness_mm = 1.0
+    material = "silicone_gls40"   # a catalogue name, or an inline table
+    [[layers]]
+    [layers.material]
+    model = "hyperfoam"
+    mu_MPa = [0.100, 0.063]
+    alpha = [5.5, 8.25]
+    nu = 0.47
+
+Every validation failure raises ``DesignError`` naming the offending field.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from .errors import DesignError
+from .geometry import REFERENCE_GEOMETRY, Geometry
+from .materials import Material, material_from_spec
+
+__all__ = [
+    "MIN_CORE_MM",
+    "MIN_LAYER_MM",
+    "Design",
+    "Layer",
+    "design_from_dict",
+    "homogeneous_design",
+    "load_design",
+]
+
+MIN_LAYER_MM = 0.1  # thinnest layer the mesh resolves
+MIN_CORE_MM = 0.5  # the last layer keeps at least this much at the apex and at the base
+
+
+@dataclass(frozen=True)
+class Layer:
+    """One layer: its material and thickness in mm (None for the last, which fills the rest)."""
+
+    material: Material
+    thickness_mm: float | None = None
+
+
+@dataclass(frozen=True)
+class Design:
+    """A fingertip skin design: geometry and 1 to 3 layers, outermost first."""
+
+    layers: tuple[Layer, ...]
+    geometry: Geometry = REFERENCE_GEOMETRY
+
+    def __post_init__(self) -> None:
+        if not 1 <= len(self.layers) <= 3:
+            raise DesignError("layers", f"must have 1 to 3 layers, got {len(self.layers)}")
+        total = 0.0
+        for k, layer in enumerate(self.layers[:-1]):
+            t = layer.thickness_mm
+            if t is None or not isinstance(t, int | float) or t < MIN_LAYER_MM:
+                raise DesignError(
+                    f"layers[{k}].thickness_mm", f"must be a number >= {MIN_LAYER_MM}, got {t!r}"
+                )
+            total += float(t)
+        if self.layers[-1].thickness_mm is not None:
+            raise DesignError(
+                f"layers[{len(self.layers) - 1}].thickness_mm",
+                "the last layer fills the rest of the body: leave its thickness out",
+            )
+        limit = min(self.geometry.half_width_mm, self.geometry.height_mm) - MIN_CORE_MM
+        if total > limit:
+            raise DesignError(
+                "layers.thickness_mm",
+                f"outer layers total {total:g} mm; must be <= {limit:g} mm "
+                f"(min(half_width, height) - {MIN_CORE_MM} mm) to leave a core",
+            )
+
+    @property
+    def thicknesses_mm(self) -> tuple[float, ...]:
+        """Thicknesses of all layers but the last."""
+        return tuple(float(layer.thickness_mm) for layer in self.layers[:-1])
+
+    @property
+    def materials(self) -> list[Material]:
+        return [layer.material for layer in self.layers]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The design-file form (inline material tables; catalogue names kept by ``name``)."""
+        layers = []
+        for layer in self.layers:
+            mat = layer.material
+            entry: dict[str, Any] = {}
+            if layer.thickness_mm is not None:
+                entry["thickness_mm"] = float(layer.thickness_mm)
+            entry["material"] = mat.name if mat.name is not None else mat.to_dict()
+            layers.append(entry)
+        return {"geometry": self.geometry.to_dict(), "layers": layers}
+
+
+def design_from_dict(data: Mapping[str, Any]) -> Design:
+    """Build and validate a design from the parsed TOML table."""
+    unknown = set(data) - {"geometry", "layers", "name", "description"}
+    if unknown:
+        raise DesignError(sorted(unknown)[0], "unknown key; allowed: geometry, layers")
+    geo = data.get("geometry", {})
+    if not isinstance(geo, Mapping):
+        raise DesignError("geometry", "must be a table")
+    extra = set(geo) - {"half_width_mm", "height_mm", "exponent"}
+    if extra:
+        raise DesignError(
+            f"geometry.{sorted(extra)[0]}",
+            "unknown key; allowed: half_width_mm, height_mm, exponent",
+        )
+    geometry = Geometry(**{**REFERENCE_GEOMETRY.to_dict(), **geo})
+    raw_layers = data.get("layers")
+    if not isinstance(raw_layers, list) or not raw_layers:
+        raise DesignError("layers", "must be an array of 1 to 3 [[layers]] tables")
+    layers = []
+    for k, raw in enumerate(raw_layers):
+        if not isinstance(raw, Mapping):
+            raise DesignError(f"layers[{k}]", "must be a table")
+        extra = set(raw) - {"thickness_mm", "material"}
+        if extra:
+            raise DesignError(
+                f"layers[{k}].{sorted(extra)[0]}", "unknown key; allowed: thickness_mm, material"
+            )
+        if "material" not in raw:
+            raise DesignError(f"layers[{k}].material", "missing: a catalogue name or a table")
+        mat = material_from_spec(raw["material"], f"layers[{k}].material")
+        layers.append(Layer(mat, raw.get("thickness_mm")))
+    return Design(tuple(layers), geometry)
+
+
+def load_design(path: str | Path) -> Design:
+    """Read and validate a design TOML file."""
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise DesignError("DESIGN", f"no such file: {path}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError("DESIGN", f"malformed TOML in {path}: {exc}") from None
+    return design_from_dict(data)
+
+
+def homogeneous_design(material: str | Material, geometry: Geometry = REFERENCE_GEOMETRY) -> Design:
+    """A one-layer design of ``material`` (catalogue name or Material) on ``geometry``."""
+    return Design((Layer(material_from_spec(material, "material")),), geometry)

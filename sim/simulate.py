@@ -1,0 +1,181 @@
+"""One full design evaluation: mesh, discretise, run the protocols, collect metrics and curves."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .contact import Plate, Wedge
+from .design import Design
+from .errors import SimulationError
+from .fe import Discretization
+from .mesh import DEFAULT_MESH, MeshOptions, build_mesh
+from .protocols import (
+    PlateOptions,
+    ProtocolResult,
+    TappingOptions,
+    WedgeOptions,
+    run_plate,
+    run_tapping,
+    run_wedge,
+)
+from .solver import Body, NewtonOptions
+
+__all__ = ["METRICS", "PROTOCOLS", "SOLVER_VERSION", "SimOptions", "SimResult", "simulate"]
+
+#: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
+SOLVER_VERSION = "1.0"
+
+PROTOCOLS = ("tapping", "plate", "wedge")
+
+#: Metric name -> (protocol, unit, description).
+METRICS: dict[str, tuple[str, str, str]] = {
+    "disp_at_1N_mm": (
+        "tapping",
+        "mm",
+        "loading-branch displacement at 1 N from the undeformed top",
+    ),
+    "disp_at_4N_mm": (
+        "tapping",
+        "mm",
+        "loading-branch displacement at 4 N from the undeformed top",
+    ),
+    "disp_at_1N_from_touch_mm": (
+        "tapping",
+        "mm",
+        "displacement at 1 N from first touch of the tap",
+    ),
+    "disp_at_4N_from_touch_mm": (
+        "tapping",
+        "mm",
+        "displacement at 4 N from first touch of the tap",
+    ),
+    "hysteresis_Nmm": ("tapping", "N mm", "area of the last tap's force-displacement loop"),
+    "plate_force_at_1mm_N": ("plate", "N", "plate force at 1 mm indentation (L = 22 mm)"),
+    "wedge_peak_force_N": ("wedge", "N", "peak wedge force, at the end of the 1 s ramp"),
+    "wedge_force_at_100s_N": ("wedge", "N", "wedge force at t = 100 s of the hold"),
+}
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """Numerical and protocol options; the defaults are the converged reference settings."""
+
+    mesh: MeshOptions = DEFAULT_MESH
+    newton: NewtonOptions = NewtonOptions()
+    tapping: TappingOptions = TappingOptions()
+    plate: PlateOptions = PlateOptions()
+    wedge: WedgeOptions = WedgeOptions()
+
+
+@dataclass(frozen=True)
+class ProtocolFailure:
+    protocol: str
+    time_s: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class SimResult:
+    """Metrics (None where a protocol failed), curves, per-protocol figures and failures."""
+
+    design: Design
+    metrics: dict[str, float | None]
+    curves: dict[str, dict[str, list[float]]]
+    protocols: dict[str, dict[str, Any]]
+    failures: tuple[ProtocolFailure, ...] = ()
+    n_dofs: int = 0
+    wall_time_s: float = 0.0
+    fields: dict[str, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
+    discretization: Any = field(default=None, repr=False, compare=False)
+
+    @property
+    def ok(self) -> bool:
+        return not self.failures
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready dict: metric names at the top level, then curves and diagnostics."""
+        return {
+            **{k: _finite(v) for k, v in self.metrics.items()},
+            "ok": self.ok,
+            "failures": [f.__dict__ for f in self.failures],
+            "curves": self.curves,
+            "protocols": self.protocols,
+            "n_dofs": self.n_dofs,
+            "wall_time_s": self.wall_time_s,
+            "solver_version": SOLVER_VERSION,
+            "design": self.design.to_dict(),
+        }
+
+
+def _finite(v: float | None) -> float | None:
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
+_RUNNERS = {
+    "tapping": (Plate, run_tapping, "tapping"),
+    "plate": (Plate, run_plate, "plate"),
+    "wedge": (Wedge, run_wedge, "wedge"),
+}
+
+
+def simulate(
+    design: Design,
+    protocols: tuple[str, ...] | list[str] = PROTOCOLS,
+    options: SimOptions = SimOptions(),
+) -> SimResult:
+    """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised."""
+    t0 = time.perf_counter()
+    for p in protocols:
+        if p not in _RUNNERS:
+            raise ValueError(f"unknown protocol {p!r}; known: {', '.join(PROTOCOLS)}")
+    fmesh = build_mesh(design.geometry, design.thicknesses_mm, options.mesh)
+    disc = Discretization(fmesh, design.materials)
+    metrics: dict[str, float | None] = {
+        name: None for name, (proto, _, _) in METRICS.items() if proto in protocols
+    }
+    curves: dict[str, dict[str, list[float]]] = {}
+    figures: dict[str, dict[str, Any]] = {}
+    failures: list[ProtocolFailure] = []
+    fields: dict[str, np.ndarray] = {}
+    for name in protocols:
+        indenter_cls, runner, _ = _RUNNERS[name]
+        opts = getattr(options, name)
+        indenter = (
+            Wedge(opts.tip_width_mm, opts.half_angle_deg) if indenter_cls is Wedge else Plate()
+        )
+        body = Body(disc, indenter, options.newton, options.mesh.h_apex_mm)
+        try:
+            res: ProtocolResult = runner(body, opts)
+        except SimulationError as exc:
+            failures.append(ProtocolFailure(exc.protocol, exc.time_s, exc.reason))
+            figures[name] = {"newton_iterations": body.newton_iterations, "failed": True}
+            continue
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+            failures.append(ProtocolFailure(name, body.t, f"{type(exc).__name__}: {exc}"))
+            figures[name] = {"newton_iterations": body.newton_iterations, "failed": True}
+            continue
+        metrics.update(res.metrics)
+        curves.update(res.curves)
+        figures[name] = {
+            "newton_iterations": res.newton_iterations,
+            "steps": res.steps,
+            "factorizations": body.factorizations,
+            "wall_time_s": res.wall_time_s,
+            **res.info,
+        }
+        fields[name] = body.u.copy()
+    return SimResult(
+        design=design,
+        metrics=metrics,
+        curves=curves,
+        protocols=figures,
+        failures=tuple(failures),
+        n_dofs=disc.n_free,
+        wall_time_s=time.perf_counter() - t0,
+        fields=fields,
+        discretization=disc,
+    )
