@@ -9,12 +9,14 @@ calls, and a scatter into a CSR pattern that is built once (``np.bincount`` into
 assembly of the same weak form and against finite differences.
 
 Array conventions: nodal displacements ``u`` have shape (n_nodes, 2); the global dof of node ``i``
-and component ``c`` is ``2 * i + c``. Dirichlet conditions are homogeneous (the bonded base and the
-symmetry axis), so fixed dofs are simply left out of the free-dof system.
+and component ``c`` is ``2 * i + c``. Constrained dofs are left out of the free-dof system and keep the values
+they hold in ``u``: zero for the fingertip (the bonded base, the symmetry axis), prescribed values
+in the patch tests.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -57,7 +59,16 @@ class Discretization:
     Elements are reordered so that each layer is a contiguous slice.
     """
 
-    def __init__(self, fmesh: FingertipMesh, materials: list[Material]) -> None:
+    def __init__(
+        self,
+        fmesh: FingertipMesh,
+        materials: list[Material],
+        fixed: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> None:
+        """``fixed(X) -> mask``: optional function of the P2 node coordinates X (n_nodes, 2)
+        returning the (n_nodes, 2) mask of constrained dofs, replacing the default (base fully
+        fixed, x fixed on the symmetry axis). Constrained dofs keep whatever value the
+        displacement array holds, so prescribed displacements are set there."""
         order = np.argsort(fmesh.layer, kind="stable")
         mesh = fmesh.mesh.__class__(fmesh.mesh.p, fmesh.mesh.t[:, order])
         self.fmesh = fmesh
@@ -79,11 +90,14 @@ class Discretization:
 
         # boundary nodes (P2 numbering): vertices keep their index; midside nodes are found by
         # position on the straight boundary facets
-        fixed = np.zeros((self.n_nodes, 2), dtype=bool)
-        base_nodes = self._boundary_nodes(fmesh.base)
-        axis_nodes = self._boundary_nodes(fmesh.axis)
-        fixed[base_nodes, :] = True
-        fixed[axis_nodes, 0] = True
+        if fixed is None:
+            mask = np.zeros((self.n_nodes, 2), dtype=bool)
+            mask[self._boundary_nodes(fmesh.base), :] = True
+            mask[self._boundary_nodes(fmesh.axis), 0] = True
+        else:
+            mask = np.asarray(fixed(self.X), dtype=bool)
+        fixed = mask
+        self.fixed = mask
         self.surface_nodes = self._ordered_surface_nodes(fmesh.surface)
         self.apex_node = int(self.surface_nodes[0])
         self.free = np.flatnonzero(~fixed.ravel())
@@ -192,10 +206,11 @@ class Discretization:
         With ``frozen_history`` the Prony internal stresses keep their committed values
         (S = g_inf S0(u) + sum g_i H_i): used to re-equilibrate after a cycle jump.
         """
-        F = self.deformation_gradient(u)
-        J = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+        with np.errstate(all="ignore"):
+            F = self.deformation_gradient(u)
+            J = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
         min_J = float(J.min())
-        if min_J <= 1e-8:
+        if not min_J > 1e-8:  # also catches NaN from an overflowing trial
             return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
         C = np.empty((3, self.n_el, self.n_q))
         C[0] = F[0, 0] ** 2 + F[1, 0] ** 2

@@ -117,9 +117,9 @@ def build_mesh(
             {
                 "vertices": p,
                 "segments": tri["segments"],
-                "triangles": t,
-                "triangle_attributes": tri["triangle_attributes"],
-                "triangle_max_area": target,
+                "triangles": np.ascontiguousarray(t),
+                "triangle_attributes": np.ascontiguousarray(tri["triangle_attributes"]),
+                "triangle_max_area": np.ascontiguousarray(target),
             },
             "rpq30Aa",
         )

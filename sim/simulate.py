@@ -147,7 +147,13 @@ def simulate(
         indenter = (
             Wedge(opts.tip_width_mm, opts.half_angle_deg) if indenter_cls is Wedge else Plate()
         )
-        body = Body(disc, indenter, options.newton, options.mesh.h_apex_mm)
+        body = Body(
+            disc,
+            indenter,
+            options.newton,
+            options.mesh.h_apex_mm,
+            getattr(opts, "penalty_factor", None),
+        )
         try:
             res: ProtocolResult = runner(body, opts)
         except SimulationError as exc:

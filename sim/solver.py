@@ -55,7 +55,7 @@ class NewtonOptions:
     min_step: float = 1e-3  # a line search ending below this fraction of the step fails
     rtol: float = 1e-7  # residual tolerance relative to E0 * a (N/mm)
     max_backtracks: int = 6
-    penalty_factor: float = 10.0  # kappa = factor * E0_max / h_apex  (N/mm^3)
+    penalty_factor: float = 10.0  # plate and base: kappa = factor * E0_max / h_apex (N/mm^3)
 
 
 @dataclass(frozen=True)
@@ -74,6 +74,7 @@ class Body:
         indenter=None,
         options: NewtonOptions = NewtonOptions(),
         h_apex_mm: float = 0.05,
+        indenter_penalty_factor: float | None = None,
     ) -> None:
         self.disc = disc
         self.indenter = indenter
@@ -89,6 +90,8 @@ class Body:
         self.atol = options.rtol * e0 * size
         s = disc.surface_nodes
         self.kappa_nodes = self.kappa * surface_weights(disc.X[s])
+        factor = indenter_penalty_factor or options.penalty_factor
+        self.kappa_indenter = self.kappa_nodes * (factor / options.penalty_factor)
         dof_x = disc.gmap[2 * s]
         dof_y = disc.gmap[2 * s + 1]
         self._sdof = (dof_x, dof_y)
@@ -126,6 +129,14 @@ class Body:
             parts.append((p_i, n_i, k_i, True))
         return parts
 
+    def max_penetration(self) -> float:
+        """Deepest penetration of the indenter into the committed surface (mm); 0 if none."""
+        if not np.isfinite(self.indenter_position) or self.indenter is None:
+            return 0.0
+        s = self.disc.surface_nodes
+        p = self.indenter.penetration(self.disc.X[s] + self.u[s], self.indenter_position)[0]
+        return float(max(0.0, p.max()))
+
     def _add_contact(
         self, r: np.ndarray, data: np.ndarray | None, parts
     ) -> tuple[float, np.ndarray]:
@@ -135,10 +146,10 @@ class Body:
         kappa_i (n n^T - p * curvature * (I - n n^T)), curvature = 1/rho on a rounded surface.
         """
         dof_x, dof_y = self._sdof
-        k = self.kappa_nodes
         force = 0.0
-        coupling = np.zeros(len(k))
+        coupling = np.zeros(len(self.kappa_nodes))
         for p, n, curv, is_indenter in parts:
+            k = self.kappa_indenter if is_indenter else self.kappa_nodes
             act = p > 0
             if not np.any(act):
                 continue
@@ -214,7 +225,7 @@ class Body:
                 # the plate lost contact: re-seat it on the highest point with a small overlap
                 s = disc.surface_nodes
                 top = int(np.argmax(disc.X[s, 1] + u[s, 1]))
-                d = self.top_height(u) - control.value / self.kappa_nodes[top]
+                d = self.top_height(u) - control.value / self.kappa_indenter[top]
                 ev = self._evaluate(u, control, d, dt, True, frozen_history)
                 if ev is None:
                     return StepResult(False, it, "inverted element")

@@ -1,0 +1,103 @@
+"""The ``fingertip`` command line: thin subcommands over the library.
+
+Errors in user input print one line ``fingertip: error: <field>: <message>`` and exit with 2,
+without a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Callable
+
+from sim import (
+    METRICS,
+    PROTOCOLS,
+    DesignError,
+    SimOptions,
+    homogeneous_design,
+    load_design,
+    simulate,
+)
+from sim.provenance import check_new_folder
+
+__all__ = ["main"]
+
+
+class UsageError(Exception):
+    """Bad command-line input: printed as one line, exit code 2."""
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    if (args.design is None) == (args.material is None):
+        raise UsageError("simulate: give either DESIGN.toml or --material NAME")
+    design = homogeneous_design(args.material) if args.material else load_design(args.design)
+    protocols = PROTOCOLS if args.protocol == "all" else (args.protocol,)
+    options = SimOptions()
+    if args.out is not None:
+        check_new_folder(args.out)  # fail before computing, not after
+    result = simulate(design, protocols, options)
+    if args.out is not None:
+        from sim.output import write_result
+
+        write_result(result, args.out, options)
+    if args.json:
+        json.dump(result.to_json(), sys.stdout, allow_nan=False)
+        sys.stdout.write("\n")
+    else:
+        for name, value in result.metrics.items():
+            unit = METRICS[name][1]
+            text = "failed" if value is None else f"{value:.4f} {unit}"
+            print(f"{name:28s} {text}")
+        print(f"({result.n_dofs} dofs, {result.wall_time_s:.2f} s)")
+        if args.out is not None:
+            print(f"written to {args.out}")
+    for f in result.failures:
+        print(
+            f"fingertip: simulation failed: {f.protocol} at t = {f.time_s:.4g} s: {f.reason}",
+            file=sys.stderr,
+        )
+    return 0 if result.ok else 1
+
+
+def _add_simulate(sub) -> None:
+    from pathlib import Path
+
+    p = sub.add_parser("simulate", help="simulate one design under the paper's protocols")
+    p.add_argument("design", nargs="?", type=Path, help="design TOML file")
+    p.add_argument("--material", help="a catalogue material on the reference geometry")
+    p.add_argument("--protocol", choices=[*PROTOCOLS, "all"], default="all")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--out", type=Path, help="run folder for result, plots and VTU meshes")
+    p.set_defaults(func=_cmd_simulate)
+
+
+_SUBCOMMANDS: list[Callable] = [_add_simulate]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="fingertip", description="Design explorer for human-like fingertip skins."
+    )
+    sub = parser.add_subparsers(dest="command", required=True)
+    for add in _SUBCOMMANDS:
+        add(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (DesignError, UsageError, FileExistsError) as exc:
+        print(f"fingertip: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("fingertip: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())
