@@ -44,13 +44,26 @@ class LayerState:
 
 @dataclass
 class Evaluation:
-    """Residual (free dofs) and, optionally, tangent data at one displacement state."""
+    """Residual (free dofs) at one displacement state, with the tangent assembled on demand.
+
+    ``tangent()`` returns the CSR data of the stiffness in the fixed pattern; it is assembled
+    the first time it is asked for (line-search trials that are rejected never pay for it).
+    """
 
     residual: np.ndarray
-    tangent: np.ndarray | None  # CSR data in the fixed pattern
+    _tangent_args: tuple | None
     states: list[LayerState]
     ok: bool = True
     min_J: float = field(default=1.0)
+    _assemble: Callable | None = None
+    _data: np.ndarray | None = None
+
+    def tangent(self) -> np.ndarray:
+        if self._data is None:
+            if self._tangent_args is None or self._assemble is None:
+                raise ValueError("this evaluation was made without tangent=True")
+            self._data = self._assemble(*self._tangent_args)
+        return self._data
 
 
 class Discretization:
@@ -248,10 +261,8 @@ class Discretization:
         Pw = np.stack([np.stack([P00 * w, P01 * w]), np.stack([P10 * w, P11 * w])])
         re = np.einsum("iLeq,aLeq->eai", Pw, self.dN).reshape(-1)
         residual = np.bincount(self.scatter_r, weights=re, minlength=self.n_free + 1)[:-1]
-        data = None
-        if tangent:
-            data = self._tangent(F, S, D)
-        return Evaluation(residual, data, new_states, ok=True, min_J=min_J)
+        args = (F, S, D) if tangent else None
+        return Evaluation(residual, args, new_states, ok=True, min_J=min_J, _assemble=self._tangent)
 
     def _tangent(self, F: np.ndarray, S: np.ndarray, D: np.ndarray) -> np.ndarray:
         """Element stiffness (material + geometric) scattered into the fixed CSR pattern."""

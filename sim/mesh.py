@@ -1,9 +1,10 @@
 """Conforming triangle meshes of the layered half cross-section (Triangle + scikit-fem).
 
 The half x >= 0 is meshed with quality triangles (no angle below 30 degrees) that conform to the
-layer interfaces. The target element size grows linearly with the distance from the apex, where
-the plate and the wedge touch: ``h = min(h_max, h_apex + grading * distance)``. The elements are
-P2 (six-node) triangles in the solver; the boundary is the polygon through the sampled nodes.
+layer interfaces. The elements are smallest at the apex (the wedge's tip) and along the top of the
+outer surface (where the plate touches) and grow linearly away from them (``MeshOptions``). The
+elements are P2 (six-node) triangles in the solver; the boundary is the polygon through the
+sampled nodes.
 """
 
 from __future__ import annotations
@@ -12,28 +13,55 @@ from dataclasses import dataclass
 
 import numpy as np
 import triangle
+from scipy.spatial import cKDTree
 from skfem import MeshTri
 
-from .geometry import Geometry, sample_curve
+from .geometry import Geometry, sample_curve, superellipse_points
 
 __all__ = ["DEFAULT_MESH", "FingertipMesh", "MeshOptions", "build_mesh"]
 
 
 @dataclass(frozen=True)
 class MeshOptions:
-    """Element sizes in mm: at the apex, growth per mm of distance from it, and the cap."""
+    """Target element sizes (mm).
+
+    ``h = min(h_max, h_apex + grading * d_apex, h_contact + grading * d_contact)`` where
+    ``d_apex`` is the distance from the apex (the wedge's tip) and ``d_contact`` the distance from
+    the part of the outer surface within ``contact_width_fraction * half_width`` of the axis
+    (where the plate touches a soft pulp).
+    """
 
     h_apex_mm: float = 0.05
+    h_contact_mm: float = 0.2
+    contact_width_fraction: float = 0.7
     grading: float = 0.3
     h_max_mm: float = 0.6
 
-    def size(self, points: np.ndarray, apex: tuple[float, float]) -> np.ndarray:
-        d = np.hypot(points[..., 0] - apex[0], points[..., 1] - apex[1])
-        return np.minimum(self.h_max_mm, self.h_apex_mm + self.grading * d)
+    def sizer(self, geometry: Geometry):
+        """The size function ``points (..., 2) -> h (...)`` for ``geometry``."""
+        a, b, n = geometry.half_width_mm, geometry.height_mm, geometry.exponent
+        theta = np.linspace(0.0, np.pi / 2, 600)
+        curve = superellipse_points(a, b, n, theta)
+        tree = cKDTree(curve[curve[:, 0] <= self.contact_width_fraction * a])
+
+        def size(points: np.ndarray) -> np.ndarray:
+            pts = np.asarray(points, dtype=float)
+            d_apex = np.hypot(pts[..., 0], pts[..., 1] - b)
+            d_contact = tree.query(pts.reshape(-1, 2))[0].reshape(pts.shape[:-1])
+            h = np.minimum(self.h_apex_mm + self.grading * d_apex, self.h_max_mm)
+            return np.minimum(h, self.h_contact_mm + self.grading * d_contact)
+
+        return size
 
     def refined(self, factor: float) -> MeshOptions:
         """All sizes divided by ``factor`` (for convergence studies)."""
-        return MeshOptions(self.h_apex_mm / factor, self.grading / factor, self.h_max_mm / factor)
+        return MeshOptions(
+            self.h_apex_mm / factor,
+            self.h_contact_mm / factor,
+            self.contact_width_fraction,
+            self.grading / factor,
+            self.h_max_mm / factor,
+        )
 
 
 DEFAULT_MESH = MeshOptions()
@@ -67,10 +95,7 @@ def build_mesh(
     ``thicknesses_mm`` are the thicknesses of all layers but the last (outermost first).
     """
     a, b, n = geometry.half_width_mm, geometry.height_mm, geometry.exponent
-    apex = (0.0, b)
-
-    def size(p: np.ndarray) -> np.ndarray:
-        return options.size(p, apex)
+    size = options.sizer(geometry)
 
     depths = np.cumsum(thicknesses_mm) if thicknesses_mm else np.zeros(0)
     curves = [sample_curve(a, b, n, size)]

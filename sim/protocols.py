@@ -70,7 +70,7 @@ class WedgeOptions:
     hold_steps: int = 16
     # the tip concentrates the load: a stiffer penalty keeps the penetration far below the
     # tip radius (0.029 mm) and 1 % of the depth (checked in the result's max_penetration_mm)
-    penalty_factor: float = 1000.0
+    penalty_per_mm: float = 20000.0
     profile_length_mm: float = 7.0
     profile_points: int = 71
 

@@ -151,8 +151,7 @@ def simulate(
             disc,
             indenter,
             options.newton,
-            options.mesh.h_apex_mm,
-            getattr(opts, "penalty_factor", None),
+            getattr(opts, "penalty_per_mm", None),
         )
         try:
             res: ProtocolResult = runner(body, opts)

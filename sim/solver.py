@@ -25,6 +25,7 @@ from .contact import Base, surface_weights
 from .fe import Discretization, LayerState
 
 DEBUG = False
+PREDICTOR_DAMPING = 1.0
 __all__ = ["Body", "Control", "NewtonOptions", "StepResult"]
 
 
@@ -55,7 +56,9 @@ class NewtonOptions:
     min_step: float = 1e-3  # a line search ending below this fraction of the step fails
     rtol: float = 1e-7  # residual tolerance relative to E0 * a (N/mm)
     max_backtracks: int = 6
-    penalty_factor: float = 10.0  # plate and base: kappa = factor * E0_max / h_apex (N/mm^3)
+    # plate and base penalty per unit area: kappa = penalty_per_mm * E0_max (N/mm^3), so the
+    # penetration is the contact pressure / kappa, about 1e-4 of a strain-level pressure in mm
+    penalty_per_mm: float = 1000.0
 
 
 @dataclass(frozen=True)
@@ -73,8 +76,7 @@ class Body:
         disc: Discretization,
         indenter=None,
         options: NewtonOptions = NewtonOptions(),
-        h_apex_mm: float = 0.05,
-        indenter_penalty_factor: float | None = None,
+        indenter_penalty_per_mm: float | None = None,
     ) -> None:
         self.disc = disc
         self.indenter = indenter
@@ -85,13 +87,13 @@ class Body:
             for m in disc.materials
         )
         self.E0_MPa = e0
-        self.kappa = options.penalty_factor * e0 / h_apex_mm
+        self.kappa = options.penalty_per_mm * e0
         size = float(np.max(disc.X))
         self.atol = options.rtol * e0 * size
         s = disc.surface_nodes
         self.kappa_nodes = self.kappa * surface_weights(disc.X[s])
-        factor = indenter_penalty_factor or options.penalty_factor
-        self.kappa_indenter = self.kappa_nodes * (factor / options.penalty_factor)
+        factor = indenter_penalty_per_mm or options.penalty_per_mm
+        self.kappa_indenter = self.kappa_nodes * (factor / options.penalty_per_mm)
         dof_x = disc.gmap[2 * s]
         dof_y = disc.gmap[2 * s + 1]
         self._sdof = (dof_x, dof_y)
@@ -179,11 +181,19 @@ class Body:
         if not ev.ok:
             return None
         r = ev.residual.copy()
-        data = ev.tangent.copy() if tangent else None
-        force, coupling = self._add_contact(r, data, self._contact(u, control, d))
+        parts = self._contact(u, control, d)
+        force, coupling = self._add_contact(r, None, parts)
         rd = 0.0
         if control.kind == "force":
             rd = control.value - force
+        data = None
+        if tangent:
+
+            def data() -> np.ndarray:  # assembled only when a factorisation needs it
+                out = ev.tangent().copy()
+                self._add_contact(np.zeros_like(r), out, parts)
+                return out
+
         return r, data, force, coupling, rd, ev.states
 
     def _norm(self, r, rd):
@@ -239,23 +249,27 @@ class Body:
                 self._commit(u, states, t_new, d, control, force)
                 self.newton_iterations += it - 1
                 return StepResult(True, it - 1)
-            solver = self._factor(data)
-            du = solver.solve(-r)
-            dd = 0.0
-            if control.kind == "force":
-                dof_y = self._sdof[1]
-                kcol = np.zeros(disc.n_free)
-                ok = dof_y >= 0
-                np.add.at(kcol, dof_y[ok], -coupling[ok])
-                x2 = solver.solve(kcol)
-                c = float(np.sum(coupling))
-                dd = (-rd - kcol @ du) / (c - kcol @ x2)
-                du = du - x2 * dd
+            solver = self._factor(data())
+            with np.errstate(all="ignore"):  # a singular tangent is caught below
+                du = solver.solve(-r)
+                dd = 0.0
+                if control.kind == "force":
+                    dof_y = self._sdof[1]
+                    kcol = np.zeros(disc.n_free)
+                    ok = dof_y >= 0
+                    np.add.at(kcol, dof_y[ok], -coupling[ok])
+                    x2 = solver.solve(kcol)
+                    c = float(np.sum(coupling))
+                    dd = (-rd - kcol @ du) / (c - kcol @ x2)
+                    du = du - x2 * dd
             # Line search on the directional derivative g(a) = [du, dd] . residual(a), i.e. on the
             # incremental potential (hyperelasticity, the Prony update within a step, penalty
             # contact and the dead load on the plate are all variational). The full step is taken
             # when it does not overshoot the minimum along the line by much; otherwise the root of
             # g is bracketed (regula falsi). Inverted elements halve the step.
+            if not (np.all(np.isfinite(du)) and np.isfinite(dd)):
+                self.newton_iterations += it
+                return StepResult(False, it, "singular tangent")
             g0 = float(du @ r) + dd * rd
             a_lo, g_lo = 0.0, g0
             alpha = 1.0
@@ -301,7 +315,9 @@ class Body:
         kind, v_prev, v_now, du_prev, dd_prev = prev
         if abs(v_now - v_prev) < 1e-14 * max(abs(v_now), 1e-30):
             return u, d
-        ratio = float(np.clip((control.value - v_now) / (v_now - v_prev), -2.0, 2.0))
+        ratio = PREDICTOR_DAMPING * float(
+            np.clip((control.value - v_now) / (v_now - v_prev), -2.0, 2.0)
+        )
         u_pred = u + ratio * du_prev
         if control.kind == "force":
             d = d + ratio * dd_prev
