@@ -1,0 +1,568 @@
+"""The ``fingertip`` command line (explore.cli).
+
+Contract: invalid input prints ONE line ``fingertip: error: <field>: <message>`` on stderr,
+exits with 2 and never shows a traceback; success exits with 0. Real simulations use
+``--protocol plate`` only (well under a second each) to keep the file fast.
+
+The full list of invalid inputs runs in-process through ``main()`` (the same code path, without
+paying the interpreter start-up per case); a representative subset, the JSON output, the run
+folder and the installed console script run as real subprocesses.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import explore.cli
+import sim
+from explore.cli import main
+from sim import METRICS, SOLVER_VERSION, design_from_dict, homogeneous_design
+
+REPO = Path(explore.cli.__file__).resolve().parents[1]
+PLATE_METRICS = [name for name, (proto, _, _) in METRICS.items() if proto == "plate"]
+OTHER_METRICS = [name for name, (proto, _, _) in METRICS.items() if proto != "plate"]
+ERROR_PREFIX = "fingertip: error: "
+
+TWO_LAYER_TOML = """\
+[[layers]]                    # outermost first
+thickness_mm = 1.0
+material = "silicone_gls40"
+[[layers]]                    # the last layer fills the rest
+material = "polyurethane_74_45"
+"""
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "MPLBACKEND": "Agg"}
+
+
+def run_cli(*args: str | Path, cwd: Path, exe: list[str] | None = None):
+    cmd = [*(exe or [sys.executable, "-m", "explore.cli"]), *map(str, args)]
+    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=300, env=_env())
+
+
+def assert_one_line_error(stderr: str, field: str) -> str:
+    assert "Traceback" not in stderr
+    lines = stderr.splitlines()
+    assert len(lines) == 1, stderr
+    line = lines[0]
+    assert line.startswith(ERROR_PREFIX), line
+    assert field in line, line
+    return line
+
+
+def parse_one_json_object(stdout: str) -> dict:
+    def reject(constant: str) -> float:
+        raise AssertionError(f"non-standard JSON constant {constant} on stdout")
+
+    decoder = json.JSONDecoder(parse_constant=reject)
+    text = stdout.lstrip()
+    obj, end = decoder.raw_decode(text)
+    assert text[end:].strip() == "", f"more than one JSON value on stdout: {text[end:][:200]!r}"
+    assert isinstance(obj, dict)
+    return obj
+
+
+def metric_from_text(stdout: str, name: str) -> float:
+    match = re.search(rf"^{name}\s+([-+0-9.eE]+) N$", stdout, flags=re.MULTILINE)
+    assert match, f"no line for {name} in:\n{stdout}"
+    return float(match.group(1))
+
+
+def write(tmp_path: Path, text: str, name: str = "design.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(textwrap.dedent(text))
+    return path
+
+
+# --- invalid input: one line on stderr naming the field, exit 2, no traceback -------------------
+NU_TOO_HIGH = """\
+[[layers]]
+[layers.material]
+model = "neo_hookean"
+mu_MPa = 0.1
+nu = 0.5
+"""
+
+INVALID_FILES: dict[str, tuple[str, str]] = {
+    "unknown_material": ('[[layers]]\nmaterial = "silicone_gls41"\n', "layers[0].material"),
+    "nu_half": (NU_TOO_HIGH, "layers[0].material.nu"),
+    "nu_above_half_in_core": (
+        TWO_LAYER_TOML.replace(
+            'material = "polyurethane_74_45"',
+            '[layers.material]\nmodel = "yeoh"\nc10_MPa = 0.05\nnu = 0.55',
+        ),
+        "layers[1].material.nu",
+    ),
+    "mu_zero": (
+        NU_TOO_HIGH.replace("0.5", "0.3").replace("0.1", "0.0"),
+        "layers[0].material.mu_MPa",
+    ),
+    "mu_negative_hyperfoam": (
+        '[[layers]]\n[layers.material]\nmodel = "hyperfoam"\nmu_MPa = [-0.1]\nalpha = [2.0]\n'
+        "nu = 0.3\n",
+        "layers[0].material.mu_MPa",
+    ),
+    "prony_sum_one": (
+        '[[layers]]\n[layers.material]\nmodel = "neo_hookean"\nmu_MPa = 0.1\nnu = 0.3\n'
+        "prony_g = [0.6, 0.4]\nprony_tau_s = [1.0, 2.0]\n",
+        "layers[0].material.prony_g",
+    ),
+    "layer_as_thick_as_the_body": (
+        TWO_LAYER_TOML.replace("thickness_mm = 1.0", "thickness_mm = 5.48"),
+        "thickness_mm",
+    ),
+    "layers_leave_less_than_the_core": (
+        TWO_LAYER_TOML.replace("thickness_mm = 1.0", "thickness_mm = 4.99"),
+        "thickness_mm",
+    ),
+    "malformed_toml": ('[[layers]\nmaterial = "silicone_gls40"\n', "DESIGN"),
+    "malformed_value": ("[[layers]]\nmaterial = silicone_gls40\n", "DESIGN"),
+    "unknown_top_level_key": ('color = "red"\n[[layers]]\nmaterial = "silicone_gls40"\n', "color"),
+    "unknown_geometry_key": (
+        '[geometry]\nradius_mm = 5.0\n[[layers]]\nmaterial = "silicone_gls40"\n',
+        "geometry.radius_mm",
+    ),
+    "unknown_layer_key": (
+        '[[layers]]\nthickness = 1.0\nmaterial = "silicone_gls40"\n',
+        "layers[0].thickness",
+    ),
+    "unknown_material_key": (
+        NU_TOO_HIGH.replace("nu = 0.5", "nu = 0.3\nmu = 0.1"),
+        "layers[0].material.mu",
+    ),
+    "thickness_on_the_last_layer": (
+        TWO_LAYER_TOML + "thickness_mm = 2.0\n",
+        "layers[1].thickness_mm",
+    ),
+    "zero_layers": ("layers = []\n", "layers"),
+    "no_layers_at_all": ("[geometry]\nexponent = 2.0\n", "layers"),
+    "four_layers": (
+        '[[layers]]\nthickness_mm = 0.5\nmaterial = "silicone_gls40"\n' * 3
+        + '[[layers]]\nmaterial = "polyurethane_74_45"\n',
+        "layers",
+    ),
+    "exponent_out_of_range": (
+        '[geometry]\nexponent = 9.0\n[[layers]]\nmaterial = "silicone_gls40"\n',
+        "geometry.exponent",
+    ),
+    "half_width_out_of_range": (
+        '[geometry]\nhalf_width_mm = 0.5\n[[layers]]\nmaterial = "silicone_gls40"\n',
+        "geometry.half_width_mm",
+    ),
+    "height_out_of_range": (
+        '[geometry]\nheight_mm = 60.0\n[[layers]]\nmaterial = "silicone_gls40"\n',
+        "geometry.height_mm",
+    ),
+    "thickness_below_min": (
+        TWO_LAYER_TOML.replace("thickness_mm = 1.0", "thickness_mm = 0.01"),
+        "layers[0].thickness_mm",
+    ),
+}
+
+# A representative subset that also runs as a real subprocess.
+SUBPROCESS_CASES = ["nu_half", "malformed_toml", "unknown_material", "four_layers"]
+
+
+@pytest.mark.parametrize("case", list(INVALID_FILES))
+def test_invalid_design_file_in_process(
+    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text, field = INVALID_FILES[case]
+    path = write(tmp_path, text)
+    code = main(["simulate", str(path), "--protocol", "plate"])
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert out == ""
+    assert_one_line_error(err, field)
+
+
+@pytest.mark.parametrize("case", SUBPROCESS_CASES)
+def test_invalid_design_file_subprocess(case: str, tmp_path: Path) -> None:
+    text, field = INVALID_FILES[case]
+    write(tmp_path, text)
+    res = run_cli("simulate", "design.toml", "--protocol", "plate", cwd=tmp_path)
+    assert res.returncode == 2
+    assert res.stdout == ""
+    assert_one_line_error(res.stderr, field)
+
+
+def test_nu_error_line_is_clear(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write(tmp_path, NU_TOO_HIGH)
+    assert main(["simulate", str(path)]) == 2
+    line = assert_one_line_error(capsys.readouterr().err, "layers[0].material.nu")
+    assert line.startswith(f"{ERROR_PREFIX}layers[0].material.nu: ")
+    assert "0.5" in line
+
+
+def test_missing_design_file(tmp_path: Path) -> None:
+    res = run_cli("simulate", "missing.toml", "--protocol", "plate", cwd=tmp_path)
+    assert res.returncode == 2
+    assert res.stdout == ""
+    line = assert_one_line_error(res.stderr, "missing.toml")
+    assert "DESIGN" in line
+
+
+@pytest.mark.xfail(
+    reason="BUG: a design file that is not UTF-8 crashes with a UnicodeDecodeError traceback "
+    "(exit 1) instead of 'fingertip: error: DESIGN: malformed TOML ...' (exit 2)",
+    strict=True,
+)
+def test_design_file_not_utf8(tmp_path: Path) -> None:
+    (tmp_path / "design.toml").write_bytes(b'[[layers]]\nmaterial = "silicone_gls40" # caf\xe9\n')
+    res = run_cli("simulate", "design.toml", "--protocol", "plate", cwd=tmp_path)
+    assert res.returncode == 2
+    assert_one_line_error(res.stderr, "DESIGN")
+
+
+@pytest.mark.xfail(
+    reason="BUG: a directory given as DESIGN crashes with an IsADirectoryError traceback (exit 1) "
+    "instead of one line and exit 2",
+    strict=True,
+)
+def test_design_path_is_a_directory(tmp_path: Path) -> None:
+    (tmp_path / "designs").mkdir()
+    res = run_cli("simulate", "designs", "--protocol", "plate", cwd=tmp_path)
+    assert res.returncode == 2
+    assert_one_line_error(res.stderr, "designs")
+
+
+@pytest.mark.xfail(
+    reason="BUG: thickness_mm = nan passes validation; the mesher then crashes with "
+    "a ValueError traceback (exit 1)",
+    strict=True,
+)
+def test_nan_thickness(tmp_path: Path) -> None:
+    write(tmp_path, TWO_LAYER_TOML.replace("thickness_mm = 1.0", "thickness_mm = nan"))
+    res = run_cli("simulate", "design.toml", "--protocol", "plate", cwd=tmp_path)
+    assert res.returncode == 2
+    assert_one_line_error(res.stderr, "layers[0].thickness_mm")
+
+
+@pytest.mark.xfail(
+    reason="BUG: `thickness_mm = true` is accepted as 1 mm and simulated (exit 0)",
+    strict=True,
+)
+def test_boolean_thickness(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write(tmp_path, TWO_LAYER_TOML.replace("thickness_mm = 1.0", "thickness_mm = true"))
+    # Checked on load_design first so that the bug costs no simulation here.
+    with pytest.raises(sim.DesignError):
+        sim.load_design(path)
+    assert main(["simulate", str(path), "--protocol", "plate"]) == 2
+    assert_one_line_error(capsys.readouterr().err, "layers[0].thickness_mm")
+
+
+def test_unknown_material_option(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["simulate", "--material", "rubber", "--protocol", "plate"]) == 2
+    out, err = capsys.readouterr()
+    assert out == ""
+    line = assert_one_line_error(err, "material")
+    assert "rubber" in line
+    assert "silicone_gls40" in line  # lists what is known
+
+
+def test_design_and_material_together(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write(tmp_path, TWO_LAYER_TOML)
+    assert main(["simulate", str(path), "--material", "silicone_gls40"]) == 2
+    assert_one_line_error(capsys.readouterr().err, "--material")
+
+
+def test_neither_design_nor_material(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["simulate", "--protocol", "plate"]) == 2
+    assert_one_line_error(capsys.readouterr().err, "DESIGN.toml")
+
+
+def test_unknown_protocol_is_a_usage_error(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["simulate", "--material", "silicone_gls40", "--protocol", "poke"])
+    assert info.value.code == 2
+    err = capsys.readouterr().err
+    assert "Traceback" not in err
+    assert "--protocol" in err
+    assert "poke" in err
+
+
+# --- --out refuses an existing non-empty folder before computing ---------------------------------
+def test_out_existing_non_empty_folder_subprocess(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "keep.txt").write_text("earlier results")
+    res = run_cli(
+        "simulate",
+        "--material",
+        "silicone_gls40",
+        "--protocol",
+        "plate",
+        "--out",
+        "run",
+        cwd=tmp_path,
+    )
+    assert res.returncode == 2
+    assert res.stdout == ""
+    assert_one_line_error(res.stderr, "run")
+    assert "not empty" in res.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]  # no temporary folder left
+    assert [p.name for p in out.iterdir()] == ["keep.txt"]
+    assert (out / "keep.txt").read_text() == "earlier results"
+
+
+@pytest.mark.parametrize("kind", ["non_empty_folder", "file"])
+def test_out_is_checked_before_any_computing(
+    kind: str,
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    calls: list[object] = []
+
+    def fake_simulate(*args: object, **kwargs: object) -> None:
+        calls.append(args)
+        raise AssertionError("simulate must not run when --out is unusable")
+
+    monkeypatch.setattr(explore.cli, "simulate", fake_simulate)
+    out = tmp_path / "run"
+    if kind == "file":
+        out.write_text("x")
+    else:
+        out.mkdir()
+        (out / "result.json").write_text("{}")
+    path = write(tmp_path, TWO_LAYER_TOML)
+    code = main(["simulate", str(path), "--protocol", "all", "--out", str(out)])
+    assert code == 2
+    assert calls == []
+    assert_one_line_error(capsys.readouterr().err, str(out))
+
+
+# --- real simulations ----------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return tmp_path_factory.mktemp("cli")
+
+
+@pytest.fixture(scope="module")
+def pu_json(workdir: Path) -> dict:
+    res = run_cli(
+        "simulate",
+        "--material",
+        "polyurethane_74_45",
+        "--protocol",
+        "plate",
+        "--json",
+        cwd=workdir,
+    )
+    assert res.returncode == 0, res.stderr
+    assert "Traceback" not in res.stderr
+    return parse_one_json_object(res.stdout)
+
+
+@pytest.fixture(scope="module")
+def pu_run(workdir: Path) -> tuple[subprocess.CompletedProcess, Path]:
+    out = workdir / "runs" / "pu_plate"  # parent folders are created
+    res = run_cli(
+        "simulate",
+        "--material",
+        "polyurethane_74_45",
+        "--protocol",
+        "plate",
+        "--out",
+        out,
+        cwd=workdir,
+    )
+    return res, out
+
+
+def test_json_output(pu_json: dict) -> None:
+    force = pu_json["plate_force_at_1mm_N"]
+    assert isinstance(force, float)
+    assert 0.0 < force < 1000.0
+    assert pu_json["ok"] is True
+    assert pu_json["failures"] == []
+    assert pu_json["solver_version"] == SOLVER_VERSION
+    # only the chosen protocol's metrics and curves
+    assert all(name not in pu_json for name in OTHER_METRICS)
+    assert set(pu_json["curves"]) == {"plate"}
+    assert set(pu_json["protocols"]) == {"plate"}
+    assert isinstance(pu_json["n_dofs"], int)
+    assert pu_json["n_dofs"] > 0
+
+
+def test_json_plate_curve(pu_json: dict) -> None:
+    curve = pu_json["curves"]["plate"]
+    disp, force = curve["displacement_mm"], curve["force_N"]
+    assert isinstance(disp, list)
+    assert isinstance(force, list)
+    assert len(disp) == len(force) >= 5
+    assert all(isinstance(x, float) for x in disp + force)
+    assert disp[0] == pytest.approx(0.0, abs=1e-12)
+    assert disp[-1] == pytest.approx(1.0, abs=1e-9)  # indentation to 1 mm
+    assert np.all(np.diff(disp) > 0)
+    assert force[0] == pytest.approx(0.0, abs=1e-9)
+    assert np.all(np.diff(force) > 0)  # stiffens monotonically under compression
+    # the metric is the curve's force at 1 mm
+    at_1mm = float(np.interp(1.0, disp, force))
+    assert pu_json["plate_force_at_1mm_N"] == pytest.approx(at_1mm, rel=1e-9)
+
+
+def test_json_design(pu_json: dict) -> None:
+    design = pu_json["design"]
+    assert design == homogeneous_design("polyurethane_74_45").to_dict()
+    assert design["layers"] == [{"material": "polyurethane_74_45"}]
+    assert design_from_dict(design) == homogeneous_design("polyurethane_74_45")
+
+
+def test_human_readable_output_lists_the_metrics(pu_run, pu_json: dict) -> None:
+    res, out = pu_run
+    assert res.returncode == 0, res.stderr
+    assert "Traceback" not in res.stderr
+    assert PLATE_METRICS  # the plate protocol has metrics
+    for name in PLATE_METRICS:
+        unit = METRICS[name][1]
+        assert re.search(rf"^{name}\s+\S+ {re.escape(unit)}$", res.stdout, flags=re.MULTILINE)
+    for name in OTHER_METRICS:
+        assert name not in res.stdout
+    # same numbers as the JSON run (printed to 4 decimals)
+    value = metric_from_text(res.stdout, "plate_force_at_1mm_N")
+    assert value == pytest.approx(pu_json["plate_force_at_1mm_N"], abs=1e-4)
+    assert re.search(r"\(\d+ dofs, [0-9.]+ s\)", res.stdout)
+    assert f"written to {out}" in res.stdout
+    with pytest.raises(json.JSONDecodeError):
+        json.loads(res.stdout)
+
+
+def test_out_folder_contents(pu_run) -> None:
+    res, out = pu_run
+    assert res.returncode == 0, res.stderr
+    assert (out / "result.json").is_file()
+    assert (out / "meta.json").is_file()
+    assert (out / "figures" / "plate.png").is_file()
+    assert (out / "deformed_plate.vtu").is_file()
+    # only the plate protocol was run: no other figures or meshes
+    assert sorted(p.name for p in (out / "figures").iterdir()) == ["plate.png"]
+    assert sorted(p.name for p in out.glob("*.vtu")) == ["deformed_plate.vtu"]
+    assert (out / "figures" / "plate.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # no temporary folder left beside the run folder
+    assert sorted(p.name for p in out.parent.iterdir()) == [out.name]
+
+
+def test_out_result_json(pu_run, pu_json: dict) -> None:
+    _, out = pu_run
+    result = parse_one_json_object((out / "result.json").read_text())
+    assert result["ok"] is True
+    assert result["solver_version"] == SOLVER_VERSION
+    assert result["design"] == pu_json["design"]
+    assert result["plate_force_at_1mm_N"] == pytest.approx(
+        pu_json["plate_force_at_1mm_N"], rel=1e-9
+    )
+    for key in ("displacement_mm", "force_N"):
+        expected = pu_json["curves"]["plate"][key]
+        assert result["curves"]["plate"][key] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+
+
+def test_out_meta_json(pu_run) -> None:
+    _, out = pu_run
+    meta = parse_one_json_object((out / "meta.json").read_text())
+    assert meta["solver_version"] == SOLVER_VERSION
+    if (REPO / ".git").exists():
+        assert re.fullmatch(r"[0-9a-f]{40}(-dirty)?", meta["git_commit"]), meta["git_commit"]
+    else:
+        assert meta["git_commit"]
+    packages = meta["packages"]
+    assert packages["numpy"] == np.__version__
+    assert packages["python"] == ".".join(map(str, sys.version_info[:3]))
+    for name in ("scipy", "meshio", "scikit-fem"):
+        assert packages[name]
+    config = meta["config"]
+    assert config["design"] == homogeneous_design("polyurethane_74_45").to_dict()
+    assert "options" in config
+    assert set(config["options"]) >= {"mesh", "newton", "plate"}
+
+
+def test_out_deformed_mesh(pu_run, pu_json: dict) -> None:
+    meshio = pytest.importorskip("meshio")
+    _, out = pu_run
+    mesh = meshio.read(out / "deformed_plate.vtu")
+    assert [block.type for block in mesh.cells] == ["triangle6"]
+    cells = mesh.cells_dict["triangle6"]
+    assert cells.shape[1] == 6
+    assert len(cells) > 50
+    assert cells.max() < len(mesh.points)
+    u = np.asarray(mesh.point_data["displacement_mm"])
+    assert u.shape == (len(mesh.points), 3)
+    assert np.all(np.isfinite(u))
+    assert 0.9 <= np.abs(u[:, 1]).max() <= 1.1  # the plate indents the apex by 1 mm
+    # the points are the deformed positions: the apex of the 5.48 mm body is pushed down ~1 mm
+    undeformed = mesh.points - u
+    height = sim.REFERENCE_GEOMETRY.height_mm
+    assert undeformed[:, 1].max() == pytest.approx(height, abs=1e-9)
+    assert mesh.points[:, 1].max() == pytest.approx(height - 1.0, abs=0.1)
+    # symmetry: nodes on the axis x = 0 stay on it; the bonded base does not move
+    on_axis = np.isclose(undeformed[:, 0], 0.0, atol=1e-9)
+    on_base = np.isclose(undeformed[:, 1], 0.0, atol=1e-9)
+    assert on_axis.sum() > 2
+    assert on_base.sum() > 2
+    assert np.abs(u[on_axis, 0]).max() < 1e-9
+    assert np.abs(u[on_base]).max() < 1e-9
+    assert set(np.unique(mesh.cell_data["layer"][0])) == {0}  # one layer
+
+
+def test_two_layer_design_file(workdir: Path, pu_json: dict) -> None:
+    (workdir / "two_layer.toml").write_text(TWO_LAYER_TOML)
+    res = run_cli("simulate", "two_layer.toml", "--protocol", "plate", "--json", cwd=workdir)
+    assert res.returncode == 0, res.stderr
+    assert "Traceback" not in res.stderr
+    result = parse_one_json_object(res.stdout)
+    assert result["ok"] is True
+    assert [layer.get("thickness_mm") for layer in result["design"]["layers"]] == [1.0, None]
+    assert [layer["material"] for layer in result["design"]["layers"]] == [
+        "silicone_gls40",
+        "polyurethane_74_45",
+    ]
+    force = result["plate_force_at_1mm_N"]
+    # A soft 1 mm silicone skin over a polyurethane core is softer than polyurethane alone and
+    # stiffer than silicone alone (silicone's shear and bulk moduli are both the smaller).
+    silicone = sim.simulate(homogeneous_design("silicone_gls40"), ("plate",))
+    assert silicone.ok
+    f_silicone = silicone.metrics["plate_force_at_1mm_N"]
+    assert f_silicone is not None
+    assert math.isfinite(f_silicone)
+    assert f_silicone < force < pu_json["plate_force_at_1mm_N"]
+
+
+def test_installed_console_script(workdir: Path, pu_json: dict) -> None:
+    exe = shutil.which("fingertip")
+    if exe is None:
+        pytest.skip("the `fingertip` console script is not on PATH (project not installed)")
+    res = run_cli(
+        "simulate",
+        "--material",
+        "polyurethane_74_45",
+        "--protocol",
+        "plate",
+        cwd=workdir,
+        exe=[exe],
+    )
+    assert res.returncode == 0, res.stderr
+    assert "Traceback" not in res.stderr
+    value = metric_from_text(res.stdout, "plate_force_at_1mm_N")
+    assert value == pytest.approx(pu_json["plate_force_at_1mm_N"], abs=1e-4)
+
+
+def test_installed_console_script_error(tmp_path: Path) -> None:
+    exe = shutil.which("fingertip")
+    if exe is None:
+        pytest.skip("the `fingertip` console script is not on PATH (project not installed)")
+    write(tmp_path, NU_TOO_HIGH)
+    res = run_cli("simulate", "design.toml", cwd=tmp_path, exe=[exe])
+    assert res.returncode == 2
+    assert_one_line_error(res.stderr, "layers[0].material.nu")
