@@ -1,0 +1,274 @@
+"""Verification of the FE discretisation: patch tests, consistent tangents, assembly vs
+scikit-fem, relaxation, invariances."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from fe_helpers import cauchy, compress, square_mesh, uniaxial_body
+from scipy.optimize import brentq
+from skfem import Basis, BilinearForm, ElementTriP2, ElementVector, LinearForm, asm
+from skfem.helpers import grad
+
+from sim import MeshOptions, SimOptions, homogeneous_design, simulate
+from sim.contact import Plate, Wedge
+from sim.fe import Discretization
+from sim.materials import CATALOGUE, LAWS, Material
+from sim.mesh import build_mesh
+from sim.protocols import WedgeOptions, run_wedge
+from sim.solver import Body, Control
+
+ELASTIC = {
+    "silicone_gls40": CATALOGUE["silicone_gls40"].law,
+    "polyurethane_74_45": CATALOGUE["polyurethane_74_45"].law,
+    "neo_hookean": LAWS["neo_hookean"].from_params({"mu_MPa": 0.1, "nu": 0.49}, "m"),
+    "mooney_rivlin": LAWS["mooney_rivlin"].from_params(
+        {"c10_MPa": 0.05, "c01_MPa": 0.02, "nu": 0.45}, "m"
+    ),
+    "yeoh": LAWS["yeoh"].from_params(
+        {"c10_MPa": 0.05, "c20_MPa": 0.01, "c30_MPa": 0.002, "nu": 0.48}, "m"
+    ),
+}
+
+
+# ----------------------------------------------------------------------------- analytic stresses
+def analytic_cauchy(law, lx: float, ly: float) -> np.ndarray:
+    """Principal Cauchy stresses (xx, yy) for the plane-strain stretches lx, ly (lz = 1),
+    coded independently of sim.materials from the laws' textbook forms."""
+    J = lx * ly
+    name = type(law).__name__
+    if name == "Hyperfoam":
+        beta = law.nu / (1 - 2 * law.nu)
+        return np.array(
+            [
+                sum(2 * m / a * (lam**a - J ** (-a * beta)) for m, a in zip(law.mu_MPa, law.alpha))
+                / J
+                for lam in (lx, ly)
+            ]
+        )
+    K = law.bulk_modulus_MPa
+    B = np.diag([lx**2, ly**2, 1.0])
+    Bb = J ** (-2 / 3) * B
+    I1 = np.trace(Bb)
+    I2 = 0.5 * (I1**2 - np.trace(Bb @ Bb))
+    if name == "NeoHookean":
+        W1, W2 = law.mu_MPa / 2, 0.0
+    elif name == "MooneyRivlin":
+        W1, W2 = law.c10_MPa, law.c01_MPa
+    else:  # Yeoh
+        W1 = law.c10_MPa + 2 * law.c20_MPa * (I1 - 3) + 3 * law.c30_MPa * (I1 - 3) ** 2
+        W2 = 0.0
+    del I2
+    T = (W1 + I1 * W2) * Bb - W2 * Bb @ Bb
+    sig = 2 / J * (T - np.trace(T) / 3 * np.eye(3)) + K * (J - 1) * np.eye(3)
+    return np.array([sig[0, 0], sig[1, 1]])
+
+
+@pytest.mark.parametrize("name", sorted(ELASTIC))
+def test_patch_plane_strain_compression(name):
+    """Uniaxial plane-strain compression of a distorted patch: the FE field is exactly affine
+    and the stress at every quadrature point equals the analytic one (lateral stress zero)."""
+    law = ELASTIC[name]
+    body = uniaxial_body(Material(law))
+    ly = 0.75
+    compress(body, ly, 1.0)
+    lx = brentq(lambda s: analytic_cauchy(law, s, ly)[0], 0.5, 2.0, xtol=1e-15, rtol=1e-15)
+    sig = cauchy(body)
+    ref = analytic_cauchy(law, lx, ly)
+    scale = abs(ref[1])
+    np.testing.assert_allclose(sig[0, 0], 0.0, atol=1e-8 * scale)
+    np.testing.assert_allclose(sig[1, 1], ref[1], rtol=1e-8)
+    np.testing.assert_allclose(sig[0, 1], 0.0, atol=1e-8 * scale)
+    X = body.disc.X
+    np.testing.assert_allclose(body.u[:, 0], (lx - 1) * X[:, 0], atol=1e-9)
+    np.testing.assert_allclose(body.u[:, 1], (ly - 1) * X[:, 1], atol=1e-9)
+
+
+def test_step_strain_relaxation_follows_g():
+    """A held compression applied at once relaxes exactly as g(t) at every point."""
+    mat = CATALOGUE["polyurethane_74_45"]
+    body = uniaxial_body(mat)
+    compress(body, 0.8, 0.0)  # dt = 0: the instantaneous response
+    sig0 = cauchy(body)[1, 1]
+    for t in (0.05, 0.3, 1.0, 3.0, 10.0, 30.0, 100.0):
+        res = body.advance(t, Control.free())
+        assert res.converged
+        ratio = cauchy(body)[1, 1] / sig0
+        np.testing.assert_allclose(ratio, mat.prony.relaxation(t), rtol=1e-9)
+    # long-term moduli: at t -> inf the stress is the given (long-term) law's
+    assert mat.moduli == "long_term"
+
+
+# ----------------------------------------------------------------------------- tangents
+def _fd_check(body: Body, control: Control, d: float, dt: float, seed: int = 0) -> float:
+    rng = np.random.default_rng(seed)
+    u = body.u.copy()
+    r, data, *_ = body._evaluate(u, control, d, dt, True)
+    K = body.disc.pattern_matrix(data())
+    v = rng.standard_normal(body.disc.n_free)
+    h = 1e-7
+    up, um = u.copy(), u.copy()
+    up.reshape(-1)[body.disc.free] += h * v
+    um.reshape(-1)[body.disc.free] -= h * v
+    fd = body._evaluate(up, control, d, dt, False)[0] - body._evaluate(um, control, d, dt, False)[0]
+    fd /= 2 * h
+    Kv = K @ v
+    return float(np.max(np.abs(fd - Kv)) / np.max(np.abs(Kv)))
+
+
+def test_tangent_matches_finite_differences_with_wedge_contact():
+    """Material + geometric + contact (incl. the rounded tip's curvature) tangent, at a
+    viscoelastic state in the middle of a wedge indentation of a two-layer body."""
+    mats = [CATALOGUE["silicone_gls40"], CATALOGUE["polyurethane_74_45"]]
+    fm = build_mesh(homogeneous_design(mats[0]).geometry, (1.0,), MeshOptions().refined(0.6))
+    disc = Discretization(fm, mats)
+    body = Body(disc, Wedge(), indenter_penalty_per_mm=WedgeOptions().penalty_per_mm)
+    run_wedge(body, dataclasses.replace(WedgeOptions(), depth_mm=0.4, hold_s=0.5, hold_steps=2))
+    s = disc.surface_nodes
+    p, _, curv = body.indenter.penetration_curvature(disc.X[s] + body.u[s], body.indenter_position)
+    assert np.sum(p > 0) >= 2  # several nodes in contact, some on the rounded tip
+    assert np.any(curv[p > 0] > 0)
+    err = _fd_check(body, Control.position(body.indenter_position), body.indenter_position, 0.1)
+    assert err < 1e-5
+
+
+def test_tangent_matches_finite_differences_at_undeformed_state():
+    """At u = 0 (equal principal stretches everywhere) the tangent is still exact."""
+    fm = build_mesh(homogeneous_design("silicone_gls40").geometry, (), MeshOptions().refined(0.5))
+    body = Body(Discretization(fm, [CATALOGUE["silicone_gls40"]]), Plate())
+    err = _fd_check(body, Control.free(), np.inf, 0.05)
+    assert err < 1e-6
+
+
+def test_force_control_border_is_consistent():
+    """d(residual)/d(plate position) equals the coupling column used in the bordered solve."""
+    fm = build_mesh(homogeneous_design("polyurethane_74_45").geometry, (), MeshOptions(0.1))
+    body = Body(Discretization(fm, [CATALOGUE["polyurethane_74_45"]]), Plate())
+    assert body.advance(0.1, Control.force(0.005)).converged
+    d = body.indenter_position
+    ctl = Control.force(0.006)
+    r, _, force, coupling, rd, _ = body._evaluate(body.u, ctl, d, 0.1, True)
+    h = 1e-8
+    rp = body._evaluate(body.u, ctl, d + h, 0.1, False)
+    rm = body._evaluate(body.u, ctl, d - h, 0.1, False)
+    dr_dd = (rp[0] - rm[0]) / (2 * h)
+    kcol = np.zeros(body.disc.n_free)
+    dofs = body._sdof[1]
+    np.add.at(kcol, dofs[dofs >= 0], -coupling[dofs >= 0])
+    np.testing.assert_allclose(dr_dd, kcol, atol=1e-6 * np.abs(kcol).max())
+    np.testing.assert_allclose((rp[4] - rm[4]) / (2 * h), np.sum(coupling), rtol=1e-6)
+
+
+# ----------------------------------------------------------------------------- vs scikit-fem
+def test_assembly_matches_scikit_fem_forms():
+    """The lean assembly equals scikit-fem's own assembly of the same weak form."""
+    mat = Material(ELASTIC["yeoh"])
+    law = mat.law
+    fm = build_mesh(homogeneous_design(mat).geometry, (0.8,), MeshOptions().refined(0.5))
+    disc = Discretization(fm, [mat, mat])
+    X = disc.X
+    u = np.column_stack([0.03 * X[:, 0] * X[:, 1], -0.08 * X[:, 1] + 0.01 * np.sin(X[:, 0])])
+    ev = disc.evaluate(u, disc.initial_states(), 0.1)
+
+    def stress_tangent(F):
+        C = np.array(
+            [
+                F[0, 0] ** 2 + F[1, 0] ** 2,
+                F[0, 1] ** 2 + F[1, 1] ** 2,
+                F[0, 0] * F[0, 1] + F[1, 0] * F[1, 1],
+            ]
+        )
+        _, S, D = law.evaluate(C)
+        return np.array([[S[0], S[2]], [S[2], S[1]]]), D
+
+    def deformation(w):
+        F = grad(w["u"]).copy()
+        F[0, 0] += 1
+        F[1, 1] += 1
+        return F
+
+    @LinearForm
+    def residual(v, w):
+        F = deformation(w)
+        S, _ = stress_tangent(F)
+        P = np.einsum("ij...,jk...->ik...", F, S)
+        return np.einsum("ij...,ij...", P, grad(v))
+
+    @BilinearForm
+    def jacobian(du, v, w):
+        F = deformation(w)
+        S, D = stress_tangent(F)
+        dF = grad(du)
+        FtdF = np.einsum("ki...,kj...->ij...", F, dF)
+        dE = np.array([FtdF[0, 0], FtdF[1, 1], FtdF[0, 1] + FtdF[1, 0]])
+        dSv = np.einsum("ab...,b...->a...", D, dE)
+        dS = np.array([[dSv[0], dSv[2]], [dSv[2], dSv[1]]])
+        dP = np.einsum("ij...,jk...->ik...", dF, S) + np.einsum("ij...,jk...->ik...", F, dS)
+        return np.einsum("ij...,ij...", dP, grad(v))
+
+    vb = Basis(disc.mesh, ElementVector(ElementTriP2()), intorder=2)
+    nv = disc.mesh.p.shape[1]
+    perm = np.empty(2 * disc.n_nodes, dtype=int)
+    for c in range(2):
+        perm[2 * np.arange(nv) + c] = vb.nodal_dofs[c]
+        perm[2 * (nv + np.arange(disc.mesh.facets.shape[1])) + c] = vb.facet_dofs[c]
+    uvec = np.zeros(vb.N)
+    uvec[perm] = u.reshape(-1)
+    R = asm(residual, vb, u=vb.interpolate(uvec))[perm][disc.free]
+    K = asm(jacobian, vb, u=vb.interpolate(uvec))[perm][:, perm][disc.free][:, disc.free]
+    np.testing.assert_allclose(ev.residual, R, atol=1e-12 * np.abs(R).max())
+    ours = disc.pattern_matrix(ev.tangent()).toarray()
+    np.testing.assert_allclose(ours, K.toarray(), atol=1e-12 * np.abs(ours).max())
+
+
+# ----------------------------------------------------------------------------- invariances
+def _nh(mu: float, nu: float = 0.45) -> Material:
+    return Material(LAWS["neo_hookean"].from_params({"mu_MPa": mu, "nu": nu}, "m"))
+
+
+def test_plate_force_scales_with_moduli():
+    """Displacement-controlled, elastic: doubling every modulus doubles the force exactly."""
+    o = SimOptions(mesh=MeshOptions().refined(0.6))
+    f1 = simulate(homogeneous_design(_nh(0.1)), ["plate"], o).curves["plate"]["force_N"]
+    f2 = simulate(homogeneous_design(_nh(0.2)), ["plate"], o).curves["plate"]["force_N"]
+    np.testing.assert_allclose(np.array(f2), 2 * np.array(f1), rtol=1e-7, atol=1e-12)
+
+
+def test_same_material_in_three_layers_equals_homogeneous():
+    """Layer interfaces only constrain the mesh: three layers of one material behave as one."""
+    from sim import Design, Layer
+
+    mat = CATALOGUE["polyurethane_74_45"]
+    one = simulate(homogeneous_design(mat), ["plate"]).metrics["plate_force_at_1mm_N"]
+    three = simulate(Design((Layer(mat, 0.5), Layer(mat, 1.0), Layer(mat))), ["plate"]).metrics[
+        "plate_force_at_1mm_N"
+    ]
+    assert abs(three - one) / one < 5e-3
+
+
+def test_elastic_material_has_no_hysteresis():
+    """Without relaxation the loading and unloading branches coincide."""
+    law = CATALOGUE["silicone_gls40"].law
+    res = simulate(homogeneous_design(Material(law)), ["tapping"])
+    assert res.ok
+    assert res.metrics["disp_at_4N_mm"] > 0.5  # a real tap happened
+    loop_scale = 5.0 * res.metrics["disp_at_4N_mm"]  # peak force x displacement (N mm)
+    assert abs(res.metrics["hysteresis_Nmm"]) < 1e-4 * loop_scale  # the silicone's is 4e-2
+    # with nothing to relax, the second tap repeats the first
+    h = np.array(res.protocols["tapping"]["history"])
+    np.testing.assert_allclose(h[-1], h[0], rtol=1e-6)
+
+
+def test_viscoelastic_material_dissipates():
+    res = simulate(homogeneous_design("polyurethane_74_45"), ["tapping"])
+    assert res.metrics["hysteresis_Nmm"] > 0.1
+    # sag left by earlier taps: the last tap touches below the undeformed top
+    assert res.metrics["disp_at_1N_mm"] > res.metrics["disp_at_1N_from_touch_mm"] + 0.05
+    assert res.protocols["tapping"]["settled"]
+
+
+def test_square_mesh_helper_is_sane():
+    fm = square_mesh(4)
+    assert len(fm.base) == 5 and len(fm.axis) == 5 and len(fm.surface) == 9
