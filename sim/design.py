@@ -21,6 +21,7 @@ Every validation failure raises ``DesignError`` naming the offending field.
 
 from __future__ import annotations
 
+import math
 import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -66,7 +67,7 @@ class Design:
         total = 0.0
         for k, layer in enumerate(self.layers[:-1]):
             t = layer.thickness_mm
-            if t is None or not isinstance(t, int | float) or t < MIN_LAYER_MM:
+            if not _is_number(t) or not t >= MIN_LAYER_MM:
                 raise DesignError(
                     f"layers[{k}].thickness_mm", f"must be a number >= {MIN_LAYER_MM}, got {t!r}"
                 )
@@ -101,9 +102,23 @@ class Design:
             entry: dict[str, Any] = {}
             if layer.thickness_mm is not None:
                 entry["thickness_mm"] = float(layer.thickness_mm)
-            entry["material"] = mat.name if mat.name is not None else mat.to_dict()
+            entry["material"] = mat.name if _is_catalogue(mat) else mat.to_dict()
             layers.append(entry)
         return {"geometry": self.geometry.to_dict(), "layers": layers}
+
+
+def _is_catalogue(mat: Material) -> bool:
+    """True if ``mat`` is exactly the catalogue entry of its name (so the name stands for it)."""
+    from .materials import CATALOGUE
+
+    return mat.name is not None and CATALOGUE.get(mat.name) == mat
+
+
+def _is_number(value: Any) -> bool:
+    """A finite int or float, not a bool (TOML booleans must not pass as 0/1 mm)."""
+    return (
+        isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    )
 
 
 def design_from_dict(data: Mapping[str, Any]) -> Design:
@@ -148,6 +163,12 @@ def load_design(path: str | Path) -> Design:
             data = tomllib.load(fh)
     except FileNotFoundError:
         raise DesignError("DESIGN", f"no such file: {path}") from None
+    except IsADirectoryError:
+        raise DesignError("DESIGN", f"{path} is a directory, not a design TOML file") from None
+    except OSError as exc:
+        raise DesignError("DESIGN", f"cannot read {path}: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise DesignError("DESIGN", f"{path} is not UTF-8 text (TOML files must be)") from None
     except tomllib.TOMLDecodeError as exc:
         raise DesignError("DESIGN", f"malformed TOML in {path}: {exc}") from None
     return design_from_dict(data)

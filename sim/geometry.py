@@ -42,7 +42,8 @@ class Geometry:
             ("exponent", 1.2, 8.0),
         ):
             value = getattr(self, name)
-            if not (isinstance(value, int | float) and lo <= value <= hi):
+            is_number = isinstance(value, int | float) and not isinstance(value, bool)
+            if not (is_number and lo <= value <= hi):  # NaN fails the comparison too
                 raise DesignError(f"geometry.{name}", f"must be in [{lo}, {hi}], got {value!r}")
 
     def to_dict(self) -> dict[str, float]:

@@ -214,11 +214,6 @@ def test_missing_design_file(tmp_path: Path) -> None:
     assert "DESIGN" in line
 
 
-@pytest.mark.xfail(
-    reason="BUG: a design file that is not UTF-8 crashes with a UnicodeDecodeError traceback "
-    "(exit 1) instead of 'fingertip: error: DESIGN: malformed TOML ...' (exit 2)",
-    strict=True,
-)
 def test_design_file_not_utf8(tmp_path: Path) -> None:
     (tmp_path / "design.toml").write_bytes(b'[[layers]]\nmaterial = "silicone_gls40" # caf\xe9\n')
     res = run_cli("simulate", "design.toml", "--protocol", "plate", cwd=tmp_path)
@@ -226,11 +221,6 @@ def test_design_file_not_utf8(tmp_path: Path) -> None:
     assert_one_line_error(res.stderr, "DESIGN")
 
 
-@pytest.mark.xfail(
-    reason="BUG: a directory given as DESIGN crashes with an IsADirectoryError traceback (exit 1) "
-    "instead of one line and exit 2",
-    strict=True,
-)
 def test_design_path_is_a_directory(tmp_path: Path) -> None:
     (tmp_path / "designs").mkdir()
     res = run_cli("simulate", "designs", "--protocol", "plate", cwd=tmp_path)
@@ -238,11 +228,6 @@ def test_design_path_is_a_directory(tmp_path: Path) -> None:
     assert_one_line_error(res.stderr, "designs")
 
 
-@pytest.mark.xfail(
-    reason="BUG: thickness_mm = nan passes validation; the mesher then crashes with "
-    "a ValueError traceback (exit 1)",
-    strict=True,
-)
 def test_nan_thickness(tmp_path: Path) -> None:
     write(tmp_path, TWO_LAYER_TOML.replace("thickness_mm = 1.0", "thickness_mm = nan"))
     res = run_cli("simulate", "design.toml", "--protocol", "plate", cwd=tmp_path)
@@ -250,10 +235,6 @@ def test_nan_thickness(tmp_path: Path) -> None:
     assert_one_line_error(res.stderr, "layers[0].thickness_mm")
 
 
-@pytest.mark.xfail(
-    reason="BUG: `thickness_mm = true` is accepted as 1 mm and simulated (exit 0)",
-    strict=True,
-)
 def test_boolean_thickness(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     path = write(tmp_path, TWO_LAYER_TOML.replace("thickness_mm = 1.0", "thickness_mm = true"))
     # Checked on load_design first so that the bug costs no simulation here.
