@@ -30,14 +30,14 @@ def scaled_options(kind: str, factor: float) -> SimOptions:
         base,
         tapping=dataclasses.replace(
             tap,
-            steps_loaded=int(round(tap.steps_loaded * factor / 2) * 2),
-            steps_rest=max(2, int(round(tap.steps_rest * factor))),
+            steps_loaded=2 * round(tap.steps_loaded * factor / 2),
+            steps_rest=max(2, round(tap.steps_rest * factor)),
         ),
-        plate=dataclasses.replace(plate, steps=max(2, int(round(plate.steps * factor)))),
+        plate=dataclasses.replace(plate, steps=max(2, round(plate.steps * factor))),
         wedge=dataclasses.replace(
             wedge,
-            ramp_steps=max(2, int(round(wedge.ramp_steps * factor))),
-            hold_steps=max(4, int(round(wedge.hold_steps * factor))),
+            ramp_steps=max(2, round(wedge.ramp_steps * factor)),
+            hold_steps=max(4, round(wedge.hold_steps * factor)),
         ),
     )
 
@@ -46,9 +46,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--kind", choices=["mesh", "time"], default="mesh")
     ap.add_argument("--factors", type=float, nargs="+", default=[0.7, 1.0, 1.41, 2.0, 2.83])
-    ap.add_argument(
-        "--materials", nargs="+", default=["silicone_gls40", "polyurethane_74_45"]
-    )
+    ap.add_argument("--materials", nargs="+", default=["silicone_gls40", "polyurethane_74_45"])
     ap.add_argument("--out", type=Path, default=Path("runs/convergence"))
     args = ap.parse_args()
     args.out.mkdir(parents=True, exist_ok=True)

@@ -116,9 +116,7 @@ def _is_catalogue(mat: Material) -> bool:
 
 def _is_number(value: Any) -> bool:
     """A finite int or float, not a bool (TOML booleans must not pass as 0/1 mm)."""
-    return (
-        isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
-    )
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def design_from_dict(data: Mapping[str, Any]) -> Design:

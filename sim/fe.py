@@ -9,9 +9,9 @@ calls, and a scatter into a CSR pattern that is built once (``np.bincount`` into
 assembly of the same weak form and against finite differences.
 
 Array conventions: nodal displacements ``u`` have shape (n_nodes, 2); the global dof of node ``i``
-and component ``c`` is ``2 * i + c``. Constrained dofs are left out of the free-dof system and keep the values
-they hold in ``u``: zero for the fingertip (the bonded base, the symmetry axis), prescribed values
-in the patch tests.
+and component ``c`` is ``2 * i + c``. Constrained dofs are left out of the free-dof system and
+keep the values they hold in ``u``: zero for the fingertip (the bonded base, the symmetry axis),
+prescribed values in the patch tests.
 """
 
 from __future__ import annotations

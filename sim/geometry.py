@@ -3,9 +3,9 @@
 The outer surface is the superellipse |x/a|^n + |y/b|^n = 1, y >= 0, with half-width ``a`` and
 height ``b`` (mm). The straight bottom edge y = 0, |x| <= a, is bonded to the rigid bone and fully
 fixed (paper §3.1). Layers follow the outer surface, outermost first: the interface below the
-outer layers of cumulative thickness T is the superellipse with semi-axes (a - T, b - T) and the same
-exponent, so each layer has exactly its thickness at the apex and at the base, and close to it in
-between (exactly for n = 2 and a = b). The last layer fills the rest.
+outer layers of cumulative thickness T is the superellipse with semi-axes (a - T, b - T) and the
+same exponent, so each layer has exactly its thickness at the apex and at the base, and close to
+it in between (exactly for n = 2 and a = b). The last layer fills the rest.
 
 Only the half x >= 0 is meshed: every protocol is symmetric about x = 0.
 """

@@ -169,6 +169,7 @@ def simulate(
             "newton_iterations": res.newton_iterations,
             "steps": res.steps,
             "factorizations": body.factorizations,
+            "timings_s": dict(body.timings),
             "wall_time_s": res.wall_time_s,
             **res.info,
         }

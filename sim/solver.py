@@ -16,6 +16,8 @@ because the sparsity pattern never changes. Failed steps are cut by the caller
 
 from __future__ import annotations
 
+import logging
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +26,8 @@ import qdldl
 from .contact import Base, surface_weights
 from .fe import Discretization, LayerState
 
-DEBUG = False
+_log = logging.getLogger(__name__)
+TIMED = ("residual+material", "tangent assembly", "LDL^T factorisation", "triangular solves")
 PREDICTOR_DAMPING = 1.0
 __all__ = ["Body", "Control", "NewtonOptions", "StepResult"]
 
@@ -109,6 +112,7 @@ class Body:
         self.t = 0.0
         self.indenter_position = np.inf
         self._solver = None
+        self.timings: dict[str, float] = dict.fromkeys(TIMED, 0.0)
         self._last = None  # (kind, previous value, value, du, dd) of the last committed step
         self._last_control: Control | None = None
         self.force = 0.0
@@ -117,7 +121,7 @@ class Body:
 
     # ------------------------------------------------------------------ contact
     def _contact(self, u: np.ndarray, control: Control, d: float):
-        """(penetration, normal, normal curvature, is_indenter) per obstacle at the surface nodes."""
+        """(penetration, normal, curvature, is_indenter) per obstacle at the surface nodes."""
         disc = self.disc
         s = disc.surface_nodes
         xy = disc.X[s] + u[s]
@@ -177,7 +181,9 @@ class Body:
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(self, u, control, d, dt, tangent, frozen=False):
+        t0 = time.perf_counter()
         ev = self.disc.evaluate(u, self.states, dt, tangent=tangent, frozen_history=frozen)
+        self.timings["residual+material"] += time.perf_counter() - t0
         if not ev.ok:
             return None
         r = ev.residual.copy()
@@ -190,8 +196,10 @@ class Body:
         if tangent:
 
             def data() -> np.ndarray:  # assembled only when a factorisation needs it
+                t0 = time.perf_counter()
                 out = ev.tangent().copy()
                 self._add_contact(np.zeros_like(r), out, parts)
+                self.timings["tangent assembly"] += time.perf_counter() - t0
                 return out
 
         return r, data, force, coupling, rd, ev.states
@@ -200,12 +208,14 @@ class Body:
         return max(float(np.max(np.abs(r))) if r.size else 0.0, abs(rd))
 
     def _factor(self, data):
+        t0 = time.perf_counter()
         A = self.disc.upper_matrix(data)
         if self._solver is None:
             self._solver = qdldl.Solver(A, upper=True)
         else:
             self._solver.update(A, upper=True)
         self.factorizations += 1
+        self.timings["LDL^T factorisation"] += time.perf_counter() - t0
         return self._solver
 
     def top_height(self, u: np.ndarray | None = None) -> float:
@@ -241,15 +251,14 @@ class Body:
                     return StepResult(False, it, "inverted element")
                 continue
             norm0 = self._norm(r, rd)
-            if DEBUG:
-                print(
-                    f"   it{it} |r|={float(np.max(np.abs(r))):.3e} rd={rd:.3e} d={d:.5f} nact={int(np.sum(coupling > 0)) if control.kind == 'force' else -1}"
-                )
+            if _log.isEnabledFor(logging.DEBUG):
+                _log.debug("it %d |r| %.3e rd %.3e d %.5f", it, float(np.abs(r).max()), rd, d)
             if norm0 <= self.atol:
                 self._commit(u, states, t_new, d, control, force)
                 self.newton_iterations += it - 1
                 return StepResult(True, it - 1)
             solver = self._factor(data())
+            t0 = time.perf_counter()
             with np.errstate(all="ignore"):  # a singular tangent is caught below
                 du = solver.solve(-r)
                 dd = 0.0
@@ -262,6 +271,7 @@ class Body:
                     c = float(np.sum(coupling))
                     dd = (-rd - kcol @ du) / (c - kcol @ x2)
                     du = du - x2 * dd
+            self.timings["triangular solves"] += time.perf_counter() - t0
             # Line search on the directional derivative g(a) = [du, dd] . residual(a), i.e. on the
             # incremental potential (hyperelasticity, the Prony update within a step, penalty
             # contact and the dead load on the plate are all variational). The full step is taken
@@ -270,7 +280,11 @@ class Body:
             if not (np.all(np.isfinite(du)) and np.isfinite(dd)):
                 self.newton_iterations += it
                 return StepResult(False, it, "singular tangent")
-            g0 = float(du @ r) + dd * rd
+            with np.errstate(all="ignore"):
+                g0 = float(du @ r) + dd * rd
+            if not np.isfinite(g0):
+                self.newton_iterations += it
+                return StepResult(False, it, "singular tangent")
             a_lo, g_lo = 0.0, g0
             alpha = 1.0
             accepted = None
@@ -282,7 +296,8 @@ class Body:
                 if trial is None:
                     alpha = 0.5 * (a_lo + alpha)
                     continue
-                g = float(du @ trial[0]) + dd * trial[4]
+                with np.errstate(all="ignore"):
+                    g = float(du @ trial[0]) + dd * trial[4]
                 if (
                     g0 >= 0.0
                     or abs(g) <= opts.line_search_eta * abs(g0)
@@ -312,7 +327,7 @@ class Body:
         prev = self._last
         if prev is None or prev[0] != control.kind or control.kind == "free":
             return u, d
-        kind, v_prev, v_now, du_prev, dd_prev = prev
+        _, v_prev, v_now, du_prev, dd_prev = prev
         if abs(v_now - v_prev) < 1e-14 * max(abs(v_now), 1e-30):
             return u, d
         ratio = PREDICTOR_DAMPING * float(

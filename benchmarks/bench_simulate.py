@@ -1,0 +1,66 @@
+"""Benchmark: one full design evaluation (tapping + plate + wedge) at the default mesh.
+
+    python benchmarks/bench_simulate.py [--repeat 3] [--material silicone_gls40 ...]
+
+Runs on one core (BLAS threads pinned to 1 before numpy loads; the process is bound to CPU 0
+where the OS allows). Prints, per material: wall time (best of --repeat), dofs, and per protocol
+the Newton iterations, steps, factorisations, wall time and where the time goes. Targets (the FE
+issue): all three protocols <= 5 s, ambition <= 2 s.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import time  # noqa: E402
+
+from sim import homogeneous_design, simulate  # noqa: E402
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--material", nargs="+", default=["silicone_gls40", "polyurethane_74_45"])
+    args = ap.parse_args()
+    if hasattr(os, "sched_setaffinity"):
+        try:
+            os.sched_setaffinity(0, {0})
+        except OSError:
+            pass
+    simulate(homogeneous_design(args.material[0]), ["plate"])  # warm-up (imports, caches)
+    for name in args.material:
+        design = homogeneous_design(name)
+        best, result = float("inf"), None
+        for _ in range(args.repeat):
+            t0 = time.perf_counter()
+            res = simulate(design)
+            wall = time.perf_counter() - t0
+            if wall < best:
+                best, result = wall, res
+        assert result is not None and result.ok, result.failures
+        print(
+            f"\n{name}: {best:.2f} s for all three protocols ({result.n_dofs} dofs, best of "
+            f"{args.repeat})"
+        )
+        print(
+            f"  {'protocol':8s} {'wall s':>7s} {'Newton':>7s} {'steps':>6s} {'LDLt':>6s}  "
+            "time split"
+        )
+        for proto, info in result.protocols.items():
+            split = ", ".join(
+                f"{k} {v / info['wall_time_s']:.0%}" for k, v in info["timings_s"].items()
+            )
+            print(
+                f"  {proto:8s} {info['wall_time_s']:7.2f} {info['newton_iterations']:7d} "
+                f"{info['steps']:6d} {info['factorizations']:6d}  {split}"
+            )
+        total_it = sum(i["newton_iterations"] for i in result.protocols.values())
+        print(f"  {total_it} Newton iterations, {1e3 * best / total_it:.1f} ms per iteration")
+
+
+if __name__ == "__main__":
+    main()
