@@ -57,7 +57,7 @@ class NewtonOptions:
     max_iterations: int = 20
     line_search_eta: float = 0.8  # accept when |g(alpha)| <= eta |g(0)|
     min_step: float = 1e-3  # a line search ending below this fraction of the step fails
-    rtol: float = 1e-7  # residual tolerance relative to E0 * a (N/mm)
+    rtol: float = 1e-6  # residual tolerance relative to E0 * a (N/mm)
     max_backtracks: int = 6
     # plate and base penalty per unit area: kappa = penalty_per_mm * E0_max (N/mm^3), so the
     # penetration is the contact pressure / kappa, about 1e-4 of a strain-level pressure in mm
