@@ -31,6 +31,7 @@ def scaled_options(kind: str, factor: float) -> SimOptions:
         tapping=dataclasses.replace(
             tap,
             steps_loaded=2 * round(tap.steps_loaded * factor / 2),
+            steps_settle=2 * round(tap.steps_settle * factor / 2),
             steps_rest=max(2, round(tap.steps_rest * factor)),
         ),
         plate=dataclasses.replace(plate, steps=max(2, round(plate.steps * factor))),

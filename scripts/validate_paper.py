@@ -51,7 +51,9 @@ def reproduce(lines: list[str], figs: Path) -> dict:
         )
         for name in TABLE2
     }
-    inst = {name: simulate(homogeneous_design(_instantaneous(name)), ["tapping"]) for name in TABLE2}
+    inst = {
+        name: simulate(homogeneous_design(_instantaneous(name)), ["tapping"]) for name in TABLE2
+    }
 
     g = REFERENCE_GEOMETRY
     lines += [
@@ -217,7 +219,9 @@ def convergence(lines: list[str], quick: bool) -> None:
             r = (h[-2] / h[-1]) ** order
             exact = v[-1] + (v[-1] - v[-2]) / (r - 1)
             err = abs(v[0] - exact) / abs(exact)
-            lines.append(f"| `{key}` | {v[0]:.4f} | {v[-1]:.4f} | {order:.1f} | {100 * err:.2f} % |")
+            lines.append(
+                f"| `{key}` | {v[0]:.4f} | {v[-1]:.4f} | {order:.1f} | {100 * err:.2f} % |"
+            )
         lines.append("")
 
 
@@ -235,7 +239,9 @@ def time_steps(lines: list[str]) -> None:
         base = SimOptions()
         fine = dataclasses.replace(
             base,
-            tapping=dataclasses.replace(base.tapping, steps_loaded=48, steps_rest=8),
+            tapping=dataclasses.replace(
+                base.tapping, steps_loaded=64, steps_settle=64, steps_rest=8
+            ),
             plate=dataclasses.replace(base.plate, steps=20),
             wedge=dataclasses.replace(base.wedge, ramp_steps=20, hold_steps=32),
         )

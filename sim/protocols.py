@@ -42,8 +42,8 @@ class TappingOptions:
     frequency_Hz: float = 0.5  # of the half-sine: loaded for 1 / (2 f) seconds
     rest_s: float = 1.0
     length_mm: float = 10.0
-    steps_loaded: int = 24  # steps while the plate is in contact, for the measured tap
-    steps_settle: int = 24  # the same for the settling taps (if different, one more tap follows)
+    steps_loaded: int = 32  # steps while the plate is in contact, for the measured tap
+    steps_settle: int = 32  # the same for the settling taps (if different, one more tap follows)
     steps_rest: int = 4
     max_taps: int = 25
     min_taps: int = 3
