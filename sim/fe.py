@@ -83,7 +83,7 @@ class Discretization:
         fixed, x fixed on the symmetry axis). Constrained dofs keep whatever value the
         displacement array holds, so prescribed displacements are set there."""
         order = np.argsort(fmesh.layer, kind="stable")
-        mesh = fmesh.mesh.__class__(fmesh.mesh.p, fmesh.mesh.t[:, order])
+        mesh = fmesh.mesh.__class__(fmesh.mesh.p, np.ascontiguousarray(fmesh.mesh.t[:, order]))
         self.fmesh = fmesh
         self.mesh = mesh
         self.materials = materials
