@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 from collections.abc import Callable
 
@@ -20,6 +21,7 @@ from sim import (
     load_design,
     simulate,
 )
+from sim.options import apply_overrides, parse_override
 from sim.provenance import check_new_folder
 
 __all__ = ["main"]
@@ -34,7 +36,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise UsageError("simulate: give either DESIGN.toml or --material NAME")
     design = homogeneous_design(args.material) if args.material else load_design(args.design)
     protocols = PROTOCOLS if args.protocol == "all" else (args.protocol,)
-    options = SimOptions()
+    options = apply_overrides(SimOptions(), dict(parse_override(s) for s in args.set or []))
     if args.out is not None:
         check_new_folder(args.out)  # fail before computing, not after
     result = simulate(design, protocols, options)
@@ -48,7 +50,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     else:
         for name, value in result.metrics.items():
             unit = METRICS[name][1]
-            text = "failed" if value is None else f"{value:.4f} {unit}"
+            if value is None or not math.isfinite(value):
+                text = "failed" if result.failures else "not reached (see the options)"
+            else:
+                text = f"{value:.4f} {unit}"
             print(f"{name:28s} {text}")
         print(f"({result.n_dofs} dofs, {result.wall_time_s:.2f} s)")
         if args.out is not None:
@@ -70,6 +75,14 @@ def _add_simulate(sub) -> None:
     p.add_argument("--protocol", choices=[*PROTOCOLS, "all"], default="all")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--out", type=Path, help="run folder for result, plots and VTU meshes")
+    p.add_argument(
+        "--set",
+        action="append",
+        metavar="SECTION.FIELD=VALUE",
+        help="override an option, e.g. tapping.peak_force_N=4, tapping.frequency_Hz=1, "
+        "tapping.rest_s=0.5, tapping.settle_tol=1e-3, wedge.hold_s=50, mesh.h_apex_mm=0.03 "
+        "(repeatable; see sim.options.option_names())",
+    )
     p.set_defaults(func=_cmd_simulate)
 
 

@@ -97,6 +97,9 @@ class Discretization:
         self.slices = [slice(int(bounds[k]), int(bounds[k + 1])) for k in range(len(materials))]
         # shape-function gradients (6, 2, n_el, n_q) and weights (n_el, n_q)
         self.dN = np.stack([basis.basis[a][0].grad for a in range(6)])
+        self._dN0 = np.ascontiguousarray(self.dN[:, 0].transpose(1, 2, 0))  # (e, q, a)
+        self._dN1 = np.ascontiguousarray(self.dN[:, 1].transpose(1, 2, 0))
+        self._dN01 = np.concatenate([self._dN0, self._dN1], axis=1)  # (e, 2q, a)
         self.w = basis.dx
         self.edofs_scalar = basis.element_dofs.T.copy()  # (n_el, 6)
         self.n_el, self.n_q = self.w.shape
@@ -266,30 +269,33 @@ class Discretization:
 
     def _tangent(self, F: np.ndarray, S: np.ndarray, D: np.ndarray) -> np.ndarray:
         """Element stiffness (material + geometric) scattered into the fixed CSR pattern."""
-        dN = self.dN
         w = self.w
         ne, nq = self.n_el, self.n_q
-        # B[e, q, v, (a, i)]: Voigt strain variation of node a, component i
+        dN0, dN1 = self._dN0, self._dN1  # (e, q, a), contiguous
+        # B[e, q, v, a, i]: Voigt strain variation of node a, component i
         B = np.empty((ne, nq, 3, 6, 2))
-        dN0 = dN[:, 0].transpose(1, 2, 0)  # (e, q, a)
-        dN1 = dN[:, 1].transpose(1, 2, 0)
-        for i in range(2):
-            Fi0 = F[i, 0][:, :, None]
-            Fi1 = F[i, 1][:, :, None]
-            B[:, :, 0, :, i] = Fi0 * dN0
-            B[:, :, 1, :, i] = Fi1 * dN1
-            B[:, :, 2, :, i] = Fi0 * dN1 + Fi1 * dN0
+        F00, F01 = F[0, 0][:, :, None], F[0, 1][:, :, None]
+        F10, F11 = F[1, 0][:, :, None], F[1, 1][:, :, None]
+        np.multiply(F00, dN0, out=B[:, :, 0, :, 0])
+        np.multiply(F10, dN0, out=B[:, :, 0, :, 1])
+        np.multiply(F01, dN1, out=B[:, :, 1, :, 0])
+        np.multiply(F11, dN1, out=B[:, :, 1, :, 1])
+        B[:, :, 2, :, 0] = F00 * dN1 + F01 * dN0
+        B[:, :, 2, :, 1] = F10 * dN1 + F11 * dN0
         B = B.reshape(ne, nq, 3, 12)
         Dw = (D * w).transpose(2, 3, 0, 1)  # (e, q, 3, 3)
         DB = (Dw @ B).reshape(ne, 3 * nq, 12)
         Ke = B.reshape(ne, 3 * nq, 12).transpose(0, 2, 1) @ DB  # (e, 12, 12)
         # geometric stiffness  G_ab = sum_q w dN_aJ S_JL dN_bL, on both components
         Sw = S * w
-        SdN0 = Sw[0][:, :, None] * dN0 + Sw[2][:, :, None] * dN1  # (e, q, a)
-        SdN1 = Sw[2][:, :, None] * dN0 + Sw[1][:, :, None] * dN1
-        left = np.concatenate([SdN0, SdN1], axis=1).transpose(0, 2, 1)  # (e, a, 2q)
-        right = np.concatenate([dN0, dN1], axis=1)  # (e, 2q, b)
-        G = left @ right
+        left = np.concatenate(
+            [
+                Sw[0][:, :, None] * dN0 + Sw[2][:, :, None] * dN1,
+                Sw[2][:, :, None] * dN0 + Sw[1][:, :, None] * dN1,
+            ],
+            axis=1,
+        ).transpose(0, 2, 1)  # (e, a, 2q)
+        G = left @ self._dN01  # (e, a, b)
         Ke4 = Ke.reshape(ne, 6, 2, 6, 2)
         Ke4[:, :, 0, :, 0] += G
         Ke4[:, :, 1, :, 1] += G

@@ -203,6 +203,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
     period = t_load + opts.rest_s
     scale = 1.0 / (2.0 * opts.length_mm)  # N -> N/mm on the half model
     pen = [0.0]
+    base = [0]
     steps = [0]
 
     def tap(n_loaded: int) -> tuple[tuple[float, float, float], dict]:
@@ -220,6 +221,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
             rec_d.append(top0 - body.indenter_position)
             rec_f.append(body.force / scale)
             pen[0] = max(pen[0], body.max_penetration())
+            base[0] = max(base[0], body.base_contact_nodes())
 
         def force_at(t: float) -> Control:
             return Control.force(opts.peak_force_N * np.sin(omega * (t - t_start)) * scale)
@@ -248,7 +250,8 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
             history.append(metrics_k)
             if len(history) >= 2:
                 prev, cur = np.array(history[-2]), np.array(history[-1])
-                change = float(np.max(np.abs(cur - prev) / np.maximum(np.abs(cur), 1e-6)))
+                rel = np.abs(cur - prev) / np.maximum(np.abs(cur), 1e-6)
+                change = float(np.max(rel[np.isfinite(rel)], initial=0.0))  # NaN: not reached
                 if change < opts.settle_tol and len(history) >= opts.min_taps:
                     settled = True
                     break
@@ -280,6 +283,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
         "touch_mm": touch,
         "history": [list(h) for h in history],
         "max_penetration_mm": pen[0],
+        "max_base_contact_nodes": base[0],
     }
     return _result("tapping", body, t0, it0, steps[0], metrics, curves, info)
 
@@ -364,16 +368,21 @@ def run_plate(body: Body, opts: PlateOptions = PlateOptions()) -> ProtocolResult
         return Control.position(top - opts.speed_mm_per_s * (t - t_start))
 
     pen = [0.0]
+    base = [0]
 
     def record(t: float) -> None:
         rec_d.append(top - body.indenter_position)
         rec_f.append(body.force * scale)
         pen[0] = max(pen[0], body.max_penetration())
+        base[0] = max(base[0], body.base_contact_nodes())
 
     steps = _march(body, times, position, "plate", record)
-    metrics = {"plate_force_at_1mm_N": float(np.interp(1.0, rec_d, rec_f))}
+    reached = rec_d[-1] >= 1.0 - 1e-9  # the metric is defined only if the plate gets to 1 mm
+    metrics = {
+        "plate_force_at_1mm_N": float(np.interp(1.0, rec_d, rec_f)) if reached else float("nan")
+    }
     curves = {"plate": {"displacement_mm": rec_d, "force_N": rec_f}}
-    info = {"max_penetration_mm": pen[0]}
+    info = {"max_penetration_mm": pen[0], "max_base_contact_nodes": base[0]}
     return _result("plate", body, t0, it0, steps, metrics, curves, info)
 
 
@@ -410,18 +419,23 @@ def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult
     hold = t_start + hold[hold > opts.ramp_s]
     rec_t, rec_f = [0.0], [0.0]
     profiles: dict[str, dict] = {}
+    snapshots = [("profile_1s", opts.ramp_s)] + (
+        [("profile_100s", 100.0)] if t_prof == 100.0 else []
+    )
 
     def position(t: float) -> Control:
         frac = min(1.0, (t - t_start) / opts.ramp_s)
         return Control.position(top - opts.depth_mm * frac)
 
     pen = [0.0]
+    base = [0]
 
     def record(t: float) -> None:
         rec_t.append(t - t_start)
         rec_f.append(body.force * scale)
         pen[0] = max(pen[0], body.max_penetration())
-        for label, when in (("profile_1s", opts.ramp_s), ("profile_100s", t_prof)):
+        base[0] = max(base[0], body.base_contact_nodes())
+        for label, when in snapshots:
             if abs(t - t_start - when) < 1e-9:
                 profiles[label] = surface_profile(
                     body, 0.5 * opts.tip_width_mm, opts.profile_length_mm, opts.profile_points
@@ -432,8 +446,10 @@ def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult
     rec_t_arr = np.array(rec_t)
     metrics = {
         "wedge_peak_force_N": float(np.max(rec_f)),
-        "wedge_force_at_100s_N": float(np.interp(t_prof, rec_t_arr, rec_f)),
+        "wedge_force_at_100s_N": (
+            float(np.interp(100.0, rec_t_arr, rec_f)) if rec_t_arr[-1] >= 100.0 else float("nan")
+        ),
     }
     curves = {"wedge": {"time_s": rec_t, "force_N": rec_f}, **profiles}
-    info = {"max_penetration_mm": pen[0]}
+    info = {"max_penetration_mm": pen[0], "max_base_contact_nodes": base[0]}
     return _result("wedge", body, t0, it0, steps, metrics, curves, info)

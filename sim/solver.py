@@ -135,6 +135,11 @@ class Body:
             parts.append((p_i, n_i, k_i, True))
         return parts
 
+    def base_contact_nodes(self) -> int:
+        """Number of surface nodes resting on the rigid base beside the bone (committed state)."""
+        s = self.disc.surface_nodes
+        return int(np.sum(self.base.penetration(self.disc.X[s] + self.u[s])[0] > 0))
+
     def max_penetration(self) -> float:
         """Deepest penetration of the indenter into the committed surface (mm); 0 if none."""
         if not np.isfinite(self.indenter_position) or self.indenter is None:

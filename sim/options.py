@@ -1,0 +1,76 @@
+"""Override simulation options by dotted names, e.g. ``tapping.peak_force_N=4``."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from .errors import DesignError
+from .simulate import SimOptions
+
+__all__ = ["apply_overrides", "option_names", "parse_override"]
+
+
+def option_names(options: SimOptions | None = None) -> list[str]:
+    """Every overridable option as ``section.field``."""
+    options = SimOptions() if options is None else options
+    return [
+        f"{section.name}.{f.name}"
+        for section in dataclasses.fields(options)
+        for f in dataclasses.fields(getattr(options, section.name))
+    ]
+
+
+def parse_override(text: str) -> tuple[str, str]:
+    """``"section.field=value"`` -> (name, raw value)."""
+    if "=" not in text:
+        raise DesignError("--set", f"expected section.field=value, got {text!r}")
+    name, value = text.split("=", 1)
+    return name.strip(), value.strip()
+
+
+def apply_overrides(options: SimOptions, overrides: Mapping[str, Any]) -> SimOptions:
+    """A copy of ``options`` with the dotted names replaced (values parsed to the field's type).
+
+    Unknown names, values of the wrong type and non-positive step counts or sizes raise
+    ``DesignError`` naming the option.
+    """
+    sections: dict[str, dict[str, Any]] = {}
+    for name, raw in overrides.items():
+        section, _, field = name.partition(".")
+        if section not in {f.name for f in dataclasses.fields(options)}:
+            raise DesignError(name, f"unknown option; known: {', '.join(option_names(options))}")
+        current = getattr(options, section)
+        if field not in {f.name for f in dataclasses.fields(current)}:
+            raise DesignError(name, f"unknown option; known: {', '.join(option_names(options))}")
+        sections.setdefault(section, {})[field] = _parse(name, raw, getattr(current, field))
+    out = options
+    for section, changes in sections.items():
+        out = dataclasses.replace(
+            out, **{section: dataclasses.replace(getattr(out, section), **changes)}
+        )
+    return out
+
+
+def _parse(name: str, raw: Any, default: Any) -> Any:
+    kind = type(default)
+    try:
+        if kind is bool:
+            if isinstance(raw, bool):
+                return raw
+            if str(raw).lower() in {"true", "1", "yes"}:
+                return True
+            if str(raw).lower() in {"false", "0", "no"}:
+                return False
+            raise ValueError
+        value = kind(raw)
+    except (TypeError, ValueError):
+        raise DesignError(name, f"must be a {kind.__name__}, got {raw!r}") from None
+    if kind in (int, float):
+        if not math.isfinite(value):
+            raise DesignError(name, f"must be finite, got {raw!r}")
+        if value < 0 or (value == 0 and not name.endswith("settle_tol")):
+            raise DesignError(name, f"must be > 0, got {raw!r}")
+    return value

@@ -1,0 +1,124 @@
+"""Large deformation, failure reporting, and option overrides."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from sim import Design, Layer, SimOptions, homogeneous_design, simulate
+from sim.errors import DesignError
+from sim.materials import material_from_spec
+from sim.options import apply_overrides, option_names
+from sim.solver import NewtonOptions
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "explore.cli", *args], capture_output=True, text=True, timeout=600
+    )
+
+
+def test_failed_protocol_is_recorded_not_raised():
+    """A protocol that cannot converge comes back as a failure naming protocol and time."""
+    opts = SimOptions(newton=NewtonOptions(max_iterations=1))
+    res = simulate(homogeneous_design("polyurethane_74_45"), ["plate", "wedge"], opts)
+    assert not res.ok
+    assert {f.protocol for f in res.failures} == {"plate", "wedge"}
+    for f in res.failures:
+        assert 0.0 <= f.time_s < 1.0
+        assert "convergence" in f.reason or "line search" in f.reason
+    assert res.metrics["plate_force_at_1mm_N"] is None
+    out = res.to_json()
+    assert out["ok"] is False and out["plate_force_at_1mm_N"] is None
+    json.dumps(out, allow_nan=False)  # valid JSON even with failures
+
+
+def test_cli_reports_failure_with_exit_code_1():
+    p = _cli(
+        "simulate",
+        "--material",
+        "polyurethane_74_45",
+        "--protocol",
+        "plate",
+        "--json",
+        "--set",
+        "newton.max_iterations=1",
+    )
+    assert p.returncode == 1
+    assert json.loads(p.stdout)["ok"] is False
+    lines = [line for line in p.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("fingertip: simulation failed: plate at t =")
+    assert "Traceback" not in p.stderr
+
+
+def test_overrides_reach_the_protocols():
+    """tapping.peak_force_N = 3 N never reaches 4 N: that metric is undefined, not faked."""
+    opts = apply_overrides(SimOptions(), {"tapping.peak_force_N": "3", "tapping.rest_s": "0.5"})
+    assert opts.tapping.peak_force_N == 3.0 and opts.tapping.rest_s == 0.5
+    res = simulate(homogeneous_design("silicone_gls40"), ["tapping"], opts)
+    assert (
+        res.metrics["disp_at_4N_mm"] is None
+        or res.metrics["disp_at_4N_mm"] != res.metrics["disp_at_4N_mm"]
+    )
+    assert max(res.curves["tapping"]["force_N"]) == pytest.approx(3.0, rel=1e-6)
+    short = simulate(
+        homogeneous_design("silicone_gls40"),
+        ["plate"],
+        apply_overrides(SimOptions(), {"plate.depth_mm": "0.5"}),
+    )
+    assert short.to_json()["plate_force_at_1mm_N"] is None
+
+
+@pytest.mark.parametrize(
+    ("override", "field"),
+    [
+        ({"tapping.bogus": "1"}, "tapping.bogus"),
+        ({"nosuch.x": "1"}, "nosuch.x"),
+        ({"tapping.peak_force_N": "abc"}, "tapping.peak_force_N"),
+        ({"plate.steps": "0"}, "plate.steps"),
+        ({"wedge.hold_s": "-1"}, "wedge.hold_s"),
+        ({"tapping.frequency_Hz": "nan"}, "tapping.frequency_Hz"),
+    ],
+)
+def test_bad_overrides_name_the_option(override, field):
+    with pytest.raises(DesignError) as exc:
+        apply_overrides(SimOptions(), override)
+    assert exc.value.field == field
+
+
+def test_cli_bad_override_is_one_line_exit_2():
+    p = _cli("simulate", "--material", "silicone_gls40", "--set", "tapping.peak_force=4")
+    assert p.returncode == 2
+    lines = [line for line in p.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "tapping.peak_force" in lines[0]
+
+
+def test_option_names_cover_every_section():
+    names = option_names()
+    for section in ("mesh", "newton", "tapping", "plate", "wedge"):
+        assert any(n.startswith(section + ".") for n in names)
+
+
+@pytest.mark.slow
+def test_human_like_soft_layered_design_solves_at_large_deformation():
+    """A thin silicone skin over a very soft, very dissipative core: compresses more than half
+    the pulp's height at 4 N and still solves all three protocols."""
+    core = material_from_spec(
+        {
+            "model": "neo_hookean",
+            "mu_MPa": 0.004,
+            "nu": 0.45,
+            "prony_g": [0.4, 0.3, 0.1],
+            "prony_tau_s": [0.1, 1.0, 10.0],
+        }
+    )
+    design = Design((Layer(material_from_spec("silicone_gls40"), 0.5), Layer(core)))
+    res = simulate(design)
+    assert res.ok, res.failures
+    assert res.metrics["disp_at_4N_mm"] > 0.5 * design.geometry.height_mm
+    assert res.metrics["hysteresis_Nmm"] > 0.5
+    for info in res.protocols.values():
+        assert info["max_penetration_mm"] < 0.01
