@@ -282,10 +282,49 @@ def locking(lines: list[str]) -> None:
     lines.append("")
 
 
+def geometry_fit(lines: list[str], path: Path) -> None:
+    """Summarise a run of scripts/fit_geometry.py (its evaluations.jsonl)."""
+    import json
+
+    recs = [json.loads(line) for line in path.read_text().splitlines() if line.strip()]
+    worst = [max(abs(e) for e in r["errors"].values()) for r in recs]
+    best = recs[int(np.argmin(worst))]
+    lines += [
+        "## Reconstructing the outline",
+        "",
+        f"`python scripts/fit_geometry.py` (Nelder-Mead over the superellipse a, b, n, "
+        f"minimising the largest relative error against Table 2; {len(recs)} outlines, each "
+        "tapped to the quasi-steady state with both materials) found its best outline at "
+        f"a = {best['x'][0]:.2f} mm, b = {best['x'][1]:.2f} mm, n = {best['x'][2]:.2f}, with the "
+        f"largest error {100 * min(worst):.1f} %:",
+        "",
+        "| value | error at the best outline |",
+        "|---|---|",
+    ]
+    for k, e in best["errors"].items():
+        lines.append(f"| {k.replace(':', ' ')} | {100 * e:+.1f} % |")
+    lines += [
+        "",
+        "The reference outline (5.84, 5.48, 1.5) is within a percent of that optimum, so it is "
+        "kept. The remaining error is structural: every outline that makes silicone more "
+        "compliant (its displacements are 12-13 % low) also raises its loop area (already "
+        "13-14 % high), because silicone's hysteresis scales with its displacement; the outer "
+        "outline alone cannot close both, and the 10 % aim is missed by about 3-4 points on "
+        "silicone. Polyurethane is within 11 % at every outline near the optimum.",
+        "",
+    ]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, default=Path("docs"))
     ap.add_argument("--quick", action="store_true", help="skip the finest mesh")
+    ap.add_argument(
+        "--fit",
+        type=Path,
+        default=Path("runs/fit_geometry/evaluations.jsonl"),
+        help="evaluations of scripts/fit_geometry.py to summarise (skipped if missing)",
+    )
     args = ap.parse_args()
     t0 = time.perf_counter()
     lines = [
@@ -303,6 +342,8 @@ def main() -> None:
         "",
     ]
     reproduce(lines, args.out / "figures")
+    if args.fit.exists():
+        geometry_fit(lines, args.fit)
     convergence(lines, args.quick)
     time_steps(lines)
     locking(lines)

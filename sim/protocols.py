@@ -388,19 +388,23 @@ def run_plate(body: Body, opts: PlateOptions = PlateOptions()) -> ProtocolResult
 
 # ---------------------------------------------------------------------------- wedge
 def surface_profile(body: Body, tip_half_width_mm: float, length_mm: float, n: int) -> dict:
-    """Vertical deflection of the top surface vs horizontal distance from the wedge's corner."""
+    """Surface deflection vs horizontal distance from the wedge's corner.
+
+    The deflection is the downward displacement of the surface's material points (-u_y, mm),
+    plotted at their deformed horizontal distance from the corner of the wedge's tip, sampled at
+    ``n`` points over ``length_mm`` (as far as the surface reaches). Unlike the gap between two
+    outlines at equal x, this stays well defined where the surface turns steep near the base.
+    """
     s = body.disc.surface_nodes
-    X = body.disc.X[s]
-    x_def = X[:, 0] + body.u[s, 0]
-    y_def = X[:, 1] + body.u[s, 1]
+    x_def = body.disc.X[s, 0] + body.u[s, 0] - tip_half_width_mm
+    defl = -body.u[s, 1]
     order = np.argsort(x_def)
     dist = np.linspace(0.0, length_mm, n)
-    x = tip_half_width_mm + dist
-    keep = x <= min(X[:, 0].max(), x_def.max())
-    x, dist = x[keep], dist[keep]
-    y0 = np.interp(x, X[np.argsort(X[:, 0]), 0], X[np.argsort(X[:, 0]), 1])
-    y1 = np.interp(x, x_def[order], y_def[order])
-    return {"distance_mm": dist.tolist(), "deflection_mm": (y0 - y1).tolist()}
+    dist = dist[dist <= x_def.max()]
+    return {
+        "distance_mm": dist.tolist(),
+        "deflection_mm": np.interp(dist, x_def[order], defl[order]).tolist(),
+    }
 
 
 def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult:

@@ -56,6 +56,20 @@ def test_paper_qualitative_wedge_results(reference_runs):
     assert np.all(np.diff(f[late]) < 0)  # still relaxing between 10 s and 100 s
 
 
+def test_wedge_surface_profile_is_physical(reference_runs):
+    """The surface follows the wedge at its corner, relaxes monotonically within 2 mm, and is
+    undisturbed far away (cf. the paper's Fig. 6 and 8a)."""
+    for res in reference_runs.values():
+        for key in ("profile_1s", "profile_100s"):
+            dist = np.array(res.curves[key]["distance_mm"])
+            defl = np.array(res.curves[key]["deflection_mm"])
+            assert 0.85 < defl[0] <= 1.0
+            near = dist <= 2.0
+            assert np.all(np.diff(defl[near]) < 0)
+            assert np.all(np.abs(defl[dist >= 3.0]) < 0.1)
+            assert dist[-1] > 5.0  # sampled over the whole half surface
+
+
 def test_regression_pins(reference_runs):
     """Pinned values of the reference runs (change only with a SOLVER_VERSION bump)."""
     pins = {
