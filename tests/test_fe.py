@@ -275,3 +275,43 @@ def test_viscoelastic_material_dissipates():
 def test_square_mesh_helper_is_sane():
     fm = square_mesh(4)
     assert len(fm.base) == 5 and len(fm.axis) == 5 and len(fm.surface) == 9
+
+
+def test_rigid_base_contact_supports_the_body():
+    """The frictionless base y = 0 beside the bone: a strip whose left edge is pushed 0.15 mm
+    below the base rests on it (no surface node penetrates more than the penalty allows) and the
+    contact tangent matches finite differences."""
+    import numpy as np
+    from skfem import MeshTri
+
+    from sim.mesh import FingertipMesh
+
+    mesh = MeshTri.init_tensor(np.linspace(0.0, 1.0, 7), np.linspace(0.0, 0.5, 4))
+    x, y = mesh.p
+    bottom = np.flatnonzero(np.abs(y) < 1e-12)
+    right = np.flatnonzero(np.abs(x - 1) < 1e-12)
+    left = np.flatnonzero(np.abs(x) < 1e-12)
+    surface = np.concatenate(
+        [bottom[np.argsort(-x[bottom])][::-1], right[np.argsort(y[right])][1:]]
+    )
+    fm = FingertipMesh(mesh, np.zeros(mesh.t.shape[1], dtype=int), surface, left[:0], left)
+
+    def fixed(X):
+        m = np.zeros_like(X, dtype=bool)
+        m[np.abs(X[:, 0]) < 1e-12, :] = True
+        return m
+
+    disc = Discretization(fm, [_nh(0.05, 0.3)], fixed=fixed)
+    body = Body(disc, indenter=None)
+    left_nodes = np.abs(disc.X[:, 0]) < 1e-12
+    for depth in np.linspace(0.05, 0.15, 3):
+        body.u[left_nodes, 1] = -depth
+        assert body.advance(depth, Control.free()).converged
+    s = disc.surface_nodes[disc.X[disc.surface_nodes, 0] > 1e-12]  # the free surface nodes
+    y_surf = disc.X[s, 1] + body.u[s, 1]
+    assert body.base_contact_nodes() >= 3  # the bottom rests on the base
+    assert y_surf.min() > -1e-2 * 0.15  # penetration below 1 % of the push everywhere,
+    away = disc.X[s, 0] > 0.2  # and below 0.1 % away from the corner forced under the base
+    assert y_surf[away].min() > -1e-3 * 0.15
+    err = _fd_check(body, Control.free(), np.inf, 0.0)
+    assert err < 1e-5
