@@ -394,7 +394,8 @@ def test_catalogue_is_table1() -> None:
     assert si.prony == Prony(g=[0.015, 0.044, 0.029], tau_s=[0.025, 0.150, 0.300])
     assert pu.law == Hyperfoam(mu_MPa=[0.100, 0.063], alpha=[5.5, 8.25], nu=0.47)
     assert pu.prony == Prony(g=[0.167, 0.158, 0.113], tau_s=[0.100, 1.380, 25.472])
-    for name, mat in CATALOGUE.items():
+    for name in ("silicone_gls40", "polyurethane_74_45"):
+        mat = CATALOGUE[name]
         assert mat.name == name and mat.moduli == "long_term" and not mat.is_elastic
         assert "Cabibihan" in mat.source and "Table 1" in mat.source
     assert set(LAWS) == {"hyperfoam", "neo_hookean", "mooney_rivlin", "yeoh"}
