@@ -1,0 +1,388 @@
+"""Design spaces: which skins a sweep explores, and how a unit-cube sample becomes a design.
+
+A design-space TOML file gives, for every parameter, bounds (``{low, high}`` and optionally
+``log = true``), a fixed value (``{value = ...}``) or a categorical choice (``{choice = [...]}``)::
+
+    [geometry]
+    half_width_mm = { low = 5.0, high = 7.0 }
+    height_mm = { value = 5.48 }
+    exponent = { value = 1.5 }
+
+    [layers]
+    count = { choice = [1, 2, 3] }
+
+    [layers.skin]                      # outermost layer (active when count >= 2)
+    thickness_mm = { low = 0.2, high = 1.5 }
+    material = { choice = ["param", "silicone_gls40"] }
+    mu0_MPa = { low = 0.01, high = 0.3, log = true }   # used when material = "param"
+    ...
+    [layers.middle]                    # between skin and core (active when count = 3)
+    [layers.core]                      # innermost layer, fills the rest (always active)
+
+Layers are named by role: a one-layer design is a core, two layers are skin + core, three are
+skin + middle + core. A layer's material is either a catalogue entry or ``"param"``, the
+continuous family documented in ``param_material``. Parameters that a design does not use are
+*inactive*: recorded as NaN (numbers) or "" (choices), never as random values.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .design import MIN_CORE_MM, Design, Layer
+from .errors import DesignError
+from .geometry import Geometry
+from .materials import CATALOGUE, LAWS, Material, Prony
+
+__all__ = [
+    "DEFAULT_SPACE_PATH",
+    "LAYER_ROLES",
+    "PARAM_MATERIAL_KEYS",
+    "DesignSpace",
+    "Parameter",
+    "load_space",
+    "param_material",
+    "space_from_dict",
+]
+
+DEFAULT_SPACE_PATH = Path(__file__).parent / "data" / "default_space.toml"
+LAYER_ROLES = ("skin", "middle", "core")
+#: keys of the continuous material family (see ``param_material``)
+PARAM_MATERIAL_KEYS = ("mu0_MPa", "alpha", "nu", "g_total", "tau_s")
+#: relaxation times of the three Prony terms relative to ``tau_s``
+PRONY_TIME_RATIOS = (1.0 / 3.0, 1.0, 3.0)
+_GEOMETRY_KEYS = ("half_width_mm", "height_mm", "exponent")
+_LAYER_KEYS = ("thickness_mm", "material", *PARAM_MATERIAL_KEYS)
+
+
+def param_material(
+    mu0_MPa: float, alpha: float, nu: float, g_total: float, tau_s: float
+) -> Material:
+    """The continuous material family of the design spaces.
+
+    A one-term Abaqus hyperfoam, U = 2 mu0 / alpha^2 [sum_a (lambda_a^alpha - 1)
+    + (J^(-alpha beta) - 1) / beta], with long-term initial shear modulus ``mu0_MPa``,
+    nonlinearity ``alpha`` (alpha = 2 is close to neo-Hookean; larger stiffens faster in
+    compression) and Poisson's ratio ``nu``; relaxed by three Prony terms at ``tau_s``,
+    10 ``tau_s`` and 100 ``tau_s`` sharing the total relaxation ``g_total`` equally
+    (g(inf) = 1 - g_total; the instantaneous modulus is mu0 / (1 - g_total)).
+    Valid for every mu0 > 0, alpha != 0, -1 < nu < 0.5, 0 <= g_total < 1, tau > 0.
+    """
+    law = LAWS["hyperfoam"](mu_MPa=(float(mu0_MPa),), alpha=(float(alpha),), nu=float(nu))
+    if g_total > 0:
+        g = tuple(float(g_total) / 3.0 for _ in PRONY_TIME_RATIOS)
+        prony = Prony(g, tuple(float(tau_s) * r for r in PRONY_TIME_RATIOS))
+    else:
+        prony = Prony()
+    return Material(law, prony, "long_term")
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One dimension of a design space.
+
+    ``kind`` is "float" (bounds ``low``..``high``, ``log`` scale), "fixed" (``value``) or
+    "choice" (``choices``). ``name`` is dotted: ``geometry.height_mm``, ``layers.count``,
+    ``core.mu0_MPa``.
+    """
+
+    name: str
+    kind: str
+    low: float = math.nan
+    high: float = math.nan
+    log: bool = False
+    value: Any = None
+    choices: tuple = ()
+    weights: tuple = ()  # probabilities of the choices (uniform when empty)
+
+    @property
+    def sampled(self) -> bool:
+        return self.kind != "fixed" and not (self.kind == "choice" and len(self.choices) == 1)
+
+    def from_unit(self, u: float) -> Any:
+        """Map u in [0, 1) to a value."""
+        if self.kind == "fixed":
+            return self.value
+        if self.kind == "choice":
+            w = np.asarray(self.weights or [1.0] * len(self.choices), dtype=float)
+            k = int(np.searchsorted(np.cumsum(w) / w.sum(), u, side="right"))
+            return self.choices[min(k, len(self.choices) - 1)]
+        if self.log:
+            return float(
+                math.exp(math.log(self.low) + u * (math.log(self.high) - math.log(self.low)))
+            )
+        return float(self.low + u * (self.high - self.low))
+
+    def to_dict(self) -> dict[str, Any]:
+        if self.kind == "fixed":
+            return {"value": self.value}
+        if self.kind == "choice":
+            out_c: dict[str, Any] = {"choice": list(self.choices)}
+            if self.weights:
+                out_c["weights"] = list(self.weights)
+            return out_c
+        out: dict[str, Any] = {"low": self.low, "high": self.high}
+        if self.log:
+            out["log"] = True
+        return out
+
+
+@dataclass(frozen=True)
+class DesignSpace:
+    """All parameters of a space, in a fixed order (the sampler's dimensions)."""
+
+    parameters: tuple[Parameter, ...]
+
+    def __getitem__(self, name: str) -> Parameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    @property
+    def names(self) -> list[str]:
+        return [p.name for p in self.parameters]
+
+    @property
+    def sampled(self) -> list[Parameter]:
+        return [p for p in self.parameters if p.sampled]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The TOML form (nested tables), round-trips through ``space_from_dict``."""
+        out: dict[str, Any] = {"geometry": {}, "layers": {}}
+        for p in self.parameters:
+            head, key = p.name.split(".", 1)
+            if head == "geometry":
+                out["geometry"][key] = p.to_dict()
+            elif head == "layers":
+                out["layers"][key] = p.to_dict()
+            else:
+                out["layers"].setdefault(head, {})[key] = p.to_dict()
+        return out
+
+    def point(self, unit: np.ndarray) -> dict[str, Any]:
+        """A design point (flat dict name -> value; inactive entries NaN or "") from a unit
+        vector with one coordinate per sampled parameter."""
+        values: dict[str, Any] = {}
+        it = iter(unit)
+        for p in self.parameters:
+            values[p.name] = p.from_unit(next(it)) if p.sampled else p.from_unit(0.0)
+        return mask_inactive(values)
+
+    def design(self, point: Mapping[str, Any]) -> Design:
+        """The design of a point (validated; a DesignError if the point is impossible)."""
+        return point_to_design(point)
+
+
+def active_roles(count: int) -> tuple[str, ...]:
+    return {1: ("core",), 2: ("skin", "core"), 3: ("skin", "middle", "core")}[int(count)]
+
+
+def mask_inactive(values: dict[str, Any]) -> dict[str, Any]:
+    """Set the parameters a design does not use to NaN (numbers) or "" (choices)."""
+    out = dict(values)
+    roles = active_roles(out["layers.count"])
+    for role in LAYER_ROLES:
+        active = role in roles
+        for key in _LAYER_KEYS:
+            name = f"{role}.{key}"
+            if name not in out:
+                continue
+            used = active and (
+                key == "material"
+                or (key == "thickness_mm" and role != "core")
+                or (key in PARAM_MATERIAL_KEYS and out.get(f"{role}.material") == "param")
+            )
+            if not used:
+                out[name] = "" if key == "material" else math.nan
+    return out
+
+
+def point_to_design(point: Mapping[str, Any]) -> Design:
+    """Build the design of a (masked) point."""
+    geometry = Geometry(*(float(point[f"geometry.{k}"]) for k in _GEOMETRY_KEYS))
+    layers = []
+    for role in active_roles(point["layers.count"]):
+        name = point[f"{role}.material"]
+        if name == "param":
+            mat = param_material(*(float(point[f"{role}.{k}"]) for k in PARAM_MATERIAL_KEYS))
+        else:
+            mat = CATALOGUE[name]
+        thickness = None if role == "core" else float(point[f"{role}.thickness_mm"])
+        layers.append(Layer(mat, thickness))
+    return Design(tuple(layers), geometry)
+
+
+# ---------------------------------------------------------------------------- parsing
+def _parameter(name: str, spec: Any) -> Parameter:
+    if not isinstance(spec, Mapping):
+        raise DesignError(name, "must be a table: {low, high[, log]}, {value} or {choice}")
+    keys = set(spec)
+    if keys == {"value"}:
+        return Parameter(name, "fixed", value=spec["value"])
+    if keys in ({"choice"}, {"choice", "weights"}):
+        choices = spec["choice"]
+        if not isinstance(choices, list) or not choices:
+            raise DesignError(name, "choice must be a non-empty list")
+        if len(set(map(str, choices))) != len(choices):
+            raise DesignError(name, "choice has duplicates")
+        weights = spec.get("weights", [])
+        if weights and (
+            not isinstance(weights, list)
+            or len(weights) != len(choices)
+            or not all(
+                isinstance(w, int | float) and not isinstance(w, bool) and w > 0 for w in weights
+            )
+        ):
+            raise DesignError(f"{name}.weights", "must be one positive number per choice")
+        return Parameter(name, "choice", choices=tuple(choices), weights=tuple(map(float, weights)))
+    if keys in ({"low", "high"}, {"low", "high", "log"}):
+        low, high, log = spec["low"], spec["high"], bool(spec.get("log", False))
+        for k, v in (("low", low), ("high", high)):
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise DesignError(f"{name}.{k}", f"must be a finite number, got {v!r}")
+        if not low < high:
+            raise DesignError(
+                name, f"bounds reversed or empty: low = {low} must be < high = {high}"
+            )
+        if log and low <= 0:
+            raise DesignError(name, f"log scale needs low > 0, got {low}")
+        return Parameter(name, "float", float(low), float(high), log)
+    raise DesignError(
+        name, f"unknown form {sorted(keys)}; use {{low, high[, log]}}, {{value}} or {{choice}}"
+    )
+
+
+def _values(p: Parameter) -> list[Any]:
+    """The extreme values a parameter can take (for validation)."""
+    if p.kind == "fixed":
+        return [p.value]
+    if p.kind == "choice":
+        return list(p.choices)
+    return [p.low, p.high]
+
+
+def space_from_dict(data: Mapping[str, Any]) -> DesignSpace:
+    """Parse and validate a design space (every sampled design must be valid)."""
+    unknown = set(data) - {"geometry", "layers", "description"}
+    if unknown:
+        raise DesignError(sorted(unknown)[0], "unknown section; allowed: geometry, layers")
+    params: list[Parameter] = []
+    geo = data.get("geometry", {})
+    for key in geo:
+        if key not in _GEOMETRY_KEYS:
+            raise DesignError(
+                f"geometry.{key}", f"unknown key; allowed: {', '.join(_GEOMETRY_KEYS)}"
+            )
+    ref = Geometry()
+    for key in _GEOMETRY_KEYS:
+        p = _parameter(f"geometry.{key}", geo.get(key, {"value": getattr(ref, key)}))
+        for v in _values(p):
+            Geometry(**{**ref.to_dict(), key: v})  # raises DesignError naming geometry.<key>
+        params.append(p)
+    layers = data.get("layers")
+    if not isinstance(layers, Mapping) or "core" not in layers:
+        raise DesignError("layers.core", "missing: every space needs a [layers.core] table")
+    for key in layers:
+        if key not in ("count", *LAYER_ROLES):
+            raise DesignError(f"layers.{key}", "unknown key; allowed: count, skin, middle, core")
+    count = _parameter("layers.count", layers.get("count", {"value": 1}))
+    for v in _values(count):
+        if v not in (1, 2, 3) or isinstance(v, bool):
+            raise DesignError("layers.count", f"must be 1, 2 or 3, got {v!r}")
+    params.append(count)
+    counts = _values(count)
+    for role in LAYER_ROLES:
+        needed = any(role in active_roles(c) for c in counts)
+        table = layers.get(role)
+        if table is None:
+            if needed:
+                raise DesignError(f"layers.{role}", f"missing: layers.count allows a {role} layer")
+            continue
+        for key in table:
+            if key not in _LAYER_KEYS:
+                raise DesignError(
+                    f"{role}.{key}", f"unknown key; allowed: {', '.join(_LAYER_KEYS)}"
+                )
+        if "material" not in table:
+            raise DesignError(f"{role}.material", "missing")
+        mat = _parameter(f"{role}.material", table["material"])
+        names = _values(mat)
+        for name in names:
+            if name != "param" and name not in CATALOGUE:
+                raise DesignError(
+                    f"{role}.material",
+                    f"unknown material {name!r}; use 'param' or one of {', '.join(sorted(CATALOGUE))}",
+                )
+        params.append(mat)
+        if role != "core":
+            if "thickness_mm" not in table:
+                raise DesignError(f"{role}.thickness_mm", "missing")
+            p = _parameter(f"{role}.thickness_mm", table["thickness_mm"])
+            if min(_values(p)) < 0.1:
+                raise DesignError(f"{role}.thickness_mm", "must be >= 0.1 mm")
+            params.append(p)
+        if "param" in names:
+            for key in PARAM_MATERIAL_KEYS:
+                if key not in table:
+                    raise DesignError(f"{role}.{key}", "missing (the 'param' material needs it)")
+                p = _parameter(f"{role}.{key}", table[key])
+                _check_param_bounds(p, key)
+                params.append(p)
+    space = DesignSpace(tuple(params))
+    _check_thickness(space)
+    return space
+
+
+def _check_param_bounds(p: Parameter, key: str) -> None:
+    lo, hi = min(_values(p)), max(_values(p))
+    limits = {
+        "mu0_MPa": (0.0, math.inf, "> 0"),
+        "alpha": (0.0, 50.0, "in (0, 50]"),
+        "nu": (-0.999, 0.499, "in [-0.999, 0.499]"),
+        "g_total": (0.0, 0.95, "in [0, 0.95]"),
+        "tau_s": (0.0, math.inf, "> 0"),
+    }
+    a, b, text = limits[key]
+    strict_low = key in ("mu0_MPa", "alpha", "tau_s")
+    if (lo <= a if strict_low else lo < a) or hi > b:
+        raise DesignError(p.name, f"must be {text}, got [{lo}, {hi}]")
+
+
+def _check_thickness(space: DesignSpace) -> None:
+    """The thickest outer layers must leave a core in the smallest geometry."""
+    total = 0.0
+    for role in ("skin", "middle"):
+        if f"{role}.thickness_mm" in space.names:
+            total += max(_values(space[f"{role}.thickness_mm"]))
+    smallest = min(
+        min(_values(space["geometry.half_width_mm"])), min(_values(space["geometry.height_mm"]))
+    )
+    if total > smallest - MIN_CORE_MM:
+        raise DesignError(
+            "layers.thickness_mm",
+            f"skin + middle can reach {total:g} mm; must be <= {smallest - MIN_CORE_MM:g} mm "
+            f"(smallest half-width/height - {MIN_CORE_MM} mm core)",
+        )
+
+
+def load_space(path: str | Path | None = None) -> DesignSpace:
+    """Read a design-space TOML file (the shipped default when ``path`` is None)."""
+    path = DEFAULT_SPACE_PATH if path is None else Path(path)
+    try:
+        with path.open("rb") as fh:
+            data = tomllib.load(fh)
+    except FileNotFoundError:
+        raise DesignError("SPACE", f"no such file: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DesignError("SPACE", f"cannot read {path}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError("SPACE", f"malformed TOML in {path}: {exc}") from None
+    return space_from_dict(data)
