@@ -86,7 +86,52 @@ def _add_simulate(sub) -> None:
     p.set_defaults(func=_cmd_simulate)
 
 
-_SUBCOMMANDS: list[Callable] = [_add_simulate]
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from sim.space import load_space
+    from sim.sweep import run_sweep
+
+    space = load_space(args.space)
+    options = apply_overrides(SimOptions(), dict(parse_override(s) for s in args.set or []))
+    summary = run_sweep(
+        space,
+        args.n,
+        args.out,
+        workers=args.workers,
+        scheduler=args.scheduler,
+        seed=args.seed,
+        sampler=args.sampler,
+        options=options,
+        retry_failed=args.retry_failed,
+        progress=not args.no_progress,
+    )
+    print(
+        f"{summary.n_designs} designs in {summary.folder}: {summary.ok} ok, {summary.failed} "
+        f"failed ({summary.computed} computed now in {summary.wall_time_s:.0f} s, "
+        f"{summary.skipped} already done)"
+    )
+    if summary.failed:
+        print("  failed designs keep their reason in table.csv; --retry-failed runs them again")
+    return 0
+
+
+def _add_sweep(sub) -> None:
+    from pathlib import Path
+
+    p = sub.add_parser("sweep", help="evaluate a sampled design space by FE (resumable)")
+    p.add_argument("space", nargs="?", type=Path, help="design-space TOML (default: shipped)")
+    p.add_argument("--n", type=int, required=True, help="number of designs")
+    p.add_argument("--out", type=Path, required=True, help="sweep folder, e.g. runs/NAME")
+    p.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
+    p.add_argument("--scheduler", help="Dask distributed scheduler address (tcp://host:port)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--sampler", choices=["sobol", "lhs"], default="sobol")
+    p.add_argument("--retry-failed", action="store_true", help="run failed designs again")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--set", action="append", metavar="SECTION.FIELD=VALUE")
+    p.set_defaults(func=_cmd_sweep)
+
+
+_SUBCOMMANDS: list[Callable] = [_add_simulate, _add_sweep]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -319,7 +319,8 @@ def space_from_dict(data: Mapping[str, Any]) -> DesignSpace:
             if name != "param" and name not in CATALOGUE:
                 raise DesignError(
                     f"{role}.material",
-                    f"unknown material {name!r}; use 'param' or one of {', '.join(sorted(CATALOGUE))}",
+                    f"unknown material {name!r}; use 'param' or one of "
+                    + ", ".join(sorted(CATALOGUE)),
                 )
         params.append(mat)
         if role != "core":

@@ -1,0 +1,348 @@
+"""Sweeps: sample a design space, evaluate every design by FE, keep every result safely.
+
+A sweep folder ``runs/NAME`` holds
+
+- ``config.json``: the resolved space, n, seed, sampler, simulation options, solver version;
+- ``meta.json``: provenance (git commit, package versions, command) of the latest invocation;
+- ``records/<key>.json``: one file per evaluated design, written atomically (temporary name,
+  then ``os.replace``), keyed by a hash of the design, the options and the solver version;
+- ``table.csv``: parameters + metrics (+ status and reason) of every design, rebuilt from the
+  records at the end of each invocation; ``curves.jsonl``: the curves, one line per design.
+
+Re-running the same command continues where it stopped (after ``kill -9`` too): designs with a
+record are skipped, failed ones only run again with ``retry_failed``. Only the parent process
+writes records, so a killed worker can never leave half a record.
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import hashlib
+import json
+import math
+import os
+import time
+from collections.abc import Callable, Iterable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.stats import qmc
+
+from .errors import DesignError, SimulationError
+from .options import apply_overrides
+from .provenance import provenance, write_json
+from .simulate import METRICS, SOLVER_VERSION, SimOptions, simulate
+from .space import DesignSpace, point_to_design, space_from_dict
+
+__all__ = ["SweepSummary", "evaluate_point", "record_key", "run_sweep", "sample_points"]
+
+SAMPLERS = ("sobol", "lhs")
+
+
+@dataclass(frozen=True)
+class SweepSummary:
+    """What one invocation of a sweep did."""
+
+    folder: Path
+    n_designs: int
+    ok: int
+    failed: int
+    skipped: int
+    computed: int
+    wall_time_s: float
+
+
+def sample_points(space: DesignSpace, n: int, seed: int, sampler: str = "sobol") -> list[dict]:
+    """``n`` space-filling design points (deterministic in seed; Sobol prefixes nest)."""
+    d = len(space.sampled)
+    if d == 0:
+        unit = np.zeros((n, 0))
+    elif sampler == "sobol":
+        gen = qmc.Sobol(d, scramble=True, seed=seed)
+        m = max(0, math.ceil(math.log2(max(n, 1))))
+        unit = gen.random_base2(m)[:n]  # a power-of-two draw, cut: prefixes stay identical
+    elif sampler == "lhs":
+        unit = qmc.LatinHypercube(d, seed=seed).random(n)
+    else:
+        raise DesignError("--sampler", f"must be one of {', '.join(SAMPLERS)}, got {sampler!r}")
+    return [space.point(row) for row in unit]
+
+
+def record_key(point: dict[str, Any], options: SimOptions) -> str:
+    """Hash of the design (as built), the simulation options and the solver version."""
+    design = point_to_design(point).to_dict()
+    payload = {"design": design, "options": dataclasses.asdict(options), "solver": SOLVER_VERSION}
+    return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
+
+
+def evaluate_point(point: dict[str, Any], options_dict: dict[str, Any]) -> dict[str, Any]:
+    """Simulate one design point; never raises (failures are records with a reason)."""
+    options = _options_from_dict(options_dict)
+    t0 = time.perf_counter()
+    record: dict[str, Any] = {"params": _jsonable(point), "solver_version": SOLVER_VERSION}
+    try:
+        design = point_to_design(point)
+        res = simulate(design, options=options)
+    except (DesignError, SimulationError, ArithmeticError, ValueError, RuntimeError) as exc:
+        record.update(status="failed", reason=f"{type(exc).__name__}: {exc}", metrics={})
+    else:
+        record.update(
+            status="ok" if res.ok else "failed",
+            reason="; ".join(
+                f"{f.protocol} at t = {f.time_s:.4g} s: {f.reason}" for f in res.failures
+            ),
+            metrics={
+                k: (None if v is None or not math.isfinite(v) else v)
+                for k, v in res.metrics.items()
+            },
+            curves=res.curves,
+            n_dofs=res.n_dofs,
+        )
+    record["wall_time_s"] = time.perf_counter() - t0
+    return record
+
+
+def _options_from_dict(d: dict[str, Any]) -> SimOptions:
+    base = SimOptions()
+    return dataclasses.replace(
+        base,
+        **{
+            f.name: dataclasses.replace(getattr(base, f.name), **d[f.name])
+            for f in dataclasses.fields(base)
+        },
+    )
+
+
+def _jsonable(point: dict[str, Any]) -> dict[str, Any]:
+    return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in point.items()}
+
+
+def _atomic_write(path: Path, data: dict) -> None:
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    tmp.write_text(json.dumps(data, allow_nan=False))
+    os.replace(tmp, path)
+
+
+class SweepStore:
+    """The records of a sweep folder (one JSON file per design)."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        self.records_dir = folder / "records"
+
+    def load(self) -> dict[str, dict]:
+        out = {}
+        if self.records_dir.exists():
+            for path in self.records_dir.glob("*.json"):
+                try:
+                    out[path.stem] = json.loads(path.read_text())
+                except (json.JSONDecodeError, OSError):
+                    continue  # cannot happen with atomic writes; never trust a broken file
+        return out
+
+    def write(self, key: str, record: dict) -> None:
+        self.records_dir.mkdir(parents=True, exist_ok=True)
+        _atomic_write(self.records_dir / f"{key}.json", {"key": key, **record})
+
+    def consolidate(self, keys: list[str], names: list[str]) -> None:
+        """Rebuild table.csv and curves.jsonl for ``keys`` (the sweep's designs, in order)."""
+        records = self.load()
+        metric_names = list(METRICS)
+        tmp_table = self.folder / ".table.csv.tmp"
+        tmp_curves = self.folder / ".curves.jsonl.tmp"
+        with tmp_table.open("w", newline="") as fh, tmp_curves.open("w") as fc:
+            writer = csv.writer(fh)
+            writer.writerow(
+                ["index", "key", "status", *names, *metric_names, "wall_time_s", "reason"]
+            )
+            for i, key in enumerate(keys):
+                rec = records.get(key)
+                if rec is None:
+                    continue
+                params = rec["params"]
+                metrics = rec.get("metrics", {})
+                writer.writerow(
+                    [
+                        i,
+                        key,
+                        rec["status"],
+                        *["" if params.get(n) is None else params.get(n) for n in names],
+                        *["" if metrics.get(m) is None else metrics[m] for m in metric_names],
+                        f"{rec.get('wall_time_s', 0.0):.3f}",
+                        rec.get("reason", ""),
+                    ]
+                )
+                if rec["status"] == "ok":
+                    fc.write(
+                        json.dumps({"index": i, "key": key, "curves": rec.get("curves", {})}) + "\n"
+                    )
+        os.replace(tmp_table, self.folder / "table.csv")
+        os.replace(tmp_curves, self.folder / "curves.jsonl")
+
+
+def _config(space: DesignSpace, n: int, seed: int, sampler: str, options: SimOptions) -> dict:
+    return {
+        "space": space.to_dict(),
+        "n": n,
+        "seed": seed,
+        "sampler": sampler,
+        "options": dataclasses.asdict(options),
+        "solver_version": SOLVER_VERSION,
+    }
+
+
+def _check_config(folder: Path, config: dict) -> None:
+    path = folder / "config.json"
+    if not path.exists():
+        return
+    old = json.loads(path.read_text())
+    for field in ("space", "seed", "sampler", "options", "solver_version"):
+        if old.get(field) != json.loads(json.dumps(config[field])):
+            raise DesignError(
+                "--out",
+                f"{folder} holds a sweep with a different {field}; resume it with the same "
+                "arguments (only --n may grow) or choose a new folder",
+            )
+
+
+def run_sweep(
+    space: DesignSpace,
+    n: int,
+    out: str | Path,
+    *,
+    workers: int = 1,
+    scheduler: str | None = None,
+    seed: int = 0,
+    sampler: str = "sobol",
+    options: SimOptions | None = None,
+    retry_failed: bool = False,
+    progress: bool = True,
+    on_record: Callable[[str, dict], None] | None = None,
+) -> SweepSummary:
+    """Evaluate ``n`` sampled designs of ``space`` into the folder ``out`` (resumable)."""
+    if n < 1:
+        raise DesignError("--n", f"must be >= 1, got {n}")
+    if workers < 1:
+        raise DesignError("--workers", f"must be >= 1, got {workers}")
+    options = options or SimOptions()
+    folder = Path(out)
+    config = _config(space, n, seed, sampler, options)
+    _check_config(folder, config)
+    points = sample_points(space, n, seed, sampler)
+    keys = [record_key(p, options) for p in points]
+    folder.mkdir(parents=True, exist_ok=True)
+    write_json(folder / "config.json", json.loads(json.dumps(config)))
+    write_json(folder / "meta.json", provenance(config, seed))
+    store = SweepStore(folder)
+    done = store.load()
+    todo = []
+    seen = set()
+    for key, point in zip(keys, points, strict=True):
+        if key in seen:
+            continue  # the same design twice in a sample: computed once
+        seen.add(key)
+        rec = done.get(key)
+        if rec is None or (retry_failed and rec.get("status") != "ok"):
+            todo.append((key, point))
+    skipped = len(seen) - len(todo)
+    options_dict = dataclasses.asdict(options)
+    t0 = time.perf_counter()
+    bar = _progress(len(todo), progress)
+    counts = {"ok": 0, "failed": 0}
+
+    def store_result(key: str, record: dict) -> None:
+        store.write(key, record)
+        counts[record["status"]] = counts.get(record["status"], 0) + 1
+        bar.update(1)
+        bar.set_postfix(ok=counts["ok"], failed=counts["failed"])
+        if on_record is not None:
+            on_record(key, record)
+
+    try:
+        if scheduler:
+            _run_dask(scheduler, todo, options_dict, store_result)
+        elif workers == 1:
+            for key, point in todo:
+                store_result(key, evaluate_point(point, options_dict))
+        else:
+            _run_local(workers, todo, options_dict, store_result)
+    finally:
+        bar.close()
+        store.consolidate(keys, space.names)
+    final = store.load()
+    statuses = [final[k]["status"] for k in dict.fromkeys(keys) if k in final]
+    return SweepSummary(
+        folder=folder,
+        n_designs=len(seen),
+        ok=statuses.count("ok"),
+        failed=statuses.count("failed"),
+        skipped=skipped,
+        computed=len(todo),
+        wall_time_s=time.perf_counter() - t0,
+    )
+
+
+def _progress(total: int, enabled: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc="sweep", unit="design", disable=not enabled, smoothing=0.1)
+
+
+def _run_local(workers: int, todo: Iterable, options_dict: dict, store_result: Callable) -> None:
+    """Local processes; the parent keeps at most 2 x workers designs in flight."""
+    items = iter(todo)
+    with ProcessPoolExecutor(max_workers=workers, initializer=_single_thread) as pool:
+        pending = {}
+        for key, point in items:
+            pending[pool.submit(evaluate_point, point, options_dict)] = key
+            if len(pending) >= 2 * workers:
+                break
+        while pending:
+            finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                store_result(pending.pop(fut), fut.result())
+                nxt = next(items, None)
+                if nxt is not None:
+                    pending[pool.submit(evaluate_point, nxt[1], options_dict)] = nxt[0]
+
+
+def _single_thread() -> None:
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ[var] = "1"
+
+
+def _run_dask(address: str, todo: list, options_dict: dict, store_result: Callable) -> None:
+    """A Dask distributed cluster: tasks go to the workers, results come back here."""
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError:  # pragma: no cover - depends on the installation
+        raise DesignError(
+            "--scheduler", "needs dask.distributed: pip install 'fingertip[cluster]'"
+        ) from None
+    try:
+        client = Client(address, timeout="10s")
+    except OSError as exc:
+        raise DesignError("--scheduler", f"cannot reach {address}: {exc}") from None
+    with client:
+        futures = {
+            client.submit(
+                evaluate_point, point, options_dict, key=f"fingertip-{key}", pure=False
+            ): key
+            for key, point in todo
+        }
+        for fut in as_completed(futures):
+            store_result(futures[fut], fut.result())
+            fut.release()
+
+
+def load_space_config(folder: Path) -> DesignSpace:
+    """The space a sweep folder was made with."""
+    return space_from_dict(json.loads((folder / "config.json").read_text())["space"])
+
+
+def options_with_overrides(overrides: dict[str, str]) -> SimOptions:
+    return apply_overrides(SimOptions(), overrides)
