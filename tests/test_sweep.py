@@ -1,0 +1,291 @@
+"""Design spaces and sweeps: sampling, inactive parameters, resume after kill -9, Dask."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim.errors import DesignError
+from sim.simulate import SimOptions
+from sim.space import load_space, param_material, space_from_dict
+from sim.sweep import record_key, run_sweep, sample_points
+
+TINY = """
+[geometry]
+half_width_mm = { value = 5.84 }
+height_mm = { value = 5.48 }
+exponent = { value = 1.5 }
+[layers]
+count = { choice = [1, 2] }
+[layers.skin]
+thickness_mm = { low = 0.3, high = 1.0 }
+material = { choice = ["silicone_gls40", "polyurethane_74_45"] }
+[layers.core]
+material = { choice = ["param"] }
+mu0_MPa = { low = 0.02, high = 0.1, log = true }
+alpha = { low = 2.0, high = 6.0 }
+nu = { value = 0.47 }
+g_total = { low = 0.1, high = 0.4 }
+tau_s = { low = 0.1, high = 1.0, log = true }
+"""
+FAST = ["--set", "tapping.max_taps=3", "--set", "wedge.hold_s=5"]
+
+
+@pytest.fixture
+def tiny_space(tmp_path):
+    path = tmp_path / "space.toml"
+    path.write_text(TINY)
+    return path
+
+
+def _cli(*args, **kw) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "explore.cli", *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        **kw,
+    )
+
+
+def _table(folder: Path) -> list[dict]:
+    with (folder / "table.csv").open() as fh:
+        return list(csv.DictReader(fh))
+
+
+# ----------------------------------------------------------------------------- spaces
+def test_default_space_loads_and_samples_valid_designs():
+    space = load_space()
+    points = sample_points(space, 64, seed=1)
+    counts = {p["layers.count"] for p in points}
+    assert counts == {1, 2, 3}
+    for p in points:
+        space.design(p)  # every sampled point is a valid design
+        roles = {1: {"core"}, 2: {"skin", "core"}, 3: {"skin", "middle", "core"}}[p["layers.count"]]
+        for role in ("skin", "middle", "core"):
+            mat = p[f"{role}.material"]
+            assert (mat != "") == (role in roles)  # inactive layers are recorded as such
+            mu = p[f"{role}.mu0_MPa"]
+            assert (not math.isnan(mu)) == (role in roles and mat == "param")
+
+
+def test_sobol_samples_nest_and_are_reproducible():
+    space = load_space()
+    a = sample_points(space, 16, seed=3)
+    b = sample_points(space, 40, seed=3)
+    c = sample_points(space, 16, seed=4)
+    opts = SimOptions()
+    assert [record_key(p, opts) for p in a] == [record_key(p, opts) for p in b[:16]]
+    assert [record_key(p, opts) for p in a] != [record_key(p, opts) for p in c]
+
+
+def test_log_bounds_cover_decades_evenly():
+    space = load_space()
+    mus = [p["core.mu0_MPa"] for p in sample_points(space, 256, seed=0)]
+    mus = np.log10([m for m in mus if not math.isnan(m)])
+    lo, hi = math.log10(0.001), math.log10(0.3)
+    assert mus.min() >= lo and mus.max() <= hi
+    # each decade gets its share (a linear draw would put ~0.3 % below 0.01 MPa)
+    assert np.mean(mus < -2) > 0.25
+
+
+def test_param_material_is_valid_and_documented():
+    m = param_material(0.01, 3.0, 0.47, 0.6, 0.3)
+    assert m.moduli == "long_term"
+    assert m.instantaneous.initial_shear_modulus_MPa == pytest.approx(0.01 / 0.4)
+    np.testing.assert_allclose(m.prony.tau_s, [0.1, 0.3, 0.9])
+    assert param_material(0.01, 3.0, 0.47, 0.0, 0.3).is_elastic
+
+
+@pytest.mark.parametrize(
+    ("mutate", "field"),
+    [
+        (lambda d: d["geometry"].update(height_mm={"low": 6, "high": 5}), "geometry.height_mm"),
+        (
+            lambda d: d["layers"]["core"].update(mu0_MPa={"low": 0, "high": 1, "log": True}),
+            "core.mu0_MPa",
+        ),
+        (lambda d: d["layers"]["core"].update(g_total={"low": 0.5, "high": 1.0}), "core.g_total"),
+        (lambda d: d["layers"]["core"].update(material={"choice": ["nope"]}), "core.material"),
+        (lambda d: d["layers"].update(count={"choice": [1, 4]}), "layers.count"),
+        (
+            lambda d: d["layers"]["skin"].update(thickness_mm={"low": 1, "high": 6}),
+            "layers.thickness_mm",
+        ),
+        (lambda d: d["layers"].pop("skin"), "layers.skin"),
+        (lambda d: d["layers"]["core"].update(colour={"value": 1}), "core.colour"),
+        (lambda d: d["layers"]["core"].update(alpha=3.0), "core.alpha"),
+        (lambda d: d.update(extra={}), "extra"),
+    ],
+)
+def test_invalid_spaces_name_the_field(mutate, field):
+    import tomllib
+
+    data = tomllib.loads(TINY)
+    mutate(data)
+    with pytest.raises(DesignError) as exc:
+        space_from_dict(data)
+    assert exc.value.field == field
+
+
+def test_space_round_trips():
+    space = load_space()
+    assert space_from_dict(space.to_dict()) == space
+
+
+def test_cli_invalid_space_is_one_line_exit_2(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text(TINY.replace("low = 0.3, high = 1.0", "low = 1.0, high = 0.3"))
+    p = _cli("sweep", bad, "--n", 2, "--out", tmp_path / "s")
+    assert p.returncode == 2
+    lines = [x for x in p.stderr.splitlines() if x.strip()]
+    assert len(lines) == 1 and "skin.thickness_mm" in lines[0] and "Traceback" not in p.stderr
+
+
+# ----------------------------------------------------------------------------- sweeps
+def test_sweep_records_table_and_resume(tiny_space, tmp_path):
+    out = tmp_path / "sweep"
+    p = _cli("sweep", tiny_space, "--n", 3, "--out", out, "--no-progress", *FAST)
+    assert p.returncode == 0, p.stderr
+    assert "3 ok, 0 failed" in p.stdout
+    rows = _table(out)
+    assert len(rows) == 3 and all(r["status"] == "ok" for r in rows)
+    assert all(float(r["plate_force_at_1mm_N"]) > 0 for r in rows)
+    one_layer = [r for r in rows if r["layers.count"] == "1"]
+    assert all(r["skin.material"] == "" and r["skin.thickness_mm"] == "" for r in one_layer)
+    config = json.loads((out / "config.json").read_text())
+    meta = json.loads((out / "meta.json").read_text())
+    assert config["n"] == 3 and config["seed"] == 0 and "git_commit" in meta and "packages" in meta
+    assert len((out / "curves.jsonl").read_text().splitlines()) == 3
+    # the same command again computes nothing; a larger n computes only the new designs
+    again = _cli("sweep", tiny_space, "--n", 3, "--out", out, "--no-progress", *FAST)
+    assert "0 computed now" in again.stdout
+    more = _cli("sweep", tiny_space, "--n", 5, "--out", out, "--no-progress", *FAST)
+    assert "2 computed now" in more.stdout and len(_table(out)) == 5
+    # a different seed in the same folder is refused
+    other = _cli("sweep", tiny_space, "--n", 5, "--out", out, "--seed", 7, *FAST)
+    assert other.returncode == 2 and "seed" in other.stderr
+
+
+def test_failed_designs_are_recorded_and_retried(tiny_space, tmp_path):
+    out = tmp_path / "fail"
+    broken = ["--set", "newton.max_iterations=1"]
+    p = _cli("sweep", tiny_space, "--n", 2, "--out", out, "--no-progress", *FAST, *broken)
+    assert p.returncode == 0 and "0 ok, 2 failed" in p.stdout
+    rows = _table(out)
+    assert all(r["status"] == "failed" and "convergence" in r["reason"] for r in rows)
+    # the options are part of the record key: retrying needs the same options
+    retry = _cli("sweep", tiny_space, "--n", 2, "--out", out, "--retry-failed", "--no-progress",
+                 *FAST, *broken)  # fmt: skip
+    assert "2 computed now" in retry.stdout
+
+
+def test_sweep_survives_kill_9_without_losing_or_repeating_work(tiny_space, tmp_path):
+    out = tmp_path / "killed"
+    args = [sys.executable, "-m", "explore.cli", "sweep", str(tiny_space), "--n", "6",
+            "--out", str(out), "--no-progress", *FAST]  # fmt: skip
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    records = out / "records"
+    deadline = time.time() + 300
+    while time.time() < deadline:
+        if records.exists() and len(list(records.glob("*.json"))) >= 2:
+            break
+        time.sleep(0.2)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    before = {p.name: p.stat().st_mtime_ns for p in records.glob("*.json")}
+    assert 2 <= len(before) < 6
+    for path in records.glob("*.json"):
+        json.loads(path.read_text())  # no half-written record
+    p = subprocess.run(args, capture_output=True, text=True, timeout=600)
+    assert p.returncode == 0, p.stderr
+    assert f"{6 - len(before)} computed now" in p.stdout
+    after = {p.name: p.stat().st_mtime_ns for p in records.glob("*.json")}
+    assert len(after) == 6
+    assert all(after[name] == t for name, t in before.items())  # nothing computed twice
+    assert sorted(int(r["index"]) for r in _table(out)) == list(range(6))
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def test_sweep_on_a_real_dask_cluster(tiny_space, tmp_path):
+    pytest.importorskip("distributed")
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    bindir = Path(sys.executable).parent
+    dask = str(bindir / "dask") if (bindir / "dask").exists() else "dask"
+    env = {**os.environ, "DASK_DISTRIBUTED__WORKER__DAEMON": "False"}
+    sched = subprocess.Popen(
+        [dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+    )  # fmt: skip
+    worker = None
+    try:
+        worker = subprocess.Popen(
+            [dask, "worker", address, "--nworkers", "1", "--nthreads", "1", "--no-dashboard"],
+            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env,
+        )  # fmt: skip
+        from dask.distributed import Client
+
+        deadline = time.time() + 60
+        while time.time() < deadline:
+            try:
+                with Client(address, timeout="2s") as c:
+                    if c.scheduler_info()["workers"]:
+                        break
+            except OSError:
+                pass
+            time.sleep(0.5)
+        else:
+            pytest.fail("the Dask cluster did not come up")
+        out = tmp_path / "dask"
+        p = _cli("sweep", tiny_space, "--n", 2, "--out", out, "--scheduler", address,
+                 "--no-progress", *FAST)  # fmt: skip
+        assert p.returncode == 0, p.stderr
+        assert "2 ok, 0 failed" in p.stdout
+        local = tmp_path / "local"
+        _cli("sweep", tiny_space, "--n", 2, "--out", local, "--no-progress", *FAST)
+        a, b = _table(out), _table(local)
+        assert [r["key"] for r in a] == [r["key"] for r in b]
+        for ra, rb in zip(a, b, strict=True):  # the cluster computes exactly what we compute
+            assert float(ra["hysteresis_Nmm"]) == pytest.approx(
+                float(rb["hysteresis_Nmm"]), rel=1e-9
+            )
+    finally:
+        for proc in (worker, sched):
+            if proc is not None:
+                proc.terminate()
+                try:
+                    proc.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+
+
+def test_run_sweep_api_in_process(tiny_space, tmp_path):
+    from sim.space import load_space as load
+
+    seen = []
+    summary = run_sweep(
+        load(tiny_space),
+        2,
+        tmp_path / "api",
+        options=SimOptions(),
+        progress=False,
+        on_record=lambda k, r: seen.append((k, r["status"])),
+    )
+    assert summary.ok == 2 and summary.computed == 2 and len(seen) == 2
