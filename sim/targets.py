@@ -1,0 +1,124 @@
+"""Targets a design is compared with: the human fingertip by default, or a user's own file.
+
+A targets TOML file (the shipped one is ``sim/data/human_targets.toml``)::
+
+    [tapping]
+    disp_at_1N_mm = 1.83
+    disp_at_4N_mm = 2.91
+    hysteresis_Nmm = 2.26
+    displacement_reading = "from_undeformed_top"   # or "from_first_touch"
+    source = "..."
+    [conformance]
+    wedge_peak_force_N = 0.0        # an ideal: lower is better
+    direction = "lower_is_better"
+    surface_profile_csv = "profile.csv"   # optional: columns distance_mm, deflection_mm
+
+The displacement reading says how the target displacements were measured: from the original
+undeformed top (as the paper reads its simulations) or from the first touch of each tap (as a
+tapping experiment on a finger measures them). ``Targets.metric`` maps each target to the
+simulator metric read the same way, so every comparison is like with like.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import DesignError
+
+__all__ = ["DEFAULT_TARGETS_PATH", "READINGS", "Targets", "load_targets"]
+
+DEFAULT_TARGETS_PATH = Path(__file__).parent / "data" / "human_targets.toml"
+READINGS = {
+    "from_undeformed_top": {"disp_at_1N_mm": "disp_at_1N_mm", "disp_at_4N_mm": "disp_at_4N_mm"},
+    "from_first_touch": {
+        "disp_at_1N_mm": "disp_at_1N_from_touch_mm",
+        "disp_at_4N_mm": "disp_at_4N_from_touch_mm",
+    },
+}
+_TAPPING = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm")
+
+
+@dataclass(frozen=True)
+class Targets:
+    """Target values by name (mm, N mm, N), the displacement reading, the sources, and an
+    optional measured surface-deflection profile (distance_mm, deflection_mm arrays)."""
+
+    values: dict[str, float]
+    reading: str = "from_undeformed_top"
+    wedge_force_N: float | None = 0.0
+    profile: tuple[np.ndarray, np.ndarray] | None = field(default=None, compare=False)
+    sources: dict[str, str] = field(default_factory=dict, compare=False)
+
+    def metric(self, name: str) -> str:
+        """The simulator metric that is compared with target ``name`` (like with like)."""
+        return READINGS[self.reading].get(name, name)
+
+
+def _number(value: Any, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise DesignError(name, f"must be a finite number, got {value!r}")
+    return float(value)
+
+
+def load_targets(path: str | Path | None = None) -> Targets:
+    """Read and validate a targets file (the human fingertip when ``path`` is None)."""
+    path = DEFAULT_TARGETS_PATH if path is None else Path(path)
+    try:
+        data = tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise DesignError("TARGETS", f"no such file: {path}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise DesignError("TARGETS", f"cannot read {path}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DesignError("TARGETS", f"malformed TOML in {path}: {exc}") from None
+    tap = data.get("tapping")
+    if not isinstance(tap, dict):
+        raise DesignError("tapping", "missing: a [tapping] table with the target values")
+    values = {}
+    for key in _TAPPING:
+        if key not in tap:
+            raise DesignError(f"tapping.{key}", "missing")
+        values[key] = _number(tap[key], f"tapping.{key}")
+        if values[key] <= 0:
+            raise DesignError(f"tapping.{key}", f"must be > 0, got {values[key]}")
+    reading = tap.get("displacement_reading", "from_undeformed_top")
+    if reading not in READINGS:
+        raise DesignError(
+            "tapping.displacement_reading", f"must be one of {', '.join(READINGS)}, got {reading!r}"
+        )
+    conf = data.get("conformance", {})
+    wedge = conf.get("wedge_peak_force_N", 0.0)
+    wedge = None if wedge is None else _number(wedge, "conformance.wedge_peak_force_N")
+    if wedge is not None and wedge < 0:
+        raise DesignError("conformance.wedge_peak_force_N", f"must be >= 0, got {wedge}")
+    profile = None
+    if "surface_profile_csv" in conf:
+        profile = _read_profile(path.parent / conf["surface_profile_csv"])
+    sources = {k: v["source"] for k, v in data.items() if isinstance(v, dict) and "source" in v}
+    return Targets(values, reading, wedge, profile, sources)
+
+
+def _read_profile(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    field_name = "conformance.surface_profile_csv"
+    try:
+        with path.open(newline="") as fh:
+            rows = list(csv.DictReader(fh))
+    except OSError as exc:
+        raise DesignError(field_name, f"cannot read {path}: {exc}") from None
+    if not rows or not {"distance_mm", "deflection_mm"} <= set(rows[0]):
+        raise DesignError(field_name, f"{path} needs the columns distance_mm, deflection_mm")
+    try:
+        d = np.array([float(r["distance_mm"]) for r in rows])
+        y = np.array([float(r["deflection_mm"]) for r in rows])
+    except ValueError:
+        raise DesignError(field_name, f"{path} has a non-numeric value") from None
+    if len(d) < 2 or np.any(np.diff(d) <= 0) or d[0] < 0 or not np.all(np.isfinite(y)):
+        raise DesignError(field_name, f"{path}: distances must increase from >= 0, values finite")
+    return d, y

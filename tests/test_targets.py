@@ -1,0 +1,79 @@
+"""Targets files: the shipped human targets, user files, like-with-like readings."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.errors import DesignError
+from sim.targets import load_targets
+
+BASE = """
+[tapping]
+disp_at_1N_mm = 1.0
+disp_at_4N_mm = 2.0
+hysteresis_Nmm = 1.5
+{extra}
+[conformance]
+wedge_peak_force_N = 0.1
+{conf}
+"""
+
+
+def _write(tmp_path, extra="", conf=""):
+    p = tmp_path / "t.toml"
+    p.write_text(BASE.format(extra=extra, conf=conf))
+    return p
+
+
+def test_human_targets_are_the_published_values():
+    t = load_targets()
+    assert t.values == {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
+    assert t.reading == "from_undeformed_top"
+    assert t.metric("disp_at_1N_mm") == "disp_at_1N_mm"
+    assert "Serina" in t.sources["tapping"]
+    assert t.wedge_force_N == 0.0
+
+
+def test_first_touch_reading_compares_like_with_like(tmp_path):
+    t = load_targets(_write(tmp_path, 'displacement_reading = "from_first_touch"'))
+    assert t.metric("disp_at_1N_mm") == "disp_at_1N_from_touch_mm"
+    assert t.metric("disp_at_4N_mm") == "disp_at_4N_from_touch_mm"
+    assert t.metric("hysteresis_Nmm") == "hysteresis_Nmm"
+
+
+def test_measured_profile_csv(tmp_path):
+    (tmp_path / "p.csv").write_text("distance_mm,deflection_mm\n0,0.9\n1,0.4\n2,0.1\n")
+    t = load_targets(_write(tmp_path, conf='surface_profile_csv = "p.csv"'))
+    np.testing.assert_allclose(t.profile[0], [0, 1, 2])
+    np.testing.assert_allclose(t.profile[1], [0.9, 0.4, 0.1])
+
+
+@pytest.mark.parametrize(
+    ("extra", "conf", "csv_text", "field"),
+    [
+        ('displacement_reading = "sideways"', "", None, "tapping.displacement_reading"),
+        ("", 'surface_profile_csv = "p.csv"', "a,b\n1,2\n", "conformance.surface_profile_csv"),
+        ("", 'surface_profile_csv = "p.csv"', "distance_mm,deflection_mm\n1,0\n0,1\n",
+         "conformance.surface_profile_csv"),
+        ("", 'surface_profile_csv = "missing.csv"', None, "conformance.surface_profile_csv"),
+    ],
+)  # fmt: skip
+def test_bad_targets_name_the_field(tmp_path, extra, conf, csv_text, field):
+    if csv_text is not None:
+        (tmp_path / "p.csv").write_text(csv_text)
+    with pytest.raises(DesignError) as exc:
+        load_targets(_write(tmp_path, extra, conf))
+    assert exc.value.field == field
+
+
+def test_missing_or_bad_values(tmp_path):
+    p = tmp_path / "t.toml"
+    p.write_text("[tapping]\ndisp_at_1N_mm = 1.0\ndisp_at_4N_mm = -2\nhysteresis_Nmm = 1\n")
+    with pytest.raises(DesignError) as exc:
+        load_targets(p)
+    assert exc.value.field == "tapping.disp_at_4N_mm"
+    p.write_text("[tapping]\ndisp_at_1N_mm = 1.0\n")
+    with pytest.raises(DesignError) as exc:
+        load_targets(p)
+    assert exc.value.field == "tapping.disp_at_4N_mm"
