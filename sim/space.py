@@ -176,6 +176,30 @@ class DesignSpace:
             values[p.name] = p.from_unit(next(it)) if p.sampled else p.from_unit(0.0)
         return mask_inactive(values)
 
+    def check(self, point: Mapping[str, Any]) -> dict[str, Any]:
+        """Validate a hand-written point (active values inside the bounds or choices) and return
+        it masked; a DesignError names the first parameter outside the space."""
+        values = dict(point)
+        for p in self.parameters:
+            if p.name not in values:
+                values[p.name] = p.from_unit(0.0) if not p.sampled else math.nan
+        values = mask_inactive(values)
+        for p in self.parameters:
+            v = values[p.name]
+            if (isinstance(v, float) and math.isnan(v)) or v == "":
+                continue  # inactive
+            ok = (
+                v == p.value
+                if p.kind == "fixed"
+                else v in p.choices
+                if p.kind == "choice"
+                else p.low <= float(v) <= p.high
+            )
+            if not ok:
+                raise DesignError(p.name, f"{v!r} is outside the space ({p.to_dict()})")
+        point_to_design(values)
+        return values
+
     def design(self, point: Mapping[str, Any]) -> Design:
         """The design of a point (validated; a DesignError if the point is impossible)."""
         return point_to_design(point)

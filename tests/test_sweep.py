@@ -289,3 +289,17 @@ def test_run_sweep_api_in_process(tiny_space, tmp_path):
         on_record=lambda k, r: seen.append((k, r["status"])),
     )
     assert summary.ok == 2 and summary.computed == 2 and len(seen) == 2
+
+
+@pytest.mark.slow
+def test_default_space_brackets_every_human_value():
+    """FE runs of a few points of the shipped space land below and above each human target."""
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
+    from bracket_human import bracket
+
+    from sim.targets import load_targets
+
+    _, results = bracket()
+    for name, target in load_targets().values.items():
+        vals = [r[name] for r in results.values()]
+        assert min(vals) < target < max(vals), (name, vals)
