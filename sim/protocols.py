@@ -407,6 +407,28 @@ def surface_profile(body: Body, tip_half_width_mm: float, length_mm: float, n: i
     }
 
 
+def profile_summary(curves: dict) -> dict[str, float]:
+    """Compact descriptors of the wedge's surface-deflection profiles (at 1 s and 100 s):
+    ``profile_<t>_half_width_mm``, the distance from the wedge corner at which the deflection
+    has fallen to half its value at the corner (how wide the surface wraps the wedge), and
+    ``profile_<t>_defl_at_1mm_mm``, the deflection 1 mm from the corner. NaN when absent."""
+    out = {}
+    for t in ("1s", "100s"):
+        prof = curves.get(f"profile_{t}")
+        half, at1 = float("nan"), float("nan")
+        if prof and len(prof["distance_mm"]) > 1:
+            d = np.asarray(prof["distance_mm"])
+            y = np.asarray(prof["deflection_mm"])
+            at1 = float(np.interp(1.0, d, y)) if d[-1] >= 1.0 else float("nan")
+            below = np.flatnonzero(y < 0.5 * y[0])
+            if len(below) and below[0] > 0:
+                k = below[0]  # first sample under half: interpolate between k - 1 and k
+                half = float(np.interp(0.5 * y[0], [y[k], y[k - 1]], [d[k], d[k - 1]]))
+        out[f"profile_{t}_half_width_mm"] = half
+        out[f"profile_{t}_defl_at_1mm_mm"] = at1
+    return out
+
+
 def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult:
     """Wedge ramp to ``depth_mm`` in ``ramp_s`` and hold for ``hold_s``."""
     t0, it0 = time.perf_counter(), body.newton_iterations
@@ -455,5 +477,6 @@ def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult
         ),
     }
     curves = {"wedge": {"time_s": rec_t, "force_N": rec_f}, **profiles}
+    metrics.update(profile_summary(curves))
     info = {"max_penetration_mm": pen[0], "max_base_contact_nodes": base[0]}
     return _result("wedge", body, t0, it0, steps, metrics, curves, info)

@@ -34,6 +34,7 @@ from scipy.stats import qmc
 
 from .errors import DesignError, SimulationError
 from .options import apply_overrides
+from .protocols import profile_summary
 from .provenance import provenance, write_json
 from .simulate import METRICS, SOLVER_VERSION, SimOptions, simulate
 from .space import DesignSpace, point_to_design, space_from_dict
@@ -164,7 +165,13 @@ class SweepStore:
                 if rec is None:
                     continue
                 params = rec["params"]
-                metrics = rec.get("metrics", {})
+                metrics = dict(rec.get("metrics", {}))
+                if rec["status"] == "ok" and "profile_1s_half_width_mm" not in metrics:
+                    # records from before the profile summary existed: derive it from the curves
+                    summary = profile_summary(rec.get("curves", {}))
+                    metrics.update(
+                        {k: (v if math.isfinite(v) else None) for k, v in summary.items()}
+                    )
                 writer.writerow(
                     [
                         i,
