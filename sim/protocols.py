@@ -173,8 +173,8 @@ def _tap_metrics(t, delta, force, t_load, peak, omega):
     force = np.asarray(force)
     load = t <= 0.5 * t_load + 1e-12
     fl, dl = force[load], delta[load]
-    order = np.argsort(fl)
-    d_of_f = PchipInterpolator(fl[order], dl[order])
+    fl, first = np.unique(fl, return_index=True)  # sorted; a repeated force keeps its first
+    d_of_f = PchipInterpolator(fl, dl[first])
     d1 = float(d_of_f(1.0)) if peak >= 1.0 else float("nan")
     d4 = float(d_of_f(4.0)) if peak >= 4.0 else float("nan")
     # loop area = -closed integral of delta dF, F(t) = peak sin(omega t) known exactly

@@ -258,7 +258,8 @@ class Body:
             norm0 = self._norm(r, rd)
             if _log.isEnabledFor(logging.DEBUG):
                 _log.debug("it %d |r| %.3e rd %.3e d %.5f", it, float(np.abs(r).max()), rd, d)
-            if norm0 <= self.atol:
+            force_ok = control.kind != "force" or abs(rd) <= 1e-6 * abs(control.value) + 1e-15
+            if norm0 <= self.atol and force_ok:  # the load is matched relative to itself too
                 self._commit(u, states, t_new, d, control, force)
                 self.newton_iterations += it - 1
                 return StepResult(True, it - 1)
