@@ -22,13 +22,12 @@ Every validation failure raises ``DesignError`` naming the offending field.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from .errors import DesignError
+from .errors import DesignError, read_toml
 from .geometry import REFERENCE_GEOMETRY, Geometry
 from .materials import Material, material_from_spec
 
@@ -155,20 +154,7 @@ def design_from_dict(data: Mapping[str, Any]) -> Design:
 
 def load_design(path: str | Path) -> Design:
     """Read and validate a design TOML file."""
-    path = Path(path)
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise DesignError("DESIGN", f"no such file: {path}") from None
-    except IsADirectoryError:
-        raise DesignError("DESIGN", f"{path} is a directory, not a design TOML file") from None
-    except OSError as exc:
-        raise DesignError("DESIGN", f"cannot read {path}: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise DesignError("DESIGN", f"{path} is not UTF-8 text (TOML files must be)") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise DesignError("DESIGN", f"malformed TOML in {path}: {exc}") from None
+    data = read_toml(path, "DESIGN")
     return design_from_dict(data)
 
 

@@ -28,7 +28,6 @@ continuous family documented in ``param_material``. Parameters that a design doe
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from .design import MIN_CORE_MM, Design, Layer
-from .errors import DesignError
+from .errors import DesignError, read_toml
 from .geometry import Geometry
 from .materials import CATALOGUE, LAWS, Material, Prony
 
@@ -400,14 +399,5 @@ def _check_thickness(space: DesignSpace) -> None:
 
 def load_space(path: str | Path | None = None) -> DesignSpace:
     """Read a design-space TOML file (the shipped default when ``path`` is None)."""
-    path = DEFAULT_SPACE_PATH if path is None else Path(path)
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except FileNotFoundError:
-        raise DesignError("SPACE", f"no such file: {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DesignError("SPACE", f"cannot read {path}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise DesignError("SPACE", f"malformed TOML in {path}: {exc}") from None
+    data = read_toml(DEFAULT_SPACE_PATH if path is None else path, "SPACE")
     return space_from_dict(data)

@@ -23,14 +23,13 @@ from __future__ import annotations
 
 import csv
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import DesignError
+from .errors import DesignError, read_toml
 
 __all__ = ["DEFAULT_TARGETS_PATH", "READINGS", "Targets", "load_targets"]
 
@@ -70,14 +69,7 @@ def _number(value: Any, name: str) -> float:
 def load_targets(path: str | Path | None = None) -> Targets:
     """Read and validate a targets file (the human fingertip when ``path`` is None)."""
     path = DEFAULT_TARGETS_PATH if path is None else Path(path)
-    try:
-        data = tomllib.loads(path.read_text())
-    except FileNotFoundError:
-        raise DesignError("TARGETS", f"no such file: {path}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise DesignError("TARGETS", f"cannot read {path}: {exc}") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise DesignError("TARGETS", f"malformed TOML in {path}: {exc}") from None
+    data = read_toml(path, "TARGETS")
     tap = data.get("tapping")
     if not isinstance(tap, dict):
         raise DesignError("tapping", "missing: a [tapping] table with the target values")
