@@ -100,6 +100,14 @@ class Discretization:
         self._dN0 = np.ascontiguousarray(self.dN[:, 0].transpose(1, 2, 0))  # (e, q, a)
         self._dN1 = np.ascontiguousarray(self.dN[:, 1].transpose(1, 2, 0))
         self._dN01 = np.concatenate([self._dN0, self._dN1], axis=1)  # (e, 2q, a)
+        ne, nq = self._dN0.shape[:2]
+        self._buffers = {
+            "B": np.empty((ne, nq, 3, 6, 2)),
+            "DB": np.empty((ne, nq, 3, 12)),
+            "Ke": np.empty((ne, 12, 12)),
+            "left": np.empty((ne, 2 * nq, 6)),
+            "G": np.empty((ne, 6, 6)),
+        }
         self.w = basis.dx
         self.edofs_scalar = basis.element_dofs.T.copy()  # (n_el, 6)
         self.n_el, self.n_q = self.w.shape
@@ -268,12 +276,16 @@ class Discretization:
         return Evaluation(residual, args, new_states, ok=True, min_J=min_J, _assemble=self._tangent)
 
     def _tangent(self, F: np.ndarray, S: np.ndarray, D: np.ndarray) -> np.ndarray:
-        """Element stiffness (material + geometric) scattered into the fixed CSR pattern."""
+        """Element stiffness (material + geometric) scattered into the fixed CSR pattern.
+
+        The large temporaries live in buffers allocated once: fresh arrays of this size would
+        be new pages from the OS on every call, which costs as much as the arithmetic."""
         w = self.w
         ne, nq = self.n_el, self.n_q
         dN0, dN1 = self._dN0, self._dN1  # (e, q, a), contiguous
+        buf = self._buffers
         # B[e, q, v, a, i]: Voigt strain variation of node a, component i
-        B = np.empty((ne, nq, 3, 6, 2))
+        B = buf["B"]
         F00, F01 = F[0, 0][:, :, None], F[0, 1][:, :, None]
         F10, F11 = F[1, 0][:, :, None], F[1, 1][:, :, None]
         np.multiply(F00, dN0, out=B[:, :, 0, :, 0])
@@ -282,20 +294,20 @@ class Discretization:
         np.multiply(F11, dN1, out=B[:, :, 1, :, 1])
         B[:, :, 2, :, 0] = F00 * dN1 + F01 * dN0
         B[:, :, 2, :, 1] = F10 * dN1 + F11 * dN0
-        B = B.reshape(ne, nq, 3, 12)
+        B4 = B.reshape(ne, nq, 3, 12)
         Dw = (D * w).transpose(2, 3, 0, 1)  # (e, q, 3, 3)
-        DB = (Dw @ B).reshape(ne, 3 * nq, 12)
-        Ke = B.reshape(ne, 3 * nq, 12).transpose(0, 2, 1) @ DB  # (e, 12, 12)
+        DB = np.matmul(Dw, B4, out=buf["DB"])
+        Ke = np.matmul(
+            B.reshape(ne, 3 * nq, 12).transpose(0, 2, 1), DB.reshape(ne, 3 * nq, 12), out=buf["Ke"]
+        )
         # geometric stiffness  G_ab = sum_q w dN_aJ S_JL dN_bL, on both components
         Sw = S * w
-        left = np.concatenate(
-            [
-                Sw[0][:, :, None] * dN0 + Sw[2][:, :, None] * dN1,
-                Sw[2][:, :, None] * dN0 + Sw[1][:, :, None] * dN1,
-            ],
-            axis=1,
-        ).transpose(0, 2, 1)  # (e, a, 2q)
-        G = left @ self._dN01  # (e, a, b)
+        left = buf["left"]  # (e, 2q, a)
+        np.multiply(Sw[0][:, :, None], dN0, out=left[:, :nq])
+        left[:, :nq] += Sw[2][:, :, None] * dN1
+        np.multiply(Sw[2][:, :, None], dN0, out=left[:, nq:])
+        left[:, nq:] += Sw[1][:, :, None] * dN1
+        G = np.matmul(left.transpose(0, 2, 1), self._dN01, out=buf["G"])
         Ke4 = Ke.reshape(ne, 6, 2, 6, 2)
         Ke4[:, :, 0, :, 0] += G
         Ke4[:, :, 1, :, 1] += G

@@ -202,7 +202,7 @@ class Body:
 
             def data() -> np.ndarray:  # assembled only when a factorisation needs it
                 t0 = time.perf_counter()
-                out = ev.tangent().copy()
+                out = ev.tangent()  # assembled for this factorisation only: add to it in place
                 self._add_contact(np.zeros_like(r), out, parts)
                 self.timings["tangent assembly"] += time.perf_counter() - t0
                 return out
