@@ -28,7 +28,6 @@ from .fe import Discretization, LayerState
 
 _log = logging.getLogger(__name__)
 TIMED = ("residual+material", "tangent assembly", "LDL^T factorisation", "triangular solves")
-PREDICTOR_DAMPING = 1.0
 __all__ = ["Body", "Control", "NewtonOptions", "StepResult"]
 
 
@@ -336,9 +335,7 @@ class Body:
         _, v_prev, v_now, du_prev, dd_prev = prev
         if abs(v_now - v_prev) < 1e-14 * max(abs(v_now), 1e-30):
             return u, d
-        ratio = PREDICTOR_DAMPING * float(
-            np.clip((control.value - v_now) / (v_now - v_prev), -2.0, 2.0)
-        )
+        ratio = float(np.clip((control.value - v_now) / (v_now - v_prev), -2.0, 2.0))
         u_pred = u + ratio * du_prev
         if control.kind == "force":
             d = d + ratio * dd_prev
