@@ -131,7 +131,89 @@ def _add_sweep(sub) -> None:
     p.set_defaults(func=_cmd_sweep)
 
 
-_SUBCOMMANDS: list[Callable] = [_add_simulate, _add_sweep]
+def _cmd_train(args: argparse.Namespace) -> int:
+    from surrogate import train_surrogate
+
+    ckpt = train_surrogate(
+        args.sweep,
+        args.out,
+        seed=args.seed,
+        members=args.members,
+        max_epochs=args.max_epochs,
+        progress=not args.no_progress,
+    )
+    report = json.loads((ckpt.parent / "report.json").read_text())
+
+    def fmt(x, spec: str) -> str:
+        return "-" if x is None else format(x, spec)
+
+    print(f"{'metric (test designs)':28s} {'R2':>7s} {'median err':>10s} {'in 90% int':>10s}")
+    for name, s in report["metrics"].items():
+        print(
+            f"{name:28s} {fmt(s['r2'], '7.3f')} {fmt(s['median_rel_error'], '10.2%')} "
+            f"{fmt(s['coverage_90'], '10.0%')}"
+        )
+    speed = report["speed"]["model_designs_per_s"]
+    print(f"inference: {speed:,.0f} designs/s batched; report: {ckpt.parent / 'report.md'}")
+    print(f"checkpoint: {ckpt}")
+    return 0
+
+
+def _add_train(sub) -> None:
+    from pathlib import Path
+
+    p = sub.add_parser("train", help="train the neural surrogate (deep ensemble) on a sweep")
+    p.add_argument("sweep", type=Path, help="sweep folder (runs/NAME with table.csv)")
+    p.add_argument("--out", type=Path, help="run folder (default: runs/<sweep>-surrogate)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--members", type=int, default=5, help="ensemble members (default 5)")
+    p.add_argument("--max-epochs", type=int, help="cap on epochs (early stopping decides)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_train)
+
+
+def _cmd_predict(args: argparse.Namespace) -> int:
+    from surrogate import load_checkpoint, read_points
+
+    model = load_checkpoint(args.checkpoint, allow_solver_mismatch=args.allow_solver_mismatch)
+    pred = model.predict(read_points(args.designs, model.space))
+    if args.json:
+        out = {
+            "checkpoint": str(args.checkpoint),
+            "units": dict(zip(pred.metric_names, pred.units, strict=True)),
+            "designs": pred.to_records(),
+        }
+        json.dump(out, sys.stdout, allow_nan=False)
+        sys.stdout.write("\n")
+        return 0
+    for i, rec in enumerate(pred.to_records()):
+        domain = "in domain" if rec["in_domain"] else f"OUT OF DOMAIN ({rec['domain_note']})"
+        print(f"design {i}: {domain}")
+        for name, unit in zip(pred.metric_names, pred.units, strict=True):
+            mean, std = rec["mean"][name], rec["std"][name]
+            text = "not predicted" if mean is None else f"{mean:.4g} ± {std:.2g} {unit}"
+            print(f"  {name:28s} {text}")
+    return 0
+
+
+def _add_predict(sub) -> None:
+    from pathlib import Path
+
+    p = sub.add_parser("predict", help="predict metrics of designs with a trained surrogate")
+    p.add_argument("checkpoint", type=Path, help="surrogate checkpoint (model.safetensors)")
+    p.add_argument(
+        "designs", type=Path, help="design-point TOML (name = value) or CSV (one point per row)"
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument(
+        "--allow-solver-mismatch",
+        action="store_true",
+        help="use a checkpoint trained on results of another solver version",
+    )
+    p.set_defaults(func=_cmd_predict)
+
+
+_SUBCOMMANDS: list[Callable] = [_add_simulate, _add_sweep, _add_train, _add_predict]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -147,9 +229,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    from surrogate import CheckpointError  # cheap: torch is imported only when needed
+
     try:
         return args.func(args)
-    except (DesignError, UsageError, FileExistsError) as exc:
+    except (DesignError, UsageError, FileExistsError, CheckpointError) as exc:
         print(f"fingertip: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

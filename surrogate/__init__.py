@@ -1,0 +1,74 @@
+"""Neural surrogate of the FE model: design point -> every metric of ``sim.METRICS``, with
+uncertainty, from a deep ensemble trained on a sweep.
+
+Public API::
+
+    train_surrogate(sweep_dir, out_dir=None, seed=0, members=5, ...) -> Path   # checkpoint
+    load_checkpoint(path, allow_solver_mismatch=False) -> Surrogate
+    Surrogate.predict(points | table) -> Prediction(mean, std, lower_90, upper_90, in_domain)
+    read_points(path, space) / check_point(space, point)   # TOML / CSV design points
+    CheckpointError                                        # a refused checkpoint file
+
+Importing this package is cheap; torch is imported on first use of a name that needs it.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+from ._errors import CheckpointError
+
+if TYPE_CHECKING:
+    from ._checkpoint import load_checkpoint, save_checkpoint
+    from ._encoding import Encoder
+    from ._evaluate import Report, Speed
+    from ._io import SweepData, check_point, read_points, read_sweep
+    from ._run import train_surrogate
+    from ._surrogate import Prediction, Surrogate
+    from ._train import TrainConfig
+
+__all__ = [
+    "CheckpointError",
+    "Encoder",
+    "Prediction",
+    "Report",
+    "Speed",
+    "Surrogate",
+    "SweepData",
+    "TrainConfig",
+    "check_point",
+    "load_checkpoint",
+    "read_points",
+    "read_sweep",
+    "save_checkpoint",
+    "train_surrogate",
+]
+
+_LAZY = {
+    "Encoder": "_encoding",
+    "Prediction": "_surrogate",
+    "Report": "_evaluate",
+    "Speed": "_evaluate",
+    "Surrogate": "_surrogate",
+    "SweepData": "_io",
+    "TrainConfig": "_train",
+    "check_point": "_io",
+    "load_checkpoint": "_checkpoint",
+    "read_points": "_io",
+    "read_sweep": "_io",
+    "save_checkpoint": "_checkpoint",
+    "train_surrogate": "_run",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

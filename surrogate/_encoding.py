@@ -1,0 +1,342 @@
+"""Design points -> network inputs, and the training domain.
+
+Encoding of a design space's parameters, in the space's order:
+
+- float: one feature in [0, 1] over the space's bounds (log scale where the space says log);
+  an optional parameter (one a design may not use) adds an "active" flag: an inactive value
+  is encoded as (value 0, flag 0), an active one as (u, 1);
+- choice: one-hot over the space's choices; an inactive choice is all zeros;
+- fixed: no feature (the parameter stays in the header and is checked on input).
+
+Points are flat dicts ``name -> value`` (``sim.space``); tables are ``name -> column``. Both are
+masked like ``sim.space.mask_inactive`` before encoding, so values of parameters a design does
+not use never reach the network.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from sim.errors import DesignError
+from sim.space import LAYER_ROLES, PARAM_MATERIAL_KEYS, DesignSpace, Parameter, active_roles
+
+__all__ = ["Encoded", "Encoder", "is_optional", "parameter_unit", "to_columns"]
+
+#: a table of design points: one column (sequence) per parameter name
+Columns = dict[str, list[Any]]
+
+
+def parameter_unit(name: str) -> str:
+    """The unit in a parameter's name (``core.mu0_MPa`` -> ``MPa``), "" when dimensionless."""
+    for suffix, unit in (("_mm", "mm"), ("_MPa", "MPa"), ("_s", "s"), ("_N", "N")):
+        if name.endswith(suffix):
+            return unit
+    return ""
+
+
+def _counts(space: DesignSpace) -> list[int]:
+    p = space["layers.count"]
+    return [int(c) for c in (p.choices if p.kind == "choice" else [p.value])]
+
+
+def is_optional(space: DesignSpace, p: Parameter) -> bool:
+    """Whether some design of ``space`` leaves ``p`` inactive."""
+    head, key = p.name.split(".", 1)
+    if head not in LAYER_ROLES:
+        return False
+    always = all(head in active_roles(c) for c in _counts(space))
+    if key in ("material", "thickness_mm"):
+        return not always
+    material = space[f"{head}.material"]
+    names = material.choices if material.kind == "choice" else (material.value,)
+    return not (always and all(m == "param" for m in names))
+
+
+def _choice_key(v: Any) -> str:
+    """Compare choices by text, with 2.0 == 2 (CSV cells and JSON numbers)."""
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        if math.isnan(v):
+            return ""
+        if v.is_integer():
+            return str(int(v))
+    return str(v)
+
+
+def to_columns(points: Sequence[Mapping[str, Any]] | Mapping[str, Sequence], names: list[str]):
+    """``(columns, n)``: a list of points or a table, as one list per known parameter name.
+
+    Unknown names raise a ``DesignError`` (a typo must not be silently ignored); missing names
+    give ``None`` entries.
+    """
+    known = set(names)
+    if isinstance(points, Mapping):
+        unknown = sorted(set(points) - known)
+        lengths = {len(points[k]) for k in points}
+        if len(lengths) > 1:
+            raise DesignError("table", f"columns of different lengths {sorted(lengths)}")
+        n = lengths.pop() if lengths else 0
+        cols = {k: list(points[k]) if k in points else [None] * n for k in names}
+    else:
+        rows = list(points)
+        unknown = sorted({k for r in rows for k in r} - known)
+        n = len(rows)
+        cols = {k: [r.get(k) for r in rows] for k in names}
+    if unknown:
+        raise DesignError(unknown[0], "unknown parameter (not in the surrogate's design space)")
+    return cols, n
+
+
+def _float_column(name: str, values: list[Any]) -> np.ndarray:
+    try:
+        return np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError):
+        pass
+    out = np.empty(len(values))
+    for i, v in enumerate(values):
+        if v is None or v == "":
+            out[i] = math.nan
+        elif isinstance(v, bool) or not isinstance(v, int | float | str):
+            raise DesignError(name, f"design {i}: expected a number, got {v!r}")
+        else:
+            try:
+                out[i] = float(v)
+            except ValueError:
+                raise DesignError(name, f"design {i}: expected a number, got {v!r}") from None
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class Encoded:
+    """Network inputs of ``n`` designs.
+
+    ``features`` (n, n_features) float32; ``in_domain`` (n,) bool: False for a design outside
+    the training domain, with the first reason in ``reasons[i]`` ("" when in domain).
+    """
+
+    features: np.ndarray
+    in_domain: np.ndarray
+    reasons: tuple[str, ...]
+
+
+@dataclass(frozen=True, eq=False)
+class Encoder:
+    """The encoding of a design space, plus the domain seen in training.
+
+    ``ranges``: for each float parameter, the [min, max] of its active training values (NaN
+    when never active); ``seen``: for each choice parameter, the choices seen in training.
+    An encoder without a training domain (``fit_domain`` not called) checks the bounds only.
+    """
+
+    space: DesignSpace
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+    seen: dict[str, tuple[str, ...]] = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ layout
+    @property
+    def feature_names(self) -> list[str]:
+        out = []
+        for p in self.space.parameters:
+            if p.kind == "float":
+                out.append(p.name)
+                if is_optional(self.space, p):
+                    out.append(f"{p.name}:active")
+            elif p.kind == "choice":
+                out += [f"{p.name}={_choice_key(c)}" for c in p.choices]
+        return out
+
+    @property
+    def n_features(self) -> int:
+        return len(self.feature_names)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON form of the training domain (the space is stored on its own)."""
+        return {
+            "ranges": {k: [_none(a), _none(b)] for k, (a, b) in self.ranges.items()},
+            "seen": {k: list(v) for k, v in self.seen.items()},
+        }
+
+    @classmethod
+    def from_dict(cls, space: DesignSpace, d: Mapping[str, Any]) -> Encoder:
+        return cls(
+            space,
+            {k: (_nan(a), _nan(b)) for k, (a, b) in d["ranges"].items()},
+            {k: tuple(v) for k, v in d["seen"].items()},
+        )
+
+    # ------------------------------------------------------------------ masking
+    def columns(self, points) -> tuple[dict[str, Any], int]:
+        """Parsed, masked columns: float parameters as float arrays (NaN inactive), choices
+        as lists of choice keys ("" inactive). A ``DesignError`` for a missing active value."""
+        raw, n = to_columns(points, self.space.names)
+        cols: dict[str, Any] = {}
+        for p in self.space.parameters:
+            values = raw[p.name]
+            if not p.sampled:  # a fixed parameter or a single choice: may be left out
+                default = p.from_unit(0.0)
+                values = [default if _blank(v) else v for v in values]
+                raw[p.name] = values
+            numeric = p.kind == "float" or (p.kind == "fixed" and not isinstance(p.value, str))
+            if numeric:
+                cols[p.name] = _float_column(p.name, values)
+            else:
+                cols[p.name] = [_choice_key(v) for v in values]
+        count = _float_column("layers.count", raw["layers.count"])
+        bad = ~np.isin(count, (1.0, 2.0, 3.0))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise DesignError("layers.count", f"design {i}: must be 1, 2 or 3, got {count[i]!r}")
+        for role in LAYER_ROLES:
+            role_on = np.isin(count, [c for c in (1, 2, 3) if role in active_roles(c)])
+            mat_name = f"{role}.material"
+            if mat_name not in cols:
+                continue
+            mats = np.asarray(cols[mat_name], dtype=object)
+            is_param = np.asarray([m == "param" for m in mats], dtype=bool)
+            for key in ("material", "thickness_mm", *PARAM_MATERIAL_KEYS):
+                name = f"{role}.{key}"
+                if name not in cols:
+                    continue
+                if key == "material":
+                    on = role_on
+                elif key == "thickness_mm":
+                    on = role_on & (role != "core")
+                else:
+                    on = role_on & is_param
+                col = cols[name]
+                if isinstance(col, np.ndarray):
+                    col = np.where(on, col, np.nan)
+                    missing = on & np.isnan(col)
+                else:
+                    col = [v if o else "" for v, o in zip(col, on, strict=True)]
+                    missing = on & np.asarray([v == "" for v in col], dtype=bool)
+                if missing.any():
+                    i = int(np.argmax(missing))
+                    raise DesignError(name, f"missing for design {i}, which uses it")
+                cols[name] = col
+        for p in self.space.parameters:
+            if p.kind == "float" and not is_optional(self.space, p):
+                missing = np.isnan(cols[p.name])
+                if missing.any():
+                    raise DesignError(p.name, f"missing for design {int(np.argmax(missing))}")
+        return cols, n
+
+    # ------------------------------------------------------------------ encoding
+    def encode(self, points) -> Encoded:
+        """Encode a list of points or a table (``name -> column``)."""
+        cols, n = self.columns(points)
+        blocks: list[np.ndarray] = []
+        in_domain = np.ones(n, dtype=bool)
+        reasons = [""] * n
+
+        def flag(mask: np.ndarray, text: str) -> None:
+            for i in np.flatnonzero(mask & in_domain):
+                reasons[i] = text
+            in_domain[mask] = False
+
+        for p in self.space.parameters:
+            col = cols[p.name]
+            if p.kind == "fixed":
+                active = (
+                    ~np.isnan(col)
+                    if isinstance(col, np.ndarray)
+                    else np.asarray([v != "" for v in col])
+                )
+                if isinstance(col, np.ndarray):
+                    differs = active & (col != float(p.value))
+                else:
+                    differs = active & np.asarray([v != _choice_key(p.value) for v in col])
+                flag(differs, f"{p.name} differs from the training value {p.value!r}")
+            elif p.kind == "float":
+                active = ~np.isnan(col)
+                v = np.where(active, col, p.low)
+                if p.log:
+                    with np.errstate(divide="ignore", invalid="ignore"):
+                        u = (np.log(v) - math.log(p.low)) / (math.log(p.high) - math.log(p.low))
+                    u = np.where(v > 0, u, -1.0)  # nonpositive on a log scale: far outside
+                else:
+                    u = (v - p.low) / (p.high - p.low)
+                u = np.where(active, u, 0.0)
+                flag(active & ((col < p.low) | (col > p.high)), f"{p.name} outside the space")
+                lo, hi = self.ranges.get(p.name, (p.low, p.high))
+                with np.errstate(invalid="ignore"):
+                    outside = ~((col >= lo) & (col <= hi))  # NaN range: never seen active
+                flag(active & outside, f"{p.name} outside the training range [{lo:.4g}, {hi:.4g}]")
+                blocks.append(u[:, None])
+                if is_optional(self.space, p):
+                    blocks.append(active[:, None].astype(float))
+            else:
+                keys = [_choice_key(c) for c in p.choices]
+                index = {k: j for j, k in enumerate(keys)}
+                idx = np.asarray([index.get(v, -1) if v != "" else -2 for v in col], dtype=int)
+                onehot = np.zeros((n, len(keys)))
+                known = idx >= 0
+                onehot[np.flatnonzero(known), idx[known]] = 1.0
+                flag(idx == -1, f"{p.name}: unknown choice")
+                seen = self.seen.get(p.name)
+                if seen is not None:
+                    unseen = np.asarray([v != "" and v not in seen for v in col], dtype=bool)
+                    flag(unseen, f"{p.name}: choice never seen in training")
+                blocks.append(onehot)
+        features = np.concatenate(blocks, axis=1) if blocks else np.zeros((n, 0))
+        return Encoded(features.astype(np.float32), in_domain, tuple(reasons))
+
+    def fit_domain(self, points) -> Encoder:
+        """A copy of this encoder with the training domain of ``points`` (training data)."""
+        cols, _ = self.columns(points)
+        ranges: dict[str, tuple[float, float]] = {}
+        seen: dict[str, tuple[str, ...]] = {}
+        for p in self.space.parameters:
+            col = cols[p.name]
+            if p.kind == "float":
+                act = col[~np.isnan(col)]
+                ranges[p.name] = (
+                    (float(act.min()), float(act.max())) if act.size else (math.nan, math.nan)
+                )
+            elif p.kind == "choice":
+                seen[p.name] = tuple(sorted({v for v in col if v != ""}))
+        return Encoder(self.space, ranges, seen)
+
+    # ------------------------------------------------------------------ decoding
+    def decode(self, features: np.ndarray) -> list[dict[str, Any]]:
+        """Points from features (the inverse of ``encode`` on valid points)."""
+        from sim.space import mask_inactive
+
+        features = np.asarray(features, dtype=float)
+        points: list[dict[str, Any]] = [{} for _ in range(len(features))]
+        j = 0
+        for p in self.space.parameters:
+            if p.kind == "fixed":
+                for pt in points:
+                    pt[p.name] = p.value
+            elif p.kind == "float":
+                optional = is_optional(self.space, p)
+                for pt, row in zip(points, features, strict=True):
+                    on = row[j + 1] > 0.5 if optional else True
+                    pt[p.name] = p.from_unit(float(row[j])) if on else math.nan
+                j += 2 if optional else 1
+            else:
+                k = len(p.choices)
+                for pt, row in zip(points, features, strict=True):
+                    block = row[j : j + k]
+                    pt[p.name] = p.choices[int(np.argmax(block))] if block.max() > 0.5 else ""
+                j += k
+        return [mask_inactive(pt) for pt in points]
+
+
+def _blank(v: Any) -> bool:
+    return v is None or v == "" or (isinstance(v, float) and math.isnan(v))
+
+
+def _none(x: float) -> float | None:
+    return None if math.isnan(x) else x
+
+
+def _nan(x: float | None) -> float:
+    return math.nan if x is None else float(x)

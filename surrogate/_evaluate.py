@@ -1,0 +1,264 @@
+"""Evaluation on the held-out test designs: accuracy, calibration, parity plots, speed.
+
+The plotted data (``ParityData``) is computed first and rendered separately, so the numbers in
+report.json are exactly those in the figures.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from ._surrogate import Surrogate
+from ._train import r2_score
+
+__all__ = ["MetricScore", "ParityData", "Report", "Speed", "evaluate", "inference_speed"]
+
+
+@dataclass(frozen=True)
+class MetricScore:
+    """Test-set accuracy of one metric (``n`` designs with a finite FE value).
+
+    ``median_rel_error`` / ``p95_rel_error``: |prediction - FE| / |FE| (fractions);
+    ``coverage_90``: fraction of FE values inside the predicted central 90 % interval
+    (0.90 for a calibrated model).
+    """
+
+    name: str
+    unit: str
+    n: int
+    r2: float
+    median_rel_error: float
+    p95_rel_error: float
+    coverage_90: float
+    rmse: float
+
+
+@dataclass(frozen=True, eq=False)
+class ParityData:
+    """FE value vs predicted mean and 90 % interval of one metric on the test designs."""
+
+    metric: str
+    unit: str
+    fe: np.ndarray
+    mean: np.ndarray
+    lower_90: np.ndarray
+    upper_90: np.ndarray
+    in_domain: np.ndarray
+
+
+@dataclass(frozen=True)
+class Speed:
+    """Batched inference throughput on this machine, in designs per second.
+
+    ``model_designs_per_s``: encoded features -> mean/std in metric units;
+    ``end_to_end_designs_per_s``: a table of design points -> ``Prediction`` (with encoding and
+    the domain check). ``load_average_1min``: the machine's load when measured (other
+    processes on the same cores slow torch down; compare with ``cpu_count``).
+    """
+
+    n_designs: int
+    model_designs_per_s: float
+    end_to_end_designs_per_s: float
+    torch_threads: int
+    machine: str
+    cpu_count: int
+    load_average_1min: float
+
+
+@dataclass(frozen=True, eq=False)
+class Report:
+    scores: tuple[MetricScore, ...]
+    parity: tuple[ParityData, ...]
+    speed: Speed
+    n_test: int
+    in_domain_fraction: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return _clean(
+            {
+                "n_test": self.n_test,
+                "in_domain_fraction": self.in_domain_fraction,
+                "metrics": {s.name: asdict(s) for s in self.scores},
+                "speed": asdict(self.speed),
+            }
+        )
+
+
+def _clean(x: Any) -> Any:
+    if isinstance(x, float):
+        return x if math.isfinite(x) else None
+    if isinstance(x, dict):
+        return {k: _clean(v) for k, v in x.items()}
+    if isinstance(x, list | tuple):
+        return [_clean(v) for v in x]
+    return x
+
+
+def score(p: ParityData) -> MetricScore:
+    ok = np.isfinite(p.fe) & np.isfinite(p.mean)
+    fe, mean = p.fe[ok], p.mean[ok]
+    n = int(ok.sum())
+    if n == 0:
+        nan = math.nan
+        return MetricScore(p.metric, p.unit, 0, nan, nan, nan, nan, nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.abs(mean - fe) / np.abs(fe)
+    rel = rel[np.isfinite(rel)]
+    inside = (p.fe[ok] >= p.lower_90[ok]) & (p.fe[ok] <= p.upper_90[ok])
+    return MetricScore(
+        p.metric,
+        p.unit,
+        n,
+        r2_score(fe, mean),
+        float(np.median(rel)) if rel.size else math.nan,
+        float(np.percentile(rel, 95)) if rel.size else math.nan,
+        float(inside.mean()),
+        float(np.sqrt(np.mean((mean - fe) ** 2))),
+    )
+
+
+def inference_speed(
+    surrogate: Surrogate, points: list[dict], n: int = 65536, repeats: int = 3
+) -> Speed:
+    """Best-of-``repeats`` throughput on ``n`` designs tiled from ``points``."""
+    reps = -(-n // max(len(points), 1))
+    table = {name: ([p[name] for p in points] * reps)[:n] for name in surrogate.space.names}
+    features = surrogate.encoder.encode(table).features
+
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else math.nan
+
+    def best(fn) -> float:
+        fn()  # warm-up
+        times = []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            fn()
+            times.append(time.perf_counter() - t0)
+        return n / min(times)
+
+    return Speed(
+        n_designs=n,
+        model_designs_per_s=best(lambda: surrogate.predict_features(features)),
+        end_to_end_designs_per_s=best(lambda: surrogate.predict(table)),
+        torch_threads=torch.get_num_threads(),
+        machine=f"{platform.machine()} {platform.processor() or ''}".strip(),
+        cpu_count=os.cpu_count() or 0,
+        load_average_1min=load,
+    )
+
+
+def evaluate(
+    surrogate: Surrogate, points: list[dict], targets: np.ndarray, *, speed_n: int = 65536
+) -> Report:
+    """Score ``surrogate`` on held-out designs (points + FE metrics, NaN = missing)."""
+    pred = surrogate.predict(points)
+    parity = tuple(
+        ParityData(
+            m,
+            surrogate.units[j],
+            targets[:, j],
+            pred.mean[:, j],
+            pred.lower_90[:, j],
+            pred.upper_90[:, j],
+            pred.in_domain,
+        )
+        for j, m in enumerate(surrogate.metric_names)
+    )
+    return Report(
+        tuple(score(p) for p in parity),
+        parity,
+        inference_speed(surrogate, points, speed_n),
+        len(points),
+        float(pred.in_domain.mean()) if len(points) else math.nan,
+    )
+
+
+def render_parity(p: ParityData, path: Path) -> None:
+    """Parity plot: predicted mean with its 90 % interval against the FE value."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(4.2, 4.0), layout="constrained")
+    ax = fig.add_subplot()
+    ok = np.isfinite(p.fe) & np.isfinite(p.mean)
+    if ok.any():
+        fe, mean = p.fe[ok], p.mean[ok]
+        err = np.vstack([mean - p.lower_90[ok], p.upper_90[ok] - mean]).clip(min=0)
+        dom = p.in_domain[ok]
+        for sel, colour, label in ((dom, "C0", "in domain"), (~dom, "C3", "out of domain")):
+            if sel.any():
+                ax.errorbar(
+                    fe[sel],
+                    mean[sel],
+                    yerr=err[:, sel],
+                    fmt="o",
+                    ms=3,
+                    color=colour,
+                    elinewidth=0.6,
+                    alpha=0.8,
+                    label=label,
+                )
+        lo, hi = float(min(fe.min(), mean.min())), float(max(fe.max(), mean.max()))
+        pad = 0.05 * (hi - lo or 1.0)
+        ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], "k--", lw=0.8)
+        ax.legend(fontsize=7, loc="upper left")
+    unit = f" [{p.unit}]" if p.unit else ""
+    ax.set_xlabel(f"FE{unit}")
+    ax.set_ylabel(f"surrogate (mean, 90 % interval){unit}")
+    ax.set_title(p.metric, fontsize=9)
+    fig.savefig(path, dpi=110)
+
+
+def _fmt(x: float, spec: str) -> str:
+    return "–" if not math.isfinite(x) else format(x, spec)
+
+
+def write_report(report: Report, folder: Path, info: dict[str, Any]) -> None:
+    """report.json, report.md and figures/parity_<metric>.png in ``folder``."""
+    figures = folder / "figures"
+    figures.mkdir(parents=True, exist_ok=True)
+    for p in report.parity:
+        render_parity(p, figures / f"parity_{p.metric}.png")
+    data = {**_clean(info), **report.to_dict()}
+    (folder / "report.json").write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
+    s = report.speed
+    lines = [
+        "# Surrogate evaluation",
+        "",
+        f"Held-out test designs: {report.n_test} "
+        f"({_fmt(100 * report.in_domain_fraction, '.0f')} % inside the training domain). "
+        f"Ensemble of {info.get('members', '?')} members, seed {info.get('seed', '?')}, "
+        f"trained on {info.get('n_train', '?')} designs "
+        f"(validation {info.get('n_val', '?')}), {info.get('epochs', '?')} epochs.",
+        "",
+        "| metric | unit | n | R² | median rel. error | 95th pct rel. error | in 90 % interval |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for sc in report.scores:
+        lines.append(
+            f"| {sc.name} | {sc.unit} | {sc.n} | {_fmt(sc.r2, '.3f')} | "
+            f"{_fmt(100 * sc.median_rel_error, '.2f')} % | {_fmt(100 * sc.p95_rel_error, '.2f')} % "
+            f"| {_fmt(100 * sc.coverage_90, '.0f')} % |"
+        )
+    lines += [
+        "",
+        f"Inference ({s.n_designs} designs batched, {s.torch_threads} torch threads, "
+        f"{s.machine}, {s.cpu_count} CPUs, load average {s.load_average_1min:.1f} when "
+        f"measured): {s.model_designs_per_s:,.0f} designs/s from encoded features, "
+        f"{s.end_to_end_designs_per_s:,.0f} designs/s from a table of design points.",
+        "",
+        "Parity plots: `figures/parity_<metric>.png`. Relative errors are |pred - FE| / |FE|; "
+        "the 90 % interval is the ensemble's (mixture mean ± 1.645 std in the normalised, "
+        "log where positive, space).",
+        "",
+    ]
+    (folder / "report.md").write_text("\n".join(lines))

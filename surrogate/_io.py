@@ -1,0 +1,214 @@
+"""Reading design points (TOML, CSV) and sweep folders (config.json + table.csv)."""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.errors import DesignError, read_toml
+from sim.simulate import METRICS
+from sim.space import DesignSpace, space_from_dict
+
+__all__ = ["SweepData", "check_point", "read_points", "read_sweep", "sha256_file"]
+
+#: the columns of a sweep's table.csv that are not design parameters
+TABLE_COLUMNS = ("index", "key", "status", "wall_time_s", "reason", *METRICS)
+
+
+def sha256_file(path: Path) -> str:
+    h = hashlib.sha256()
+    with Path(path).open("rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _cell(space: DesignSpace, name: str, text: str, where: str) -> Any:
+    """A CSV cell as a point value (empty = inactive)."""
+    p = space[name]
+    text = text.strip()
+    if text == "":
+        return "" if p.kind == "choice" else math.nan
+    if p.kind == "choice" or (p.kind == "fixed" and isinstance(p.value, str)):
+        options = p.choices if p.kind == "choice" else (p.value,)
+        for c in options:
+            if str(c) == text:
+                return c
+        return text  # an unknown choice: flagged (API) or refused (CLI check)
+    try:
+        return float(text)
+    except ValueError:
+        raise DesignError(name, f"{where}: expected a number, got {text!r}") from None
+
+
+def _read_csv(path: Path, space: DesignSpace) -> list[dict[str, Any]]:
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        header = reader.fieldnames or []
+        unknown = [c for c in header if c not in space.names and c not in TABLE_COLUMNS]
+        if unknown:
+            raise DesignError(unknown[0], f"{path.name}: unknown column (not a space parameter)")
+        names = [c for c in header if c in space.names]
+        rows = []
+        for i, row in enumerate(reader):
+            if None in row:
+                raise DesignError(path.name, f"row {i + 1}: more cells than columns")
+            point = {n: _cell(space, n, row[n] or "", f"row {i + 1}") for n in names}
+            try:
+                rows.append(check_point(space, point))
+            except DesignError as exc:
+                raise DesignError(f"{path.name} row {i + 1}: {exc.field}", exc.message) from None
+    if not rows:
+        raise DesignError(path.name, "no design rows")
+    return rows
+
+
+def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in d.items():
+        name = f"{prefix}{k}"
+        if isinstance(v, Mapping):
+            out.update(_flatten(v, f"{name}."))
+        else:
+            out[name] = v
+    return out
+
+
+def read_points(path: str | Path, space: DesignSpace) -> list[dict[str, Any]]:
+    """Checked design points (``check_point``) from a TOML file (one flat table ``name =
+    value``; dotted keys such as ``core.mu0_MPa = 0.05`` work too) or a CSV file (one point per
+    row, columns = point names, empty cell = inactive; a sweep's table.csv works, its
+    non-parameter columns are ignored)."""
+    path = Path(path)
+    if path.suffix.lower() != ".csv":
+        return [check_point(space, _flatten(read_toml(path, "DESIGNS")))]
+    try:
+        return _read_csv(path, space)
+    except FileNotFoundError:
+        raise DesignError("DESIGNS", f"no such file: {path}") from None
+    except IsADirectoryError:
+        raise DesignError("DESIGNS", f"{path} is a directory, not a CSV file") from None
+    except OSError as exc:
+        raise DesignError("DESIGNS", f"cannot read {path}: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise DesignError("DESIGNS", f"{path} is not UTF-8 text") from None
+    except csv.Error as exc:
+        raise DesignError("DESIGNS", f"malformed CSV in {path}: {exc}") from None
+
+
+def check_point(space: DesignSpace, point: Mapping[str, Any]) -> dict[str, Any]:
+    """A hand-written point checked against ``space`` (names known, active values present and
+    inside the bounds or choices, a buildable design); returns it masked. Values of parameters
+    the design does not use are dropped (masked), as in a sweep."""
+    from sim.space import mask_inactive
+
+    for name in point:
+        if name not in space.names:
+            raise DesignError(name, "unknown parameter (not in the surrogate's design space)")
+    filled: dict[str, Any] = {}
+    for p in space.parameters:
+        v = point.get(p.name)
+        if _blank(v):  # a fixed parameter or a single choice takes its value
+            v = p.from_unit(0.0) if not p.sampled else "" if p.kind == "choice" else math.nan
+        filled[p.name] = v
+    count = filled["layers.count"]
+    if _blank(count):
+        raise DesignError("layers.count", "missing")
+    if isinstance(count, bool) or count not in (1, 2, 3):
+        raise DesignError("layers.count", f"must be 1, 2 or 3, got {count!r}")
+    filled["layers.count"] = int(count)
+    masked = mask_inactive(filled)
+    for p in space.parameters:
+        v = masked[p.name]
+        if _blank(v):
+            if _uses(masked, p.name):
+                raise DesignError(p.name, "missing (this design uses it)")
+        elif p.kind == "float" and (isinstance(v, bool) or not isinstance(v, int | float)):
+            raise DesignError(p.name, f"expected a number, got {v!r}")
+    return space.check(masked)
+
+
+def _uses(point: dict[str, Any], name: str) -> bool:
+    """Whether the design of ``point`` uses parameter ``name``."""
+    from sim.space import mask_inactive
+
+    return not _blank(
+        mask_inactive({**point, name: "x" if name.endswith("material") else 1.0})[name]
+    )
+
+
+def _blank(v: Any) -> bool:
+    return v is None or v == "" or (isinstance(v, float) and math.isnan(v))
+
+
+@dataclass(frozen=True, eq=False)
+class SweepData:
+    """The usable designs of a sweep folder.
+
+    ``points``: design points; ``targets`` (n, n_metrics): FE metrics in their units (NaN when
+    a protocol failed or did not reach the metric); ``index``: the table's design index;
+    ``table_sha256``: hash of table.csv (the training data).
+    """
+
+    folder: Path
+    space: DesignSpace
+    solver_version: str
+    points: list[dict[str, Any]]
+    targets: np.ndarray
+    index: np.ndarray
+    metric_names: tuple[str, ...]
+    table_sha256: str
+    n_rows: int
+
+
+def read_sweep(folder: str | Path) -> SweepData:
+    """Designs with at least one finite metric (failed protocols leave NaN, masked in training)."""
+    folder = Path(folder)
+    config_path, table_path = folder / "config.json", folder / "table.csv"
+    if not folder.is_dir():
+        raise DesignError("SWEEP", f"no such sweep folder: {folder}")
+    if not config_path.exists() or not table_path.exists():
+        raise DesignError(
+            "SWEEP", f"{folder} has no config.json and table.csv; run `fingertip sweep` first"
+        )
+    try:
+        config = json.loads(config_path.read_text())
+        space = space_from_dict(config["space"])
+    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise DesignError("SWEEP", f"unreadable {config_path}: {exc}") from None
+    metric_names = tuple(METRICS)
+    points, targets, index = [], [], []
+    n_rows = 0
+    with table_path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        missing = [c for c in (*space.names, *metric_names) if c not in (reader.fieldnames or [])]
+        if missing:
+            raise DesignError("SWEEP", f"{table_path} has no column {missing[0]!r}")
+        for row in reader:
+            n_rows += 1
+            y = [float(row[m]) if row[m].strip() else math.nan for m in metric_names]
+            if not any(math.isfinite(v) for v in y):
+                continue
+            where = f"table.csv row {n_rows}"
+            points.append({n: _cell(space, n, row[n], where) for n in space.names})
+            targets.append(y)
+            index.append(int(row["index"]))
+    return SweepData(
+        folder=folder,
+        space=space,
+        solver_version=str(config.get("solver_version", "")),
+        points=points,
+        targets=np.asarray(targets, dtype=np.float64).reshape(len(points), len(metric_names)),
+        index=np.asarray(index, dtype=np.int64),
+        metric_names=metric_names,
+        table_sha256=sha256_file(table_path),
+        n_rows=n_rows,
+    )

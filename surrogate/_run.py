@@ -1,0 +1,101 @@
+"""``train_surrogate``: a sweep folder in, a training run folder out.
+
+The run folder (created atomically, never overwritten) holds ``config.json`` (what was trained,
+on which data), ``meta.json`` (provenance), ``model.safetensors`` (the checkpoint),
+``history.json`` (loss curves), ``report.json`` + ``report.md`` + ``figures/parity_*.png``
+(evaluation on the held-out test designs).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+from sim.errors import DesignError
+from sim.provenance import check_new_folder, provenance, run_folder, write_json
+
+from ._checkpoint import save_checkpoint
+from ._evaluate import evaluate, write_report
+from ._io import read_sweep
+from ._train import TrainConfig, fit
+
+__all__ = ["CHECKPOINT_NAME", "default_out", "train_surrogate"]
+
+CHECKPOINT_NAME = "model.safetensors"
+
+
+def default_out(sweep_dir: str | Path) -> Path:
+    """``runs/SWEEP`` -> ``runs/SWEEP-surrogate``."""
+    sweep_dir = Path(sweep_dir)
+    return sweep_dir.parent / f"{sweep_dir.resolve().name}-surrogate"
+
+
+def train_surrogate(
+    sweep_dir: str | Path,
+    out_dir: str | Path | None = None,
+    seed: int = 0,
+    members: int = 5,
+    *,
+    max_epochs: int | None = None,
+    progress: bool = True,
+    speed_n: int = 65536,
+    **hyper,
+) -> Path:
+    """Train an ensemble surrogate on a sweep and write a run folder; returns the checkpoint.
+
+    ``hyper`` overrides other ``TrainConfig`` fields (``hidden``, ``patience``, ``lr``, ...).
+    ``out_dir`` defaults to ``<sweep>-surrogate`` beside the sweep and must not exist yet.
+    """
+    out = Path(out_dir) if out_dir is not None else default_out(sweep_dir)
+    check_new_folder(out)  # fail before training, not after
+    names = {f.name for f in dataclasses.fields(TrainConfig)}
+    unknown = sorted(set(hyper) - names)
+    if unknown:
+        raise TypeError(f"unknown training option {unknown[0]!r}; known: {sorted(names)}")
+    if members < 1:
+        raise DesignError("--members", f"must be >= 1, got {members}")
+    if max_epochs is not None:
+        if max_epochs < 1:
+            raise DesignError("--max-epochs", f"must be >= 1, got {max_epochs}")
+        hyper["max_epochs"] = max_epochs
+    config = TrainConfig(seed=seed, members=members, **hyper)
+    data = read_sweep(sweep_dir)
+    if len(data.points) < 4:
+        raise DesignError(
+            "SWEEP", f"{sweep_dir} has {len(data.points)} designs with FE results; need >= 4"
+        )
+    result = fit(data, config, progress=progress)
+    run_config = {
+        "sweep": str(Path(sweep_dir).resolve()),
+        "table_sha256": data.table_sha256,
+        "solver_version": data.solver_version,
+        "train": config.to_dict(),
+    }
+    split = result.split
+    with run_folder(out) as tmp:
+        write_json(tmp / "config.json", run_config)
+        write_json(tmp / "meta.json", provenance(run_config, seed))
+        save_checkpoint(result.surrogate, tmp / CHECKPOINT_NAME)
+        write_json(
+            tmp / "history.json",
+            {**result.history, "best_epoch": list(result.best_epoch), "epochs": result.epochs},
+        )
+        report = evaluate(
+            result.surrogate,
+            [data.points[i] for i in split.test],
+            data.targets[split.test],
+            speed_n=speed_n,
+        )
+        info = {
+            "checkpoint": CHECKPOINT_NAME,
+            "seed": seed,
+            "members": members,
+            "epochs": result.epochs,
+            "n_train": len(split.train),
+            "n_val": len(split.val),
+            "table_sha256": data.table_sha256,
+            "validation": result.surrogate.header.get("validation"),
+        }
+        write_report(report, tmp, json.loads(json.dumps(info)))
+    return out / CHECKPOINT_NAME

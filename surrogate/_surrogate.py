@@ -1,0 +1,146 @@
+"""A trained surrogate: encoder + ensemble + output normaliser, and its predictions."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import torch
+
+from sim.simulate import METRICS
+from sim.space import DesignSpace
+
+from ._encoding import Encoder
+from ._model import EnsembleMLP, mixture
+from ._normalise import OutputNormaliser
+
+__all__ = ["Prediction", "Surrogate"]
+
+#: designs per forward pass (bounds memory: ~members x batch x hidden floats)
+BATCH = 4096
+
+
+@dataclass(frozen=True, eq=False)
+class Prediction:
+    """Surrogate predictions for ``n`` designs, in each metric's unit (``units``).
+
+    ``mean``, ``std``: (n, n_metrics) mean and standard deviation of the ensemble's predictive
+    distribution; ``lower_90``, ``upper_90``: its central 90 % interval. ``in_domain`` (n,):
+    False for a design outside the training domain (then ``reasons[i]`` says why); such
+    predictions are extrapolations. Columns follow ``metric_names``.
+    """
+
+    metric_names: tuple[str, ...]
+    units: tuple[str, ...]
+    mean: np.ndarray
+    std: np.ndarray
+    lower_90: np.ndarray
+    upper_90: np.ndarray
+    in_domain: np.ndarray
+    reasons: tuple[str, ...]
+
+    def __len__(self) -> int:
+        return len(self.mean)
+
+    def metric(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """``(mean, std)`` of one metric, each (n,)."""
+        j = self.metric_names.index(name)
+        return self.mean[:, j], self.std[:, j]
+
+    def to_records(self) -> list[dict[str, Any]]:
+        """One JSON-able dict per design (None for a metric the surrogate cannot predict)."""
+
+        def num(x: float) -> float | None:
+            return float(x) if math.isfinite(x) else None
+
+        out = []
+        for i in range(len(self)):
+            out.append(
+                {
+                    "in_domain": bool(self.in_domain[i]),
+                    "domain_note": self.reasons[i],
+                    **{
+                        key: {m: num(a[i, j]) for j, m in enumerate(self.metric_names)}
+                        for key, a in (
+                            ("mean", self.mean),
+                            ("std", self.std),
+                            ("lower_90", self.lower_90),
+                            ("upper_90", self.upper_90),
+                        )
+                    },
+                }
+            )
+        return out
+
+
+class Surrogate:
+    """Predicts every FE metric of a design, with uncertainty, in microseconds.
+
+    Made by ``train_surrogate`` and ``load_checkpoint``; ``header`` is the checkpoint's JSON
+    header (space, metrics, normalisers, provenance, validation metrics).
+    """
+
+    def __init__(
+        self,
+        model: EnsembleMLP,
+        encoder: Encoder,
+        normaliser: OutputNormaliser,
+        metric_names: Sequence[str],
+        header: Mapping[str, Any] | None = None,
+    ) -> None:
+        self.model = model.eval()
+        self.encoder = encoder
+        self.normaliser = normaliser
+        self.metric_names = tuple(metric_names)
+        self.units = tuple(METRICS[m][1] if m in METRICS else "" for m in self.metric_names)
+        self.header = dict(header or {})
+
+    @property
+    def space(self) -> DesignSpace:
+        return self.encoder.space
+
+    @property
+    def members(self) -> int:
+        return self.model.members
+
+    def predict(self, points: Sequence[Mapping[str, Any]] | Mapping[str, Sequence]) -> Prediction:
+        """Predict a list of design points (dicts ``name -> value``) or a table (dict ``name ->
+        column``). Missing fixed parameters take the space's value; values of parameters a
+        design does not use are ignored. A ``DesignError`` for a missing active value or an
+        unknown parameter name; designs outside the training domain are flagged, not refused.
+        """
+        enc = self.encoder.encode(points)
+        out = self.predict_features(enc.features)
+        return Prediction(
+            self.metric_names,
+            self.units,
+            out["mean"],
+            out["std"],
+            out["lower_90"],
+            out["upper_90"],
+            enc.in_domain,
+            enc.reasons,
+        )
+
+    def predict_features(self, features: np.ndarray) -> dict[str, np.ndarray]:
+        """Predict already encoded designs (n, n_features): ``mean``, ``std``, ``lower_90``,
+        ``upper_90`` in metric units, each (n, n_metrics)."""
+        mean_z, std_z = self.predict_normalised(features)
+        return self.normaliser.to_physical(mean_z, std_z)
+
+    def predict_normalised(self, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The ensemble mixture's mean and std in normalised units (float64, (n, n_metrics))."""
+        x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
+        means, stds = [], []
+        with torch.inference_mode():
+            for s in range(0, max(len(x), 1), BATCH):
+                mu, sd = mixture(*self.model(x[s : s + BATCH]))
+                means.append(mu.numpy())
+                stds.append(sd.numpy())
+        return (
+            np.concatenate(means).astype(np.float64),
+            np.concatenate(stds).astype(np.float64),
+        )

@@ -1,0 +1,242 @@
+"""Training: split a sweep, fit the normalisers on the training designs, train the ensemble with
+a Gaussian NLL and per-member early stopping on the validation loss.
+
+Reproducible from the seed: the split, the initial weights and every member's minibatch order
+come from ``numpy.random.SeedSequence(seed)``; torch runs with deterministic algorithms (the
+thread count is left as it is; results are bit-identical for a given thread count).
+"""
+
+from __future__ import annotations
+
+import math
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from sim.provenance import git_commit
+
+from ._encoding import Encoder
+from ._io import SweepData
+from ._model import EnsembleMLP, gaussian_nll
+from ._normalise import OutputNormaliser
+from ._surrogate import Surrogate
+
+__all__ = ["FitResult", "Split", "TrainConfig", "fit", "split_indices"]
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Hyper-parameters of ``fit`` (the defaults train ~2000 designs in minutes on a CPU)."""
+
+    seed: int = 0
+    members: int = 5
+    hidden: tuple[int, ...] = (96, 96)
+    max_epochs: int = 1500
+    patience: int = 100  # epochs without a better validation loss in any member
+    batch_size: int = 64
+    lr: float = 3e-3
+    weight_decay: float = 1e-4
+    fractions: tuple[float, float, float] = (0.70, 0.15, 0.15)  # train, validation, test
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
+
+
+@dataclass(frozen=True, eq=False)
+class Split:
+    """Row positions (into ``SweepData.points``) of the train / validation / test designs."""
+
+    train: np.ndarray
+    val: np.ndarray
+    test: np.ndarray
+
+
+def _seeds(seed: int) -> tuple[int, int, int]:
+    """Independent seeds for the split, the initial weights and the minibatch order."""
+    a, b, c = (int(s.generate_state(1)[0]) for s in np.random.SeedSequence(seed).spawn(3))
+    return a, b, c
+
+
+def split_indices(n: int, seed: int, fractions=(0.70, 0.15, 0.15)) -> Split:
+    """A random split of ``n`` designs; validation and test get >= 1 design each."""
+    if n < 4:
+        raise ValueError(f"need >= 4 designs with FE results to split, got {n}")
+    _, f_val, f_test = fractions
+    n_val = max(1, round(f_val * n))
+    n_test = max(1, round(f_test * n))
+    perm = np.random.default_rng(_seeds(seed)[0]).permutation(n)
+    return Split(
+        np.sort(perm[n_val + n_test :]),
+        np.sort(perm[:n_val]),
+        np.sort(perm[n_val : n_val + n_test]),
+    )
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """A trained surrogate and how it was trained.
+
+    ``history``: per epoch, members' mean training and validation NLL (normalised units);
+    ``best_epoch``: the epoch of each member's kept weights.
+    """
+
+    surrogate: Surrogate
+    split: Split
+    history: dict[str, list[float]] = field(default_factory=dict)
+    best_epoch: tuple[int, ...] = ()
+    epochs: int = 0
+
+
+@contextmanager
+def _deterministic():
+    old = torch.are_deterministic_algorithms_enabled()
+    torch.use_deterministic_algorithms(True)
+    try:
+        yield
+    finally:
+        torch.use_deterministic_algorithms(old)
+
+
+def fit(data: SweepData, config: TrainConfig = TrainConfig(), *, progress: bool = True):
+    """Train an ensemble on ``data`` (a sweep) and return a ``FitResult``."""
+    from tqdm import tqdm
+
+    if config.members < 1:
+        raise ValueError(f"members must be >= 1, got {config.members}")
+    split = split_indices(len(data.points), config.seed, config.fractions)
+    _, init_seed, order_seed = _seeds(config.seed)
+    train_points = [data.points[i] for i in split.train]
+    encoder = Encoder(data.space).fit_domain(train_points)
+    x_all = encoder.encode(data.points).features
+    normaliser = OutputNormaliser.fit(data.targets[split.train])  # training designs ONLY
+    z_all = normaliser.transform(data.targets)
+    mask_all = np.isfinite(z_all)
+    z_all = np.where(mask_all, z_all, 0.0)
+
+    def tensors(rows: np.ndarray):
+        return (
+            torch.from_numpy(x_all[rows]),
+            torch.from_numpy(z_all[rows].astype(np.float32)),
+            torch.from_numpy(mask_all[rows].astype(np.float32)),
+        )
+
+    x_tr, z_tr, m_tr = tensors(split.train)
+    x_va, z_va, m_va = tensors(split.val)
+    model = EnsembleMLP(
+        x_all.shape[1],
+        z_all.shape[1],
+        members=config.members,
+        hidden=config.hidden,
+        seed=init_seed,
+    )
+    opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    gen = torch.Generator().manual_seed(order_seed)
+    n, members = len(split.train), config.members
+    best = torch.full((members,), math.inf)
+    best_epoch = torch.zeros(members, dtype=torch.long)
+    best_state = [p.detach().clone() for p in model.parameters()]
+    history: dict[str, list[float]] = {"train_nll": [], "val_nll": []}
+    epoch = 0
+    with _deterministic():
+        bar = tqdm(range(config.max_epochs), desc="train", unit="epoch", disable=not progress)
+        for epoch in bar:
+            model.train()
+            order = torch.argsort(torch.rand(members, n, generator=gen), dim=1)
+            total, steps = torch.zeros(members), 0
+            for s in range(0, n, config.batch_size):
+                idx = order[:, s : s + config.batch_size]  # each member its own minibatch
+                mean, logvar = model(x_tr[idx])
+                loss = gaussian_nll(mean, logvar, z_tr[idx], m_tr[idx])
+                opt.zero_grad(set_to_none=True)
+                loss.sum().backward()
+                opt.step()
+                total += loss.detach()
+                steps += 1
+            model.eval()
+            with torch.no_grad():
+                val = gaussian_nll(*model(x_va), z_va, m_va)
+                better = val < best
+                if better.any():
+                    best = torch.where(better, val, best)
+                    best_epoch[better] = epoch
+                    for kept, p in zip(best_state, model.parameters(), strict=True):
+                        kept[better] = p.detach()[better]
+            history["train_nll"].append(float((total / steps).mean()))
+            history["val_nll"].append(float(val.mean()))
+            bar.set_postfix(val_nll=f"{float(best.mean()):.3f}")
+            if epoch - int(best_epoch.max()) >= config.patience:
+                break
+        bar.close()
+    with torch.no_grad():
+        for kept, p in zip(best_state, model.parameters(), strict=True):
+            p.copy_(kept)
+    model.eval()
+    header = {
+        "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "solver_version": data.solver_version,
+        "git_commit": git_commit(),
+        "training": {
+            **config.to_dict(),
+            "epochs": epoch + 1,
+            "best_epoch": [int(e) for e in best_epoch],
+        },
+        "training_data": {
+            "sweep": str(Path(data.folder).resolve()),
+            "table_sha256": data.table_sha256,
+            "n_rows": data.n_rows,
+            "n_used": len(data.points),
+            "split_table_index": {
+                "train": [int(data.index[i]) for i in split.train],
+                "val": [int(data.index[i]) for i in split.val],
+                "test": [int(data.index[i]) for i in split.test],
+            },
+        },
+    }
+    surrogate = Surrogate(model, encoder, normaliser, data.metric_names, header)
+    surrogate.header["validation"] = validation_metrics(
+        surrogate, x_all[split.val], data.targets[split.val], best.numpy()
+    )
+    return FitResult(surrogate, split, history, tuple(int(e) for e in best_epoch), epochs=epoch + 1)
+
+
+def validation_metrics(
+    surrogate: Surrogate, features: np.ndarray, targets: np.ndarray, member_nll: np.ndarray
+) -> dict[str, Any]:
+    """NLL (normalised units) and per-metric R² on the validation designs."""
+    mean_z, std_z = surrogate.predict_normalised(features)
+    z = surrogate.normaliser.transform(targets)
+    ok = np.isfinite(z)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        nll = 0.5 * (np.log(2 * np.pi * std_z**2) + (z - mean_z) ** 2 / std_z**2)
+    mean = surrogate.normaliser.to_physical(mean_z, std_z)["mean"]
+    r2 = {}
+    for j, m in enumerate(surrogate.metric_names):
+        r2[m] = _none(r2_score(targets[:, j], mean[:, j]))
+    return {
+        "n_designs": len(features),
+        "member_nll": [float(v) for v in member_nll],
+        "ensemble_nll": _none(float(nll[ok].mean())) if ok.any() else None,
+        "r2": r2,
+    }
+
+
+def r2_score(y: np.ndarray, pred: np.ndarray) -> float:
+    """R² over the finite FE values (NaN with fewer than 2 or no spread)."""
+    ok = np.isfinite(y) & np.isfinite(pred)
+    if ok.sum() < 2:
+        return math.nan
+    y, pred = y[ok], pred[ok]
+    ss_tot = float(((y - y.mean()) ** 2).sum())
+    if ss_tot == 0:
+        return math.nan
+    return 1.0 - float(((y - pred) ** 2).sum()) / ss_tot
+
+
+def _none(x: float) -> float | None:
+    return x if math.isfinite(x) else None

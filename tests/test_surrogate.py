@@ -1,0 +1,400 @@
+"""The neural surrogate (surrogate/): encoding, normalisers, the vectorised ensemble,
+reproducible training, safe checkpoints, the training domain, the report, and the
+``fingertip train`` / ``fingertip predict`` commands.
+
+Everything runs on ONE small real sweep (8 designs of a tiny space, built once per session
+by ``fingertip sweep``) and on short trainings: the tests check the machinery, not accuracy.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+import explore.cli
+from sim import METRICS, SOLVER_VERSION
+from sim.errors import DesignError
+from surrogate import (
+    CheckpointError,
+    Encoder,
+    TrainConfig,
+    load_checkpoint,
+    read_points,
+    read_sweep,
+    save_checkpoint,
+)
+from surrogate._checkpoint import read_checkpoint, write_checkpoint
+from surrogate._io import sha256_file
+from surrogate._normalise import OutputNormaliser
+from surrogate._train import fit
+
+REPO = Path(explore.cli.__file__).resolve().parents[1]
+TINY = """
+[geometry]
+half_width_mm = { value = 5.84 }
+height_mm = { value = 5.48 }
+exponent = { value = 1.5 }
+[layers]
+count = { choice = [1, 2] }
+[layers.skin]
+thickness_mm = { low = 0.3, high = 1.0 }
+material = { choice = ["silicone_gls40", "polyurethane_74_45"] }
+[layers.core]
+material = { choice = ["param"] }
+mu0_MPa = { low = 0.02, high = 0.1, log = true }
+alpha = { low = 2.0, high = 6.0 }
+nu = { value = 0.47 }
+g_total = { low = 0.1, high = 0.4 }
+tau_s = { low = 0.1, high = 1.0, log = true }
+"""
+FAST = ["--set", "tapping.max_taps=3", "--set", "wedge.hold_s=5"]
+SHORT = TrainConfig(members=5, hidden=(16, 16), max_epochs=25, patience=25)
+ERROR_PREFIX = "fingertip: error: "
+CORE = "core.mu0_MPa = 0.05\ncore.alpha = 3.0\ncore.g_total = 0.2\ncore.tau_s = 0.3\n"
+
+
+def run_cli(*args, cwd: Path) -> subprocess.CompletedProcess:
+    # one torch thread: tiny networks gain nothing from more, and on a loaded machine
+    # (a background FE sweep) idle-waiting OpenMP threads make every small op slow
+    env = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1"}
+    return subprocess.run(
+        [sys.executable, "-m", "explore.cli", *map(str, args)],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+    )
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_torch_thread():
+    """As ``run_cli``: one torch thread in this module, restored afterwards."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def assert_one_line_error(stderr: str) -> str:
+    assert "Traceback" not in stderr
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith(ERROR_PREFIX), lines[0]
+    return lines[0]
+
+
+@pytest.fixture(scope="session")
+def sweep(tmp_path_factory) -> Path:
+    """A real FE sweep: 8 designs (1 and 2 layers) of a tiny space, fast protocol options."""
+    root = tmp_path_factory.mktemp("surrogate_sweep")
+    space = root / "space.toml"
+    space.write_text(TINY)
+    out = root / "tiny"
+    argv = ["sweep", str(space), "--n", "8", "--out", str(out), "--no-progress", *FAST]
+    assert explore.cli.main(argv) == 0
+    return out
+
+
+@pytest.fixture(scope="session")
+def data(sweep):
+    return read_sweep(sweep)
+
+
+@pytest.fixture(scope="session")
+def cli_train(sweep, tmp_path_factory) -> tuple[subprocess.CompletedProcess, Path]:
+    """``fingertip train`` as a subprocess; its checkpoint serves the checkpoint tests."""
+    out = tmp_path_factory.mktemp("surrogate_run") / "run"
+    args = ["train", sweep, "--out", out, "--seed", "0", "--members", "5", "--max-epochs", "40"]
+    proc = run_cli(*args, "--no-progress", cwd=REPO)
+    return proc, out
+
+
+@pytest.fixture(scope="session")
+def ckpt(cli_train) -> Path:
+    proc, out = cli_train
+    assert proc.returncode == 0, proc.stderr
+    return out / "model.safetensors"
+
+
+# ----------------------------------------------------------------------------- encoding
+def test_encoding_round_trip_and_inactive_parameters(data):
+    enc = Encoder(data.space)
+    x = enc.encode(data.points).features
+    assert x.shape == (len(data.points), enc.n_features)
+    assert np.all((x >= 0) & (x <= 1))
+    # fixed parameters give no feature; optional floats an active flag; choices one-hot
+    assert not any(f.startswith(("geometry.", "core.nu")) for f in enc.feature_names)
+    assert "skin.thickness_mm:active" in enc.feature_names
+    assert "core.mu0_MPa:active" not in enc.feature_names  # the core is always "param"
+    back = enc.decode(x)
+    for p, q in zip(data.points, back, strict=True):
+        assert p.keys() == q.keys()
+        for k in p:
+            if isinstance(p[k], float):
+                assert (math.isnan(p[k]) and math.isnan(q[k])) or q[k] == pytest.approx(
+                    p[k], rel=1e-5
+                ), k
+            else:
+                assert p[k] == q[k], k
+    one = next(i for i, p in enumerate(data.points) if p["layers.count"] == 1)
+    two = next(i for i, p in enumerate(data.points) if p["layers.count"] == 2)
+    cols = {f: j for j, f in enumerate(enc.feature_names)}
+    skin = [j for f, j in cols.items() if f.startswith("skin.")]
+    assert np.all(x[one, skin] == 0)  # inactive: value 0, flag 0, one-hot all zeros
+    assert x[two, cols["skin.thickness_mm:active"]] == 1
+    assert (
+        x[
+            two, [cols["skin.material=silicone_gls40"], cols["skin.material=polyurethane_74_45"]]
+        ].sum()
+        == 1
+    )
+    # values given for parameters a design does not use never reach the network
+    noisy = dict(data.points[one], **{"skin.thickness_mm": 0.7, "skin.material": "silicone_gls40"})
+    np.testing.assert_array_equal(enc.encode([noisy]).features[0], x[one])
+    # log scale where the space says so: the geometric mean of the bounds is mid-range
+    mid = dict(data.points[one], **{"core.mu0_MPa": math.sqrt(0.02 * 0.1)})
+    assert enc.encode([mid]).features[0, cols["core.mu0_MPa"]] == pytest.approx(0.5, abs=1e-6)
+    # a table (name -> column) encodes like the list of points
+    table = {k: [p[k] for p in data.points] for k in data.space.names}
+    np.testing.assert_array_equal(enc.encode(table).features, x)
+    with pytest.raises(DesignError, match=r"core\.alpha"):
+        enc.encode([{**data.points[one], "core.alpha": math.nan}])
+    with pytest.raises(DesignError, match="unknown parameter"):
+        enc.encode([{**data.points[one], "core.mu0_mpa": 0.05}])
+
+
+# ----------------------------------------------------------------------------- normaliser
+def test_output_normaliser_is_fitted_on_training_designs_only(data, ckpt):
+    model = load_checkpoint(ckpt)
+    split = model.header["training_data"]["split_table_index"]
+    rows = {int(i): r for r, i in enumerate(data.index)}
+    train = [rows[i] for i in split["train"]]
+    held_out = [rows[i] for i in split["val"] + split["test"]]
+    assert train and held_out and not set(train) & set(held_out)
+    expected = OutputNormaliser.fit(data.targets[train])
+    np.testing.assert_array_equal(model.normaliser.shift, expected.shift)
+    np.testing.assert_array_equal(model.normaliser.scale, expected.scale)
+    np.testing.assert_array_equal(model.normaliser.log, expected.log)
+    everything = OutputNormaliser.fit(data.targets)
+    observed = expected.observed > 0
+    assert not np.allclose(everything.shift[observed], expected.shift[observed])
+    # positive metrics are learnt on a log scale; a metric never observed is not predicted
+    assert model.normaliser.log[list(model.metric_names).index("disp_at_1N_mm")]
+    never = ~observed
+    assert never.any()  # wedge_force_at_100s_N: the fast sweep holds the wedge for 5 s only
+    pred = model.predict(data.points[:2])
+    assert np.isnan(pred.mean[:, never]).all() and np.isfinite(pred.mean[:, observed]).all()
+
+
+# ----------------------------------------------------------------------------- ensemble
+def test_ensemble_is_vectorised_and_equals_a_loop_over_members(ckpt, data):
+    model = load_checkpoint(ckpt)
+    assert model.members >= 5
+    net = model.model
+    assert net.weights[0].shape[0] == model.members  # stacked member weights
+    x = torch.from_numpy(model.encoder.encode(data.points).features)
+    with torch.no_grad():
+        mean, logvar = net(x)
+        for k in range(model.members):
+            m_k, lv_k = net.forward_member(x, k)
+            torch.testing.assert_close(mean[k], m_k, rtol=1e-5, atol=1e-6)
+            torch.testing.assert_close(logvar[k], lv_k, rtol=1e-5, atol=1e-6)
+        # members differ (independent initialisations), so the ensemble has a spread
+        assert not torch.allclose(mean[0], mean[1])
+
+
+def test_training_is_reproducible_from_the_seed(data):
+    a = fit(data, SHORT, progress=False)
+    b = fit(data, SHORT, progress=False)
+    c = fit(data, TrainConfig(**{**SHORT.__dict__, "seed": 1}), progress=False)
+    sa, sb, sc = (r.surrogate.model.state_dict() for r in (a, b, c))
+    assert all(torch.equal(sa[k], sb[k]) for k in sa)
+    assert not all(torch.equal(sa[k], sc[k]) for k in sa)
+    assert a.history == b.history
+    np.testing.assert_array_equal(a.split.train, b.split.train)
+
+
+# ----------------------------------------------------------------------------- checkpoints
+def test_checkpoint_round_trip_gives_identical_predictions(data, sweep, tmp_path):
+    trained = fit(data, SHORT, progress=False).surrogate
+    path = save_checkpoint(trained, tmp_path / "m.safetensors")
+    loaded = load_checkpoint(path)
+    p0, p1 = trained.predict(data.points), loaded.predict(data.points)
+    for field in ("mean", "std", "lower_90", "upper_90", "in_domain"):
+        np.testing.assert_array_equal(getattr(p0, field), getattr(p1, field))
+    h = loaded.header
+    assert h["schema_version"] == 1 and h["solver_version"] == SOLVER_VERSION
+    assert h["training_data"]["table_sha256"] == sha256_file(sweep / "table.csv")
+    assert [m["name"] for m in h["metrics"]] == list(METRICS)
+    assert {m["name"]: m["unit"] for m in h["metrics"]} == {k: v[1] for k, v in METRICS.items()}
+    assert h["space"] == data.space.to_dict() and h["git_commit"]
+    assert {"ensemble_nll", "r2", "member_nll"} <= set(h["validation"])
+    assert {p["name"]: p["unit"] for p in h["parameters"]}["core.mu0_MPa"] == "MPa"
+    # re-saving the loaded model gives the same file content
+    again = save_checkpoint(loaded, tmp_path / "again.safetensors")
+    assert read_checkpoint(again)[1] == read_checkpoint(path)[1]
+
+
+def _expect_refused(path: Path, match: str, **kw) -> None:
+    with pytest.raises(CheckpointError, match=match) as info:
+        load_checkpoint(path, **kw)
+    assert "\n" not in str(info.value)
+
+
+def test_tampered_checkpoint_is_refused(ckpt, tmp_path):
+    raw = bytearray(ckpt.read_bytes())
+    header_len = int.from_bytes(raw[:8], "little")
+    raw[8 + header_len + 100] ^= 0x01  # one bit of one weight
+    bad = tmp_path / "tampered.safetensors"
+    bad.write_bytes(bytes(raw))
+    _expect_refused(bad, "tampered")
+    # editing the header (e.g. the recorded solver version) without the hash is caught too
+    tensors, header = read_checkpoint(ckpt)
+    from safetensors.numpy import save_file
+
+    header["validation"]["ensemble_nll"] = -99.0
+    save_file(tensors, str(bad), metadata={"fingertip_surrogate": json.dumps(header)})
+    _expect_refused(bad, "tampered")
+
+
+def test_wrong_schema_and_solver_versions_are_refused(ckpt, tmp_path):
+    tensors, header = read_checkpoint(ckpt)
+    path = write_checkpoint(
+        tmp_path / "schema.safetensors", tensors, {**header, "schema_version": 99}
+    )
+    _expect_refused(path, "schema version 99")
+    other = write_checkpoint(
+        tmp_path / "solver.safetensors", tensors, {**header, "solver_version": "0.1-other"}
+    )
+    _expect_refused(other, "solver version '0.1-other'")
+    assert load_checkpoint(other, allow_solver_mismatch=True).members == 5
+
+
+def test_non_checkpoint_files_are_refused(tmp_path, ckpt):
+    junk = tmp_path / "junk.safetensors"
+    junk.write_bytes(np.random.default_rng(0).bytes(4096))
+    _expect_refused(junk, "not a surrogate checkpoint")
+    text = tmp_path / "design.toml"
+    text.write_text('material = "silicone_gls40"\n')
+    _expect_refused(text, "not a surrogate checkpoint")
+    from safetensors.numpy import save_file
+
+    plain = tmp_path / "plain.safetensors"
+    save_file({"w": np.zeros(3, dtype=np.float32)}, str(plain))
+    _expect_refused(plain, "not a surrogate checkpoint")
+    _expect_refused(tmp_path / "missing.safetensors", "no such")
+    truncated = tmp_path / "truncated.safetensors"
+    truncated.write_bytes(ckpt.read_bytes()[:-50])
+    _expect_refused(truncated, "not a surrogate checkpoint|tampered")
+
+
+# ----------------------------------------------------------------------------- domain
+def test_predict_flags_designs_outside_the_training_domain(ckpt, data):
+    model = load_checkpoint(ckpt)
+    split = model.header["training_data"]["split_table_index"]
+    rows = {int(i): r for r, i in enumerate(data.index)}
+    train = [data.points[rows[i]] for i in split["train"]]
+    assert model.predict(train).in_domain.all()  # every training design is inside
+    base = next(p for p in train if p["layers.count"] == 2)
+    _, hi = model.encoder.ranges["core.alpha"]
+    cases = {
+        "outside the space": {"core.mu0_MPa": 0.5},
+        "outside the training range": {"core.alpha": hi + 0.5 * (6.0 - hi)},
+        "unknown choice": {"skin.material": "unobtainium"},
+        "fixed in training": {"core.nu": 0.4},
+    }
+    assert hi < 6.0, "the training range must leave room inside the space"
+    pred = model.predict([base] + [{**base, **c} for c in cases.values()])
+    assert pred.in_domain.tolist() == [True] + [False] * len(cases)
+    assert all(r for r in pred.reasons[1:]) and pred.reasons[0] == ""
+    assert np.isfinite(pred.mean[:, 0]).all()  # flagged, still predicted
+    ok = np.isfinite(pred.mean).all(axis=0)  # metrics the fast sweep reached
+    assert (pred.std[:, ok] > 0).all() and (pred.lower_90[:, ok] < pred.upper_90[:, ok]).all()
+
+
+# ----------------------------------------------------------------------------- report
+def test_report_has_accuracy_calibration_parity_plots_and_speed(ckpt):
+    run = ckpt.parent
+    report = json.loads((run / "report.json").read_text())
+    assert set(report["metrics"]) == set(METRICS)
+    for s in report["metrics"].values():
+        assert set(s) >= {"r2", "median_rel_error", "p95_rel_error", "coverage_90", "n"}
+        assert s["coverage_90"] is None or 0 <= s["coverage_90"] <= 1
+    speed = report["speed"]
+    assert speed["model_designs_per_s"] > 0 and speed["end_to_end_designs_per_s"] > 0
+    assert report["n_test"] >= 1
+    for name in METRICS:
+        png = run / "figures" / f"parity_{name}.png"
+        assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    md = (run / "report.md").read_text()
+    assert "designs/s" in md and "disp_at_1N_mm" in md
+    for name in ("config.json", "meta.json", "history.json"):
+        assert json.loads((run / name).read_text())
+    meta = json.loads((run / "meta.json").read_text())
+    assert meta["solver_version"] == SOLVER_VERSION and "torch" in meta["packages"]
+
+
+# ----------------------------------------------------------------------------- CLI
+def test_cli_train_and_predict(cli_train, ckpt, data, sweep, tmp_path):
+    proc, _ = cli_train
+    assert proc.returncode == 0 and "checkpoint:" in proc.stdout
+    point = data.points[0]
+    lines = []
+    for k, v in point.items():
+        if (isinstance(v, float) and math.isnan(v)) or v == "":
+            continue  # inactive
+        lines.append(f"{k} = {json.dumps(v)}")  # dotted keys: a flat table of point names
+    design = tmp_path / "point.toml"
+    design.write_text("\n".join(lines) + "\n")
+    res = run_cli("predict", ckpt, design, "--json", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    obj = json.loads(res.stdout)
+    assert set(obj) == {"checkpoint", "units", "designs"} and len(obj["designs"]) == 1
+    d = obj["designs"][0]
+    assert set(d) == {"in_domain", "domain_note", "mean", "std", "lower_90", "upper_90"}
+    assert set(d["mean"]) == set(METRICS)
+    expected = load_checkpoint(ckpt).predict([point])
+    assert d["mean"]["disp_at_1N_mm"] == pytest.approx(expected.metric("disp_at_1N_mm")[0][0])
+    # a CSV (the sweep's own table works) gives a table with mean ± std and the domain flag
+    res = run_cli("predict", ckpt, sweep / "table.csv", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.count("design ") == len(read_points(sweep / "table.csv", data.space))
+    assert "±" in res.stdout and "in domain" in res.stdout
+
+
+def test_cli_refuses_a_corrupt_checkpoint_with_one_line(ckpt, tmp_path):
+    bad = tmp_path / "corrupt.safetensors"
+    bad.write_bytes(ckpt.read_bytes()[:2000])
+    design = tmp_path / "p.toml"
+    design.write_text("layers.count = 1\n")
+    res = run_cli("predict", bad, design, cwd=tmp_path)
+    assert res.returncode == 2
+    assert "not a surrogate checkpoint" in assert_one_line_error(res.stderr)
+
+
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        ("layers.count = 1\n", "core.mu0_MPa"),  # missing active value
+        ("layers.count = 1\n" + CORE.replace("0.05", "5.0"), "core.mu0_MPa"),  # outside
+        (CORE + "layers.count = 4\n", "layers.count"),
+        ("layers.count = 2\n" + CORE + 'skin.material = "silicone_gls40"\n', "skin.thickness_mm"),
+        ("layers.count = 1\ncore.mu0 = 0.05\n", "core.mu0"),  # unknown name
+        ("layers.count = [1\n", "DESIGNS"),  # malformed TOML
+    ],
+)
+def test_cli_predict_bad_designs_in_process(ckpt, tmp_path, capsys, text, field):
+    design = tmp_path / "p.toml"
+    design.write_text(text)
+    assert explore.cli.main(["predict", str(ckpt), str(design)]) == 2
+    line = assert_one_line_error(capsys.readouterr().err)
+    assert line.startswith(f"{ERROR_PREFIX}{field}")
