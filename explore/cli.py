@@ -145,7 +145,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     report = json.loads((ckpt.parent / "report.json").read_text())
 
     def fmt(x, spec: str) -> str:
-        return "-" if x is None else format(x, spec)
+        return format("-", f">{spec.split('.')[0]}") if x is None else format(x, spec)
 
     print(f"{'metric (test designs)':28s} {'R2':>7s} {'median err':>10s} {'in 90% int':>10s}")
     for name, s in report["metrics"].items():
