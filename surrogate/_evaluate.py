@@ -214,7 +214,12 @@ def render_parity(p: ParityData, path: Path) -> None:
     unit = f" [{p.unit}]" if p.unit else ""
     ax.set_xlabel(f"FE{unit}")
     ax.set_ylabel(f"surrogate (mean, 90 % interval){unit}")
-    ax.set_title(p.metric, fontsize=9)
+    sc = score(p)
+    ax.set_title(
+        f"{p.metric}: R² {_fmt(sc.r2, '.3f')}, {_fmt(100 * sc.coverage_90, '.0f')} % "
+        f"in 90 % interval (n = {sc.n})",
+        fontsize=8,
+    )
     fig.savefig(path, dpi=110)
 
 
