@@ -27,7 +27,7 @@ from .solver import Body, NewtonOptions
 __all__ = ["METRICS", "PROTOCOLS", "SOLVER_VERSION", "SimOptions", "SimResult", "simulate"]
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
-SOLVER_VERSION = "1.1"
+SOLVER_VERSION = "1.2"
 
 PROTOCOLS = ("tapping", "plate", "wedge")
 

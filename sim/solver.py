@@ -57,10 +57,10 @@ class NewtonOptions:
     line_search_eta: float = 0.8  # accept when |g(alpha)| <= eta |g(0)|
     min_step: float = 1e-3  # a line search ending below this fraction of the step fails
     rtol: float = 1e-6  # residual tolerance relative to E0 * a (N/mm)
-    max_backtracks: int = 6
+    max_backtracks: int = 10
     # plate and base penalty per unit area: kappa = penalty_per_mm * E0_max (N/mm^3), so the
     # penetration is the contact pressure / kappa, about 1e-4 of a strain-level pressure in mm
-    penalty_per_mm: float = 1000.0
+    penalty_per_mm: float = 3000.0
 
 
 @dataclass(frozen=True)
@@ -84,12 +84,15 @@ class Body:
         self.indenter = indenter
         self.options = options
         self.base = Base()
-        e0 = max(
+        moduli = [
             2.0 * m.instantaneous.initial_shear_modulus_MPa * (1.0 + m.instantaneous.nu)
             for m in disc.materials
-        )
+        ]
+        e0 = max(moduli)
         self.E0_MPa = e0
-        self.kappa = options.penalty_per_mm * e0
+        # the penalty follows the outermost layer, the one in contact: a soft skin on a stiff
+        # core would otherwise see a penalty orders of magnitude stiffer than itself
+        self.kappa = options.penalty_per_mm * moduli[0]
         size = float(np.max(disc.X))
         self.atol = options.rtol * e0 * size
         s = disc.surface_nodes
@@ -291,6 +294,7 @@ class Body:
                 self.newton_iterations += it
                 return StepResult(False, it, "singular tangent")
             a_lo, g_lo = 0.0, g0
+            a_hi = None  # smallest step known to overshoot the minimum along the line
             alpha = 1.0
             accepted = None
             for bt in range(opts.max_backtracks + 1):
@@ -315,9 +319,12 @@ class Body:
                         accepted = (u_try, d_try, trial)
                         break
                     a_lo, g_lo = alpha, g
-                    alpha = min(1.0, 2.0 * alpha)
-                else:  # overshoot: regula falsi between a_lo and alpha
-                    alpha = a_lo - g_lo * (alpha - a_lo) / (g - g_lo)
+                    alpha = min(1.0, 2.0 * alpha) if a_hi is None else 0.5 * (a_lo + a_hi)
+                else:  # overshoot: safeguarded regula falsi inside [a_lo, alpha]
+                    a_hi = alpha
+                    guess = a_lo - g_lo * (alpha - a_lo) / (g - g_lo)
+                    width = alpha - a_lo  # keep at least 10 % away from either end
+                    alpha = min(max(guess, a_lo + 0.1 * width), alpha - 0.1 * width)
             if accepted is None or alpha < opts.min_step:
                 self.newton_iterations += it
                 return StepResult(False, it, "line search failed")
