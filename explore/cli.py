@@ -153,8 +153,12 @@ def _cmd_train(args: argparse.Namespace) -> int:
             f"{name:28s} {fmt(s['r2'], '7.3f')} {fmt(s['median_rel_error'], '10.2%')} "
             f"{fmt(s['coverage_90'], '10.0%')}"
         )
-    speed = report["speed"]["model_designs_per_s"]
-    print(f"inference: {speed:,.0f} designs/s batched; report: {ckpt.parent / 'report.md'}")
+    sp = report["speed"]
+    print(
+        f"inference, batched: {sp['model_designs_per_s']:,.0f} designs/s on "
+        f"{sp['torch_threads']} threads, {sp['model_designs_per_s_1_thread']:,.0f} on 1 thread"
+    )
+    print(f"report: {ckpt.parent / 'report.md'}")
     print(f"checkpoint: {ckpt}")
     return 0
 

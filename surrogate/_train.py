@@ -38,7 +38,7 @@ class TrainConfig:
     hidden: tuple[int, ...] = (96, 96)
     max_epochs: int = 1500
     patience: int = 100  # epochs without a better validation loss in any member
-    batch_size: int = 64
+    batch_size: int = 32
     lr: float = 3e-3
     weight_decay: float = 1e-4
     fractions: tuple[float, float, float] = (0.70, 0.15, 0.15)  # train, validation, test
@@ -144,7 +144,13 @@ def fit(data: SweepData, config: TrainConfig = TrainConfig(), *, progress: bool 
     history: dict[str, list[float]] = {"train_nll": [], "val_nll": []}
     epoch = 0
     with _deterministic():
-        bar = tqdm(range(config.max_epochs), desc="train", unit="epoch", disable=not progress)
+        bar = tqdm(
+            range(config.max_epochs),
+            desc="train",
+            unit="epoch",
+            disable=not progress,
+            mininterval=0.5,
+        )
         for epoch in bar:
             model.train()
             order = torch.argsort(torch.rand(members, n, generator=gen), dim=1)
@@ -169,7 +175,7 @@ def fit(data: SweepData, config: TrainConfig = TrainConfig(), *, progress: bool 
                         kept[better] = p.detach()[better]
             history["train_nll"].append(float((total / steps).mean()))
             history["val_nll"].append(float(val.mean()))
-            bar.set_postfix(val_nll=f"{float(best.mean()):.3f}")
+            bar.set_postfix(val_nll=f"{float(best.mean()):.3f}", refresh=False)
             if epoch - int(best_epoch.max()) >= config.patience:
                 break
         bar.close()
