@@ -190,13 +190,16 @@ def _cmd_predict(args: argparse.Namespace) -> int:
         json.dump(out, sys.stdout, allow_nan=False)
         sys.stdout.write("\n")
         return 0
-    for i, rec in enumerate(pred.to_records()):
+    records = pred.to_records()
+    for i, rec in enumerate(records):
         domain = "in domain" if rec["in_domain"] else f"OUT OF DOMAIN ({rec['domain_note']})"
         print(f"design {i}: {domain}")
         for name, unit in zip(pred.metric_names, pred.units, strict=True):
             mean, std = rec["mean"][name], rec["std"][name]
-            text = "not predicted" if mean is None else f"{mean:.4g} ± {std:.2g} {unit}"
+            text = "-" if mean is None else f"{mean:.4g} ± {std:.2g} {unit}"
             print(f"  {name:28s} {text}")
+    if any(all(r["mean"][m] is None for r in records) for m in pred.metric_names):
+        print("(-: a metric the training sweep never reached, e.g. with a shorter wedge hold)")
     return 0
 
 

@@ -184,7 +184,8 @@ def load_checkpoint(path: str | Path, *, allow_solver_mismatch: bool = False):
         raise CheckpointError(
             path,
             f"trained on FE results of solver version {solver!r}, this solver is "
-            f"{SOLVER_VERSION!r}; retrain, or pass allow_solver_mismatch=True to use it anyway",
+            f"{SOLVER_VERSION!r}; retrain, or use it anyway with allow_solver_mismatch=True "
+            "(fingertip predict --allow-solver-mismatch)",
         )
     try:
         space = space_from_dict(header["space"])
