@@ -409,22 +409,23 @@ def surface_profile(body: Body, tip_half_width_mm: float, length_mm: float, n: i
 
 def profile_summary(curves: dict) -> dict[str, float]:
     """Compact descriptors of the wedge's surface-deflection profiles (at 1 s and 100 s):
-    ``profile_<t>_half_width_mm``, the distance from the wedge corner at which the deflection
-    has fallen to half its value at the corner (how wide the surface wraps the wedge), and
-    ``profile_<t>_defl_at_1mm_mm``, the deflection 1 mm from the corner. NaN when absent."""
+    ``profile_<t>_area_2mm_mm2``, the area under the deflection profile from the wedge corner
+    to 2 mm (how much and how widely the surface wraps the wedge; an integral, so it converges
+    with the mesh like the metrics do), and ``profile_<t>_defl_at_1mm_mm``, the deflection 1 mm
+    from the corner. NaN when absent."""
     out = {}
     for t in ("1s", "100s"):
         prof = curves.get(f"profile_{t}")
-        half, at1 = float("nan"), float("nan")
+        area, at1 = float("nan"), float("nan")
         if prof and len(prof["distance_mm"]) > 1:
             d = np.asarray(prof["distance_mm"])
             y = np.asarray(prof["deflection_mm"])
-            at1 = float(np.interp(1.0, d, y)) if d[-1] >= 1.0 else float("nan")
-            below = np.flatnonzero(y < 0.5 * y[0])
-            if len(below) and below[0] > 0:
-                k = below[0]  # first sample under half: interpolate between k - 1 and k
-                half = float(np.interp(0.5 * y[0], [y[k], y[k - 1]], [d[k], d[k - 1]]))
-        out[f"profile_{t}_half_width_mm"] = half
+            if d[-1] >= 2.0:
+                grid = np.linspace(0.0, 2.0, 201)
+                area = float(np.trapezoid(np.interp(grid, d, y), grid))
+            if d[-1] >= 1.0:
+                at1 = float(np.interp(1.0, d, y))
+        out[f"profile_{t}_area_2mm_mm2"] = area
         out[f"profile_{t}_defl_at_1mm_mm"] = at1
     return out
 

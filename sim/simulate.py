@@ -57,13 +57,13 @@ METRICS: dict[str, tuple[str, str, str]] = {
     "plate_force_at_1mm_N": ("plate", "N", "plate force at 1 mm indentation (L = 22 mm)"),
     "wedge_peak_force_N": ("wedge", "N", "peak wedge force, at the end of the 1 s ramp"),
     "wedge_force_at_100s_N": ("wedge", "N", "wedge force at t = 100 s of the hold"),
-    "profile_1s_half_width_mm": (
+    "profile_1s_area_2mm_mm2": (
         "wedge",
-        "mm",
-        "distance from the wedge corner where the surface deflection halves, at 1 s",
+        "mm^2",
+        "area under the surface-deflection profile from the wedge corner to 2 mm, at 1 s",
     ),
     "profile_1s_defl_at_1mm_mm": ("wedge", "mm", "surface deflection 1 mm from the corner, 1 s"),
-    "profile_100s_half_width_mm": ("wedge", "mm", "as profile_1s_half_width_mm, at 100 s"),
+    "profile_100s_area_2mm_mm2": ("wedge", "mm^2", "as profile_1s_area_2mm_mm2, at 100 s"),
     "profile_100s_defl_at_1mm_mm": ("wedge", "mm", "as profile_1s_defl_at_1mm_mm, at 100 s"),
 }
 

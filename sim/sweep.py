@@ -166,7 +166,7 @@ class SweepStore:
                     continue
                 params = rec["params"]
                 metrics = dict(rec.get("metrics", {}))
-                if rec["status"] == "ok" and "profile_1s_half_width_mm" not in metrics:
+                if rec["status"] == "ok" and "profile_1s_area_2mm_mm2" not in metrics:
                     # records from before the profile summary existed: derive it from the curves
                     summary = profile_summary(rec.get("curves", {}))
                     metrics.update(
