@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from sweep_fixtures import FAST, TINY
 
 import explore.cli
 from sim import METRICS, SOLVER_VERSION
@@ -37,25 +38,6 @@ from surrogate._normalise import OutputNormaliser
 from surrogate._train import fit
 
 REPO = Path(explore.cli.__file__).resolve().parents[1]
-TINY = """
-[geometry]
-half_width_mm = { value = 5.84 }
-height_mm = { value = 5.48 }
-exponent = { value = 1.5 }
-[layers]
-count = { choice = [1, 2] }
-[layers.skin]
-thickness_mm = { low = 0.3, high = 1.0 }
-material = { choice = ["silicone_gls40", "polyurethane_74_45"] }
-[layers.core]
-material = { choice = ["param"] }
-mu0_MPa = { low = 0.02, high = 0.1, log = true }
-alpha = { low = 2.0, high = 6.0 }
-nu = { value = 0.47 }
-g_total = { low = 0.1, high = 0.4 }
-tau_s = { low = 0.1, high = 1.0, log = true }
-"""
-FAST = ["--set", "tapping.max_taps=3", "--set", "wedge.hold_s=5"]
 SHORT = TrainConfig(members=5, hidden=(16, 16), max_epochs=25, patience=25)
 ERROR_PREFIX = "fingertip: error: "
 CORE = "core.mu0_MPa = 0.05\ncore.alpha = 3.0\ncore.g_total = 0.2\ncore.tau_s = 0.3\n"

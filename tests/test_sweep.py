@@ -15,31 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sweep_fixtures import FAST, TINY
 
 from sim.errors import DesignError
 from sim.simulate import SimOptions
 from sim.space import load_space, param_material, space_from_dict
 from sim.sweep import record_key, run_sweep, sample_points
-
-TINY = """
-[geometry]
-half_width_mm = { value = 5.84 }
-height_mm = { value = 5.48 }
-exponent = { value = 1.5 }
-[layers]
-count = { choice = [1, 2] }
-[layers.skin]
-thickness_mm = { low = 0.3, high = 1.0 }
-material = { choice = ["silicone_gls40", "polyurethane_74_45"] }
-[layers.core]
-material = { choice = ["param"] }
-mu0_MPa = { low = 0.02, high = 0.1, log = true }
-alpha = { low = 2.0, high = 6.0 }
-nu = { value = 0.47 }
-g_total = { low = 0.1, high = 0.4 }
-tau_s = { low = 0.1, high = 1.0, log = true }
-"""
-FAST = ["--set", "tapping.max_taps=3", "--set", "wedge.hold_s=5"]
 
 
 @pytest.fixture
