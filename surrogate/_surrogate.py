@@ -136,11 +136,18 @@ class Surrogate:
         """The ensemble mixture's mean and std in normalised units (float64, (n, n_metrics))."""
         x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
         means, stds = [], []
-        with torch.inference_mode():
-            for s in range(0, max(len(x), 1), BATCH):
-                mu, sd = mixture(*self.model(x[s : s + BATCH]))
-                means.append(mu.numpy())
-                stds.append(sd.numpy())
+        threads = torch.get_num_threads()
+        # small matrices: one thread is several times faster than torch's default pool (and
+        # does not fight other work for the cores); restored afterwards for training
+        torch.set_num_threads(1)
+        try:
+            with torch.inference_mode():
+                for s in range(0, max(len(x), 1), BATCH):
+                    mu, sd = mixture(*self.model(x[s : s + BATCH]))
+                    means.append(mu.numpy())
+                    stds.append(sd.numpy())
+        finally:
+            torch.set_num_threads(threads)
         return (
             np.concatenate(means).astype(np.float64),
             np.concatenate(stds).astype(np.float64),
