@@ -12,7 +12,6 @@ gives each metric's relative difference to the finest run and the observed order
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 from pathlib import Path
 
@@ -23,24 +22,7 @@ from sim import SimOptions, homogeneous_design, simulate
 
 def scaled_options(kind: str, factor: float) -> SimOptions:
     base = SimOptions()
-    if kind == "mesh":
-        return dataclasses.replace(base, mesh=base.mesh.refined(factor))
-    tap, plate, wedge = base.tapping, base.plate, base.wedge
-    return dataclasses.replace(
-        base,
-        tapping=dataclasses.replace(
-            tap,
-            steps_loaded=2 * round(tap.steps_loaded * factor / 2),
-            steps_settle=2 * round(tap.steps_settle * factor / 2),
-            steps_rest=max(2, round(tap.steps_rest * factor)),
-        ),
-        plate=dataclasses.replace(plate, steps=max(2, round(plate.steps * factor))),
-        wedge=dataclasses.replace(
-            wedge,
-            ramp_steps=max(2, round(wedge.ramp_steps * factor)),
-            hold_steps=max(4, round(wedge.hold_steps * factor)),
-        ),
-    )
+    return base.with_mesh_refined(factor) if kind == "mesh" else base.with_steps_scaled(factor)
 
 
 def main() -> None:

@@ -201,7 +201,7 @@ def convergence(lines: list[str], quick: bool) -> None:
     for name in TABLE2:
         rows = []
         for f in factors:
-            o = SimOptions(mesh=SimOptions().mesh.refined(f))
+            o = SimOptions().with_mesh_refined(f)
             rows.append((f, simulate(homogeneous_design(name), options=o)))
         lines += [
             f"**{LABEL[name]}** (factors {', '.join(str(f) for f in factors)}; dofs "
@@ -242,14 +242,7 @@ def time_steps(lines: list[str]) -> None:
     ]
     for name in TABLE2:
         base = SimOptions()
-        fine = dataclasses.replace(
-            base,
-            tapping=dataclasses.replace(
-                base.tapping, steps_loaded=64, steps_settle=64, steps_rest=8
-            ),
-            plate=dataclasses.replace(base.plate, steps=20),
-            wedge=dataclasses.replace(base.wedge, ramp_steps=20, hold_steps=32),
-        )
+        fine = base.with_steps_scaled(2)
         a = simulate(homogeneous_design(name), options=base).metrics
         b = simulate(homogeneous_design(name), options=fine).metrics
         for key in a:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -77,6 +78,29 @@ class SimOptions:
     tapping: TappingOptions = TappingOptions()
     plate: PlateOptions = PlateOptions()
     wedge: WedgeOptions = WedgeOptions()
+
+    def with_steps_scaled(self, factor: float) -> SimOptions:
+        """Every step count multiplied by ``factor`` (time-step convergence studies)."""
+        tap, plate, wedge = self.tapping, self.plate, self.wedge
+        return dataclasses.replace(
+            self,
+            tapping=dataclasses.replace(
+                tap,
+                steps_loaded=2 * round(tap.steps_loaded * factor / 2),
+                steps_settle=2 * round(tap.steps_settle * factor / 2),
+                steps_rest=max(2, round(tap.steps_rest * factor)),
+            ),
+            plate=dataclasses.replace(plate, steps=max(2, round(plate.steps * factor))),
+            wedge=dataclasses.replace(
+                wedge,
+                ramp_steps=max(2, round(wedge.ramp_steps * factor)),
+                hold_steps=max(4, round(wedge.hold_steps * factor)),
+            ),
+        )
+
+    def with_mesh_refined(self, factor: float) -> SimOptions:
+        """Every element size divided by ``factor`` (mesh convergence studies)."""
+        return dataclasses.replace(self, mesh=self.mesh.refined(factor))
 
 
 @dataclass(frozen=True)

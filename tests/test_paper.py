@@ -5,8 +5,6 @@ The `slow` tests take a few seconds to a minute each (`pytest -m "not slow"` ski
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
 
@@ -121,7 +119,7 @@ def test_single_tap_misses_table2():
 def test_default_mesh_converged(name, reference_runs):
     """Every metric of the default mesh within 0.5 % of the mesh refined twice (element sizes
     halved), which is itself close to converged (observed order ~2, docs/validation.md)."""
-    fine = simulate(homogeneous_design(name), options=SimOptions(mesh=SimOptions().mesh.refined(2)))
+    fine = simulate(homogeneous_design(name), options=SimOptions().with_mesh_refined(2))
     for key, value in reference_runs[name].metrics.items():
         ref = fine.metrics[key]
         assert abs(value - ref) / abs(ref) < 5e-3, (key, value, ref)
@@ -131,13 +129,7 @@ def test_default_mesh_converged(name, reference_runs):
 @pytest.mark.parametrize("name", sorted(TABLE2))
 def test_default_time_steps_converged(name, reference_runs):
     """Every metric within 0.5 % when all step counts are doubled."""
-    base = SimOptions()
-    fine = dataclasses.replace(
-        base,
-        tapping=dataclasses.replace(base.tapping, steps_loaded=64, steps_settle=64, steps_rest=8),
-        plate=dataclasses.replace(base.plate, steps=20),
-        wedge=dataclasses.replace(base.wedge, ramp_steps=20, hold_steps=32),
-    )
+    fine = SimOptions().with_steps_scaled(2)
     res = simulate(homogeneous_design(name), options=fine)
     for key, value in reference_runs[name].metrics.items():
         ref = res.metrics[key]
