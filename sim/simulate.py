@@ -28,7 +28,7 @@ from .solver import Body, NewtonOptions
 __all__ = ["METRICS", "PROTOCOLS", "SOLVER_VERSION", "SimOptions", "SimResult", "simulate"]
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
-SOLVER_VERSION = "1.2"
+SOLVER_VERSION = "1.3"  # 1.3: profile summary = area to 2 mm (was half-width)
 
 PROTOCOLS = ("tapping", "plate", "wedge")
 

@@ -50,15 +50,25 @@ def test_default_space_loads_and_samples_valid_designs():
     space = load_space()
     points = sample_points(space, 64, seed=1)
     counts = {p["layers.count"] for p in points}
-    assert counts == {1, 2, 3}
+    assert counts == {1, 2}
     for p in points:
         space.design(p)  # every sampled point is a valid design
-        roles = {1: {"core"}, 2: {"skin", "core"}, 3: {"skin", "middle", "core"}}[p["layers.count"]]
-        for role in ("skin", "middle", "core"):
+        roles = {1: {"core"}, 2: {"skin", "core"}}[p["layers.count"]]
+        for role in ("skin", "core"):
             mat = p[f"{role}.material"]
             assert (mat != "") == (role in roles)  # inactive layers are recorded as such
             mu = p[f"{role}.mu0_MPa"]
             assert (not math.isnan(mu)) == (role in roles and mat == "param")
+
+
+def test_wide_space_adds_a_middle_layer():
+    space = load_space(Path(__file__).resolve().parents[1] / "sim" / "data" / "wide_space.toml")
+    points = sample_points(space, 64, seed=1)
+    assert {p["layers.count"] for p in points} == {1, 2, 3}
+    for p in points:
+        design = space.design(p)
+        assert len(design.materials) == p["layers.count"]
+        assert (p["middle.material"] != "") == (p["layers.count"] == 3)
 
 
 def test_sobol_samples_nest_and_are_reproducible():
