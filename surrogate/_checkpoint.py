@@ -1,12 +1,13 @@
 """Checkpoints: ONE ``.safetensors`` file, loaded without unpickling anything.
 
 Tensors: the ensemble's stacked weights (``model.weights.<layer>``, ``model.biases.<layer>``)
-and the output normaliser (``output.log|shift|scale|observed``). The safetensors string metadata
-``fingertip_surrogate`` holds a JSON header: format and schema version, the architecture, the
-design space (parameter names, units, bounds, encoding) and the training domain, the metrics and
-their units, the normalisers, the training data (sha256 of table.csv, split), solver version, git
-commit, validation metrics, and ``sha256``: a hash over every tensor's name, dtype, shape and
-bytes plus the header without that field, which detects any change to the file.
+and the output normaliser (``output.log|shift|scale|observed|offset``). The safetensors string
+metadata ``fingertip_surrogate`` holds a JSON header: format and schema version, the
+architecture, the design space (parameter names, units, bounds, encoding) and the training
+domain, the metrics and their units, the normalisers, the training data (sha256 of table.csv,
+split), solver version, git commit, validation metrics, and ``sha256``: a hash over every
+tensor's name, dtype, shape and bytes plus the header without that field, which detects any
+change to the file.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ from ._normalise import OutputNormaliser
 __all__ = ["FORMAT", "SCHEMA_VERSION", "load_checkpoint", "save_checkpoint"]
 
 FORMAT = "fingertip-surrogate"
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2  # 2: output.offset (shifted-log metrics)
 META_KEY = "fingertip_surrogate"
 
 
@@ -91,7 +92,12 @@ def describe(surrogate) -> dict[str, Any]:
         ],
         "normalisers": {
             m: {
-                "transform": "log" if norm.log[j] else "linear",
+                "transform": (
+                    ("log(y)" if norm.offset[j] == 0 else f"log(y + {norm.offset[j]:.6g})")
+                    if norm.log[j]
+                    else "linear"
+                ),
+                "offset": float(norm.offset[j]),
                 "shift": float(norm.shift[j]),
                 "scale": float(norm.scale[j]),
                 "observed": int(norm.observed[j]),

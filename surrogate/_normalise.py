@@ -1,9 +1,13 @@
 """Per-metric output normalisation, fitted on the training designs only.
 
-A metric that is strictly positive on every training design is learnt as ``log(y)``, any other
-as ``y``; either is then standardised, ``z = (t(y) - shift) / scale``. The network's Gaussian
-lives in z; ``to_physical`` maps a Gaussian in z back to the metric's units (a log-normal for
-log metrics: mean ``exp(m + s^2 / 2)``, quantiles ``exp(m +- q s)``).
+A metric that is nonnegative on the training designs (up to round-off: hysteresis is exactly 0
+for an elastic skin and may come out as -1e-4 N mm) is learnt as ``log(y + offset)``, any
+other as ``y``; either is then standardised, ``z = (t(y) - shift) / scale``. ``offset`` is 0
+for a strictly positive metric (a plain log), else a floor of ``OFFSET_FRACTION`` of the
+median training value above the most negative one, so that values near zero neither dominate
+the loss nor vanish from it. The network's Gaussian lives in z; ``to_physical`` maps a Gaussian
+in z back to the metric's units (a shifted log-normal for log metrics: mean
+``exp(m + s^2 / 2) - offset``, quantiles ``exp(m +- q s) - offset``).
 """
 
 from __future__ import annotations
@@ -12,7 +16,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Z90", "OutputNormaliser"]
+__all__ = ["NEGATIVE_TOLERANCE", "OFFSET_FRACTION", "Z90", "OutputNormaliser"]
+
+#: a metric whose most negative training value is above -NEGATIVE_TOLERANCE x its median |value|
+#: counts as nonnegative (the negatives are round-off) and is learnt on a shifted log scale
+NEGATIVE_TOLERANCE = 0.01
+#: the log offset of a nonnegative metric, as a fraction of its median training value
+OFFSET_FRACTION = 0.05
 
 #: the standard-normal quantile of a central 90 % interval
 Z90 = 1.6448536269514722
@@ -20,7 +30,8 @@ Z90 = 1.6448536269514722
 
 @dataclass(frozen=True, eq=False)
 class OutputNormaliser:
-    """``log`` (bool), ``shift``, ``scale`` and ``observed`` (training values) per metric.
+    """``log`` (bool), ``shift``, ``scale``, ``observed`` (training values) and ``offset``
+    (of the log, metric units) per metric.
 
     A metric without any finite training value cannot be predicted: its predictions are NaN.
     """
@@ -29,6 +40,7 @@ class OutputNormaliser:
     shift: np.ndarray
     scale: np.ndarray
     observed: np.ndarray
+    offset: np.ndarray
 
     @classmethod
     def fit(cls, y_train: np.ndarray) -> OutputNormaliser:
@@ -36,10 +48,20 @@ class OutputNormaliser:
         y = np.asarray(y_train, dtype=np.float64)
         finite = np.isfinite(y)
         observed = finite.sum(axis=0)
-        log = np.array(
-            [bool(observed[j]) and bool(np.all(y[finite[:, j], j] > 0)) for j in range(y.shape[1])]
-        )
-        t = cls._t(y, log)
+        log = np.zeros(y.shape[1], dtype=bool)
+        offset = np.zeros(y.shape[1])
+        for j in range(y.shape[1]):
+            v = y[finite[:, j], j]
+            if v.size == 0:
+                continue
+            if np.all(v > 0):
+                log[j] = True
+                continue
+            typical = float(np.median(np.abs(v)))
+            if typical > 0 and v.min() > -NEGATIVE_TOLERANCE * typical:
+                log[j] = True
+                offset[j] = max(0.0, -float(v.min())) + OFFSET_FRACTION * typical
+        t = cls._t(y, log, offset)
         shift = np.zeros(y.shape[1])
         scale = np.ones(y.shape[1])
         for j in range(y.shape[1]):
@@ -48,17 +70,19 @@ class OutputNormaliser:
                 shift[j] = v.mean()
                 sd = v.std()
                 scale[j] = sd if sd > 1e-12 * max(1.0, abs(shift[j])) else 1.0
-        return cls(log, shift, scale, observed.astype(np.int64))
+        return cls(log, shift, scale, observed.astype(np.int64), offset)
 
     @staticmethod
-    def _t(y: np.ndarray, log: np.ndarray) -> np.ndarray:
+    def _t(y: np.ndarray, log: np.ndarray, offset: np.ndarray) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(log, np.log(np.where(y > 0, y, np.nan)), y)
+            u = y + offset
+            return np.where(log, np.log(np.where(u > 0, u, np.nan)), y)
 
     def transform(self, y: np.ndarray) -> np.ndarray:
-        """Metrics in their units -> z (NaN stays NaN; a nonpositive value of a log metric
-        becomes NaN)."""
-        return (self._t(np.asarray(y, dtype=np.float64), self.log) - self.shift) / self.scale
+        """Metrics in their units -> z (NaN stays NaN; a value of a log metric at or below
+        ``-offset`` becomes NaN)."""
+        y = np.asarray(y, dtype=np.float64)
+        return (self._t(y, self.log, self.offset) - self.shift) / self.scale
 
     def to_physical(self, mean_z: np.ndarray, std_z: np.ndarray) -> dict[str, np.ndarray]:
         """A Gaussian in z -> ``mean``, ``std``, ``lower_90``, ``upper_90`` in metric units."""
@@ -68,11 +92,12 @@ class OutputNormaliser:
         with np.errstate(over="ignore", invalid="ignore"):
             ln_mean = np.exp(m + 0.5 * s * s)
             ln_std = ln_mean * np.sqrt(np.expm1(s * s))
+            c = self.offset
             out = {
-                "mean": np.where(self.log, ln_mean, m),
+                "mean": np.where(self.log, ln_mean - c, m),
                 "std": np.where(self.log, ln_std, s),
-                "lower_90": np.where(self.log, np.exp(lo), lo),
-                "upper_90": np.where(self.log, np.exp(hi), hi),
+                "lower_90": np.where(self.log, np.exp(lo) - c, lo),
+                "upper_90": np.where(self.log, np.exp(hi) - c, hi),
             }
         missing = self.observed == 0
         if missing.any():
@@ -86,6 +111,7 @@ class OutputNormaliser:
             "shift": self.shift,
             "scale": self.scale,
             "observed": self.observed,
+            "offset": self.offset,
         }
 
     @classmethod
@@ -95,4 +121,5 @@ class OutputNormaliser:
             np.asarray(a["shift"], dtype=np.float64),
             np.asarray(a["scale"], dtype=np.float64),
             np.asarray(a["observed"], dtype=np.int64),
+            np.asarray(a["offset"], dtype=np.float64),
         )

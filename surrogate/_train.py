@@ -103,18 +103,36 @@ def _deterministic():
         torch.use_deterministic_algorithms(old)
 
 
-def fit(data: SweepData, config: TrainConfig = TrainConfig(), *, progress: bool = True):
-    """Train an ensemble on ``data`` (a sweep) and return a ``FitResult``."""
+def fit(
+    data: SweepData,
+    config: TrainConfig = TrainConfig(),
+    *,
+    progress: bool = True,
+    split: Split | None = None,
+    init: Surrogate | None = None,
+):
+    """Train an ensemble on ``data`` (a sweep) and return a ``FitResult``.
+
+    ``split``: row positions of train/validation/test (default: a random split from the seed
+    and ``config.fractions``). ``init``: warm start from a trained surrogate with the same
+    encoding, metrics and architecture: its weights are the starting point and its output
+    normaliser is kept (so the start is exactly the trained model); the input domain is refitted
+    on the new training rows.
+    """
     from tqdm import tqdm
 
     if config.members < 1:
         raise ValueError(f"members must be >= 1, got {config.members}")
-    split = split_indices(len(data.points), config.seed, config.fractions)
+    if split is None:
+        split = split_indices(len(data.points), config.seed, config.fractions)
     _, init_seed, order_seed = _seeds(config.seed)
     train_points = [data.points[i] for i in split.train]
     encoder = Encoder(data.space).fit_domain(train_points)
     x_all = encoder.encode(data.points).features
-    normaliser = OutputNormaliser.fit(data.targets[split.train])  # training designs ONLY
+    # fitted on training designs ONLY; a warm start keeps the one its weights were trained in
+    normaliser = (
+        init.normaliser if init is not None else OutputNormaliser.fit(data.targets[split.train])
+    )
     z_all = normaliser.transform(data.targets)
     mask_all = np.isfinite(z_all)
     z_all = np.where(mask_all, z_all, 0.0)
@@ -135,6 +153,12 @@ def fit(data: SweepData, config: TrainConfig = TrainConfig(), *, progress: bool 
         hidden=config.hidden,
         seed=init_seed,
     )
+    if init is not None:
+        if init.encoder.n_features != x_all.shape[1] or tuple(init.metric_names) != tuple(
+            data.metric_names
+        ):
+            raise ValueError("warm start: the surrogate's encoding or metrics differ")
+        model.load_state_dict(init.model.state_dict(), strict=True)
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     gen = torch.Generator().manual_seed(order_seed)
     n, members = len(split.train), config.members

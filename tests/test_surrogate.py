@@ -32,7 +32,7 @@ from surrogate import (
     read_sweep,
     save_checkpoint,
 )
-from surrogate._checkpoint import read_checkpoint, write_checkpoint
+from surrogate._checkpoint import SCHEMA_VERSION, read_checkpoint, write_checkpoint
 from surrogate._io import sha256_file
 from surrogate._normalise import OutputNormaliser
 from surrogate._train import fit
@@ -177,6 +177,30 @@ def test_output_normaliser_is_fitted_on_training_designs_only(data, ckpt):
     assert np.isnan(pred.mean[:, never]).all() and np.isfinite(pred.mean[:, observed]).all()
 
 
+def test_a_nonnegative_metric_that_reaches_zero_is_learnt_on_a_shifted_log_scale():
+    """Hysteresis is 0 (up to round-off, even -1e-4) for elastic skins and spans decades for the
+    rest: log(y + offset) keeps both; a genuinely signed metric stays linear."""
+    rng = np.random.default_rng(0)
+    hyst = np.concatenate([rng.lognormal(-1.5, 1.0, 80), [0.0, -1e-4, 0.0, 2e-5]])
+    signed = rng.normal(0.0, 1.0, hyst.size)
+    positive = rng.lognormal(0.0, 0.5, hyst.size)
+    y = np.column_stack([hyst, signed, positive])
+    norm = OutputNormaliser.fit(y)
+    assert norm.log.tolist() == [True, False, True]
+    assert norm.offset[0] > 1e-4 and norm.offset[1] == 0 and norm.offset[2] == 0
+    z = norm.transform(y)
+    assert np.isfinite(z).all()
+    back = norm.to_physical(z, np.zeros_like(z))  # a zero-width Gaussian maps back exactly
+    np.testing.assert_allclose(back["mean"], y, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(back["lower_90"], y, rtol=1e-12, atol=1e-15)
+    # the log-normal mean is above the median by exp(s^2/2), the offset taken off after
+    s = np.full_like(z, 0.3)
+    out = norm.to_physical(z, s)
+    m = norm.shift[0] + norm.scale[0] * z[:, 0]
+    sd = norm.scale[0] * 0.3
+    np.testing.assert_allclose(out["mean"][:, 0], np.exp(m + sd**2 / 2) - norm.offset[0])
+
+
 # ----------------------------------------------------------------------------- ensemble
 def test_ensemble_is_vectorised_and_equals_a_loop_over_members(ckpt, data):
     model = load_checkpoint(ckpt)
@@ -214,7 +238,7 @@ def test_checkpoint_round_trip_gives_identical_predictions(data, sweep, tmp_path
     for field in ("mean", "std", "lower_90", "upper_90", "in_domain"):
         np.testing.assert_array_equal(getattr(p0, field), getattr(p1, field))
     h = loaded.header
-    assert h["schema_version"] == 1 and h["solver_version"] == SOLVER_VERSION
+    assert h["schema_version"] == SCHEMA_VERSION and h["solver_version"] == SOLVER_VERSION
     assert h["training_data"]["table_sha256"] == sha256_file(sweep / "table.csv")
     assert [m["name"] for m in h["metrics"]] == list(METRICS)
     assert {m["name"]: m["unit"] for m in h["metrics"]} == {k: v[1] for k, v in METRICS.items()}
