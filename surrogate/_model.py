@@ -97,13 +97,22 @@ MODELS: dict[str, type[EnsembleMLP]] = {"ensemble_mlp": EnsembleMLP}
 
 
 def gaussian_nll(
-    mean: torch.Tensor, logvar: torch.Tensor, y: torch.Tensor, mask: torch.Tensor
+    mean: torch.Tensor,
+    logvar: torch.Tensor,
+    y: torch.Tensor,
+    mask: torch.Tensor,
+    beta: float = 0.0,
 ) -> torch.Tensor:
     """Per-member mean Gaussian NLL over the observed entries (``mask``), constant dropped.
 
     ``mean``, ``logvar``: (M, n, m); ``y``, ``mask``: (M, n, m) or (n, m). Returns (M,).
+    ``beta`` > 0: the beta-NLL of Seitzer et al. (ICLR 2022), each entry weighted by
+    ``var**beta`` (not differentiated), so that hard designs are fitted rather than explained
+    away by a large variance; ``beta = 0`` is the plain NLL.
     """
     nll = 0.5 * (logvar + (y - mean) ** 2 * torch.exp(-logvar))
+    if beta:
+        nll = nll * torch.exp(beta * logvar).detach()
     mask = mask.expand_as(nll)
     return (nll * mask).sum(dim=(1, 2)) / mask.sum(dim=(1, 2)).clamp(min=1)
 

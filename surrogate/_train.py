@@ -42,6 +42,7 @@ class TrainConfig:
     lr: float = 3e-3
     weight_decay: float = 1e-4
     fractions: tuple[float, float, float] = (0.70, 0.15, 0.15)  # train, validation, test
+    beta_nll: float = 0.0  # training loss: beta-NLL weight (0 = Gaussian NLL); early stopping: NLL
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -182,7 +183,7 @@ def fit(
             for s in range(0, n, config.batch_size):
                 idx = order[:, s : s + config.batch_size]  # each member its own minibatch
                 mean, logvar = model(x_tr[idx])
-                loss = gaussian_nll(mean, logvar, z_tr[idx], m_tr[idx])
+                loss = gaussian_nll(mean, logvar, z_tr[idx], m_tr[idx], config.beta_nll)
                 opt.zero_grad(set_to_none=True)
                 loss.sum().backward()
                 opt.step()

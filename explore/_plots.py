@@ -1,0 +1,1091 @@
+"""Design-space figures of a search run (the run-folder contract is in ``explore._types``).
+
+As in Optuna's visualization modules, every figure is made in two steps: a pure function
+computes a small frozen "info" object from the run folder's data (numbers only, no
+matplotlib; this is what the tests check), and a separate ``render_*`` function draws the info
+on a matplotlib ``Figure`` (Agg canvas, no pyplot state). ``write_figures`` does both for every
+figure and saves ``figures/<name>.png``.
+
+Units: displacements and distances in mm, forces in N, hysteresis in N mm, time in s; the
+score and the three objectives (compliance error, hysteresis error, wedge effort) are
+dimensionless (``explore._objective``).
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import json
+import math
+import warnings
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.collections import LineCollection
+from matplotlib.colors import LogNorm, Normalize
+from matplotlib.figure import Figure
+
+from sim.targets import READINGS, Targets
+
+from ._objective import TAPPING, closeness, objectives
+from ._types import Confirmation
+
+__all__ = [
+    "FIGURES",
+    "LOG_RATIO",
+    "OBJECTIVE_NAMES",
+    "Curve",
+    "ImportanceInfo",
+    "LoopsInfo",
+    "PairProjection",
+    "ParallelInfo",
+    "ParetoInfo",
+    "ParityInfo",
+    "ParityMetric",
+    "ProjectionsInfo",
+    "RunData",
+    "WedgeInfo",
+    "importance_info",
+    "load_run",
+    "loops_info",
+    "parallel_info",
+    "pareto_front_indices",
+    "pareto_info",
+    "parity_info",
+    "projections_info",
+    "render_importance",
+    "render_loops",
+    "render_parallel",
+    "render_pareto",
+    "render_parity",
+    "render_projections",
+    "render_wedge",
+    "run_targets",
+    "write_figures",
+]
+
+#: figure name (``figures/<name>.png``) -> one-line caption, in report order
+FIGURES: dict[str, str] = {
+    "loops": "Tapping loops (force against displacement) of the best confirmed designs, the "
+    "paper's materials and the human target points.",
+    "wedge": "Wedge indentation: force over time, and the surface profiles after 1 s and 100 s.",
+    "parity": "Surrogate prediction (mean, 90 % interval) against the FE confirmation.",
+    "pareto": "Trade-off between the three objectives over all trials; the non-dominated set "
+    "is highlighted and the FE-confirmed designs are starred.",
+    "importance": "Which design parameters matter most for the score (Optuna, continuous search).",
+    "projections": "Pairwise projections of the most important parameters, coloured by score.",
+    "parallel": "Parallel coordinates of the numeric parameters; the best 10 % are highlighted.",
+}
+OBJECTIVE_NAMES = ("compliance_error", "hysteresis_error", "wedge_effort")
+_FIXED_COLUMNS = frozenset(
+    {
+        "round",
+        "trial",
+        "search",
+        "score",
+        *OBJECTIVE_NAMES,
+        "in_domain",
+        "disagreement",
+        "trusted",
+    }
+)
+_SURROGATE_PREFIXES = ("pred.", "std.")
+_DPI = 110
+_UNITS = {
+    "disp_at_1N_mm": "mm",
+    "disp_at_4N_mm": "mm",
+    "disp_at_1N_from_touch_mm": "mm",
+    "disp_at_4N_from_touch_mm": "mm",
+    "hysteresis_Nmm": "N mm",
+    "wedge_peak_force_N": "N",
+}
+
+
+def _ro(values: Iterable[float] | np.ndarray) -> np.ndarray:
+    """A read-only float array (the info objects are frozen, their arrays too)."""
+    out = np.array(values, dtype=float)
+    out.flags.writeable = False
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Run-folder data
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class RunData:
+    """Everything the figures read from a run folder (missing optional files: empty fields).
+
+    ``trials``: the ``trials.csv`` columns, header order; numeric columns are float arrays
+    (empty cell = inactive/missing -> NaN), the others arrays of str. ``params``: the
+    design-space parameter columns (every column outside the fixed set of ``explore._types``).
+    ``records`` / ``references``: FE records (``curves``, ``metrics``) by confirmation key /
+    by reference name (file stem). ``summary`` and ``config``: the parsed JSON ({} if absent).
+    """
+
+    run_dir: Path
+    trials: dict[str, np.ndarray] = field(default_factory=dict)
+    params: tuple[str, ...] = ()
+    confirmations: tuple[Confirmation, ...] = ()
+    records: dict[str, dict[str, Any]] = field(default_factory=dict)
+    references: dict[str, dict[str, Any]] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
+    config: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_trials(self) -> int:
+        """Number of rows of trials.csv."""
+        return len(next(iter(self.trials.values()))) if self.trials else 0
+
+    @property
+    def numeric_params(self) -> tuple[str, ...]:
+        """The parameters whose every active value is a number (categoricals left out)."""
+        return tuple(p for p in self.params if self.trials[p].dtype.kind == "f")
+
+    def column(self, name: str) -> np.ndarray:
+        """A numeric column of trials.csv (all NaN when absent or not numeric)."""
+        col = self.trials.get(name)
+        if col is None or col.dtype.kind != "f":
+            return np.full(self.n_trials, np.nan)
+        return col
+
+
+def _read_json(path: Path) -> Any:
+    with path.open() as fh:
+        return json.load(fh)
+
+
+def _parse_column(cells: list[str]) -> np.ndarray:
+    """Float array if every non-empty cell is a number (empty -> NaN), else str array."""
+    try:
+        return np.array([float(c) if c.strip() else np.nan for c in cells], dtype=float)
+    except ValueError:
+        return np.array(cells, dtype=object)
+
+
+def _read_trials(path: Path) -> tuple[dict[str, np.ndarray], tuple[str, ...]]:
+    if not path.is_file():
+        return {}, ()
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        rows = list(reader)
+        header = list(reader.fieldnames or ())
+    columns = {name: _parse_column([r.get(name) or "" for r in rows]) for name in header}
+    params = tuple(
+        n for n in header if n not in _FIXED_COLUMNS and not n.startswith(_SURROGATE_PREFIXES)
+    )
+    return columns, params
+
+
+def _read_folder(folder: Path) -> dict[str, dict[str, Any]]:
+    if not folder.is_dir():
+        return {}
+    return {p.stem: _read_json(p) for p in sorted(folder.glob("*.json"))}
+
+
+def load_run(run_dir: str | Path) -> RunData:
+    """Read a run folder: trials.csv, confirmations.json, the FE records of the confirmations,
+    the references, summary.json and config.json. Any of them may be missing."""
+    run_dir = Path(run_dir)
+    trials, params = _read_trials(run_dir / "trials.csv")
+    conf_path = run_dir / "confirmations.json"
+    confirmations = (
+        tuple(Confirmation.from_json(d) for d in _read_json(conf_path))
+        if conf_path.is_file()
+        else ()
+    )
+    records = {}
+    for c in confirmations:
+        path = run_dir / "fe" / "records" / f"{c.key}.json"
+        if path.is_file():
+            records[c.key] = _read_json(path)
+    summary_path, config_path = run_dir / "summary.json", run_dir / "config.json"
+    return RunData(
+        run_dir=run_dir,
+        trials=trials,
+        params=params,
+        confirmations=confirmations,
+        records=records,
+        references=_read_folder(run_dir / "fe" / "references"),
+        summary=_read_json(summary_path) if summary_path.is_file() else {},
+        config=_read_json(config_path) if config_path.is_file() else {},
+    )
+
+
+def run_targets(run: RunData) -> Targets | None:
+    """The run's targets (``config["targets"]``, else ``summary["targets"]``); None if absent.
+
+    A ``displacement_reading`` entry, if present, selects the reading (default: from the
+    undeformed top)."""
+    raw = run.config.get("targets") or run.summary.get("targets") or {}
+    values = {k: float(raw[k]) for k in TAPPING if isinstance(raw.get(k), int | float)}
+    if len(values) < len(TAPPING):
+        return None
+    reading = raw.get("displacement_reading", "from_undeformed_top")
+    return Targets(values=values, reading=reading if reading in READINGS else "from_undeformed_top")
+
+
+def _finite_score_mask(run: RunData) -> np.ndarray:
+    return np.isfinite(run.column("score"))
+
+
+#: a positive parameter spanning at least this ratio is shown on a log scale (mu0, tau)
+LOG_RATIO = 20.0
+
+
+def _log_scale(values: np.ndarray) -> bool:
+    """True if the active values are positive and span >= ``LOG_RATIO`` (e.g. moduli)."""
+    v = values[np.isfinite(values)]
+    return bool(len(v) >= 2 and v.min() > 0 and v.max() >= LOG_RATIO * v.min())
+
+
+# ---------------------------------------------------------------------------------------------
+# 4. Importance (first: the projections use it)
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class ImportanceInfo:
+    """Optuna parameter importances for the score (sum 1), most important first.
+
+    Empty ``names`` when the study could not be loaded or has < 2 complete scored trials;
+    ``message`` then says why."""
+
+    names: tuple[str, ...]
+    importances: tuple[float, ...]
+    study_name: str = ""
+    n_trials: int = 0
+    message: str = ""
+
+    @property
+    def empty(self) -> bool:
+        return not self.names
+
+
+def _sqlite_file(url: str) -> Path | None:
+    prefix = "sqlite:///"
+    return Path(url[len(prefix) :]) if url.startswith(prefix) else None
+
+
+def _storage_urls(run: RunData) -> list[str]:
+    """The configured storage, then the run folder's study.db; SQLite files must exist (loading
+    a missing one would create an empty database)."""
+    urls = []
+    configured = run.config.get("storage")
+    if isinstance(configured, str):
+        urls.append(configured)
+    urls.append(f"sqlite:///{run.run_dir / 'study.db'}")
+    out = []
+    for url in urls:
+        path = _sqlite_file(url)
+        if path is None or path.is_file():
+            out.append(url)
+    return out
+
+
+def _continuous_study_name(run: RunData) -> str | None:
+    for study in run.config.get("studies", ()):
+        if isinstance(study, Mapping) and study.get("search") == "continuous":
+            return study.get("name")
+    return None
+
+
+def _load_study(run: RunData) -> Any | None:
+    import optuna
+
+    name = _continuous_study_name(run)
+    if name is None:
+        return None
+    for url in _storage_urls(run):
+        try:
+            return optuna.load_study(study_name=name, storage=url)
+        except Exception:  # a missing or foreign storage just means "no study"
+            continue
+    return None
+
+
+def _score_of(trial: Any) -> float:
+    value = trial.user_attrs.get("score")
+    return float(value) if isinstance(value, int | float) else math.inf
+
+
+def importance_info(run: RunData) -> ImportanceInfo:
+    """Parameter importances of the score in the first continuous study (Optuna's default
+    evaluator, target ``trial.user_attrs["score"]``; trials without a finite score ignored)."""
+    import optuna
+
+    study = _load_study(run)
+    if study is None:
+        return ImportanceInfo((), (), message="the study could not be loaded")
+    complete = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))
+    n = sum(math.isfinite(_score_of(t)) for t in complete)
+    if n < 2:
+        return ImportanceInfo((), (), study.study_name, n, "not enough trials")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            imp = optuna.importance.get_param_importances(study, target=_score_of)
+    except (ValueError, RuntimeError) as exc:  # e.g. no parameter varies
+        return ImportanceInfo((), (), study.study_name, n, f"importance failed: {exc}")
+    ordered = sorted(imp.items(), key=lambda kv: -kv[1])
+    return ImportanceInfo(
+        tuple(k for k, _ in ordered), tuple(float(v) for _, v in ordered), study.study_name, n
+    )
+
+
+# ---------------------------------------------------------------------------------------------
+# 1. Pairwise projections
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class PairProjection:
+    """One projection: trials with both parameters active and a finite score (``x``, ``y`` in
+    the parameters' units, ``score`` for the colour), and the coordinates of the confirmed
+    designs with FE status ok (NaN where inactive); ``x_log``/``y_log``: the axis spans
+    decades (log scale)."""
+
+    x_name: str
+    y_name: str
+    x: np.ndarray
+    y: np.ndarray
+    score: np.ndarray
+    confirmed_x: np.ndarray
+    confirmed_y: np.ndarray
+    x_log: bool = False
+    y_log: bool = False
+
+
+@dataclass(frozen=True)
+class ProjectionsInfo:
+    """Pairwise projections of ``params`` (most important first); ``pairs`` holds every pair
+    (i < j) in order; ``ranked_by`` is "importance" or "variation"."""
+
+    params: tuple[str, ...]
+    pairs: tuple[PairProjection, ...]
+    ranked_by: str = "importance"
+
+    @property
+    def empty(self) -> bool:
+        return not self.pairs
+
+
+def _variation(values: np.ndarray) -> float:
+    """Spread of a column: std of its min-max normalised active values x active fraction."""
+    v = values[np.isfinite(values)]
+    if len(v) < 2 or v.max() == v.min():
+        return 0.0
+    return float(np.std((v - v.min()) / (v.max() - v.min())) * len(v) / len(values))
+
+
+def _top_params(
+    run: RunData, top: int, importance: ImportanceInfo | None
+) -> tuple[tuple[str, ...], str]:
+    ok = _finite_score_mask(run)
+    usable = [p for p in run.numeric_params if np.isfinite(run.trials[p][ok]).sum() >= 2]
+    chosen = [n for n in (importance.names if importance else ()) if n in usable][:top]
+    ranked_by = "importance" if chosen else "variation"
+    rest = sorted(
+        (p for p in usable if p not in chosen), key=lambda p: -_variation(run.trials[p][ok])
+    )
+    return tuple((chosen + rest)[:top]), ranked_by
+
+
+def _confirmed_coordinate(run: RunData, name: str) -> np.ndarray:
+    """Parameter ``name`` of the confirmed designs with FE status ok (NaN if inactive)."""
+    out = []
+    for c in run.confirmations:
+        if c.status != "ok":
+            continue
+        v = c.candidate.point.get(name)
+        out.append(float(v) if isinstance(v, int | float) and not isinstance(v, bool) else np.nan)
+    return _ro(out)
+
+
+def projections_info(
+    run: RunData, top: int = 5, importance: ImportanceInfo | None = None
+) -> ProjectionsInfo:
+    """Pairwise projections of the ``top`` numeric parameters with the largest importance
+    (``importance``, computed when None; topped up by the most varied parameters), points
+    coloured by score (trials with an infinite score left out), confirmed designs marked."""
+    if importance is None:
+        importance = importance_info(run)
+    params, ranked_by = _top_params(run, top, importance)
+    ok = _finite_score_mask(run)
+    score = run.column("score")
+    pairs = []
+    for a, b in itertools.combinations(params, 2):
+        x, y = run.trials[a], run.trials[b]
+        sel = ok & np.isfinite(x) & np.isfinite(y)
+        pairs.append(
+            PairProjection(
+                a,
+                b,
+                _ro(x[sel]),
+                _ro(y[sel]),
+                _ro(score[sel]),
+                _confirmed_coordinate(run, a),
+                _confirmed_coordinate(run, b),
+                _log_scale(x[ok]),
+                _log_scale(y[ok]),
+            )
+        )
+    return ProjectionsInfo(params, tuple(pairs), ranked_by)
+
+
+# ---------------------------------------------------------------------------------------------
+# 2. Pareto front
+# ---------------------------------------------------------------------------------------------
+
+
+def pareto_front_indices(points: np.ndarray, chunk: int = 1024) -> np.ndarray:
+    """Indices (ascending) of the non-dominated rows of ``points`` (n, k), all minimised.
+
+    Row j dominates row i if it is <= in every column and < in at least one; equal rows do
+    not dominate each other. Memory is bounded by ``chunk`` x n x k booleans."""
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 2 or len(p) == 0:
+        return np.zeros(0, dtype=int)
+    dominated = np.zeros(len(p), dtype=bool)
+    for start in range(0, len(p), chunk):
+        block = p[start : start + chunk]  # candidates i
+        le = np.all(p[:, None, :] <= block[None, :, :], axis=-1)  # [j, i]: p_j <= p_i
+        lt = np.any(p[:, None, :] < block[None, :, :], axis=-1)
+        dominated[start : start + len(block)] = np.any(le & lt, axis=0)
+    return np.flatnonzero(~dominated)
+
+
+@dataclass(frozen=True, eq=False)
+class ParetoInfo:
+    """The objectives (``OBJECTIVE_NAMES``, dimensionless) of every trial with three finite
+    values: ``points`` (n, 3) with their trials.csv row ``rows``; ``front``: indices into
+    ``points`` of the non-dominated set (all minimised); ``confirmed``: the FE objectives
+    (m, 3) of the confirmed designs (status ok, finite), labelled by ``confirmed_labels``."""
+
+    points: np.ndarray
+    rows: np.ndarray
+    front: np.ndarray
+    confirmed: np.ndarray
+    confirmed_labels: tuple[str, ...]
+
+    @property
+    def empty(self) -> bool:
+        return len(self.points) == 0 and len(self.confirmed) == 0
+
+
+def _label(c: Confirmation) -> str:
+    return f"{c.candidate.reason} r{c.candidate.round}/t{c.candidate.trial}"
+
+
+def _confirmed_objectives(run: RunData) -> tuple[np.ndarray, tuple[str, ...]]:
+    targets = run_targets(run)
+    rows: list[np.ndarray] = []
+    labels: list[str] = []
+    if targets is not None:
+        for c in run.confirmations:
+            if c.status != "ok":
+                continue
+            obj = objectives(closeness(c.fe_metrics, targets))
+            if np.all(np.isfinite(obj)):
+                rows.append(obj)
+                labels.append(_label(c))
+    return (np.array(rows, dtype=float) if rows else np.zeros((0, 3))), tuple(labels)
+
+
+def pareto_info(run: RunData) -> ParetoInfo:
+    """The non-dominated set of (compliance error, hysteresis error, wedge effort) over all
+    trials with finite values, and the confirmed designs' FE objectives (recomputed with
+    ``explore._objective`` from their FE metrics and the run's targets)."""
+    if run.n_trials:
+        table = np.column_stack([run.column(n) for n in OBJECTIVE_NAMES])
+    else:
+        table = np.zeros((0, 3))
+    rows = np.flatnonzero(np.all(np.isfinite(table), axis=1))
+    points = table[rows]
+    confirmed, labels = _confirmed_objectives(run)
+    front = pareto_front_indices(points)
+    rows.flags.writeable = front.flags.writeable = False
+    return ParetoInfo(_ro(points), rows, front, _ro(confirmed), labels)
+
+
+# ---------------------------------------------------------------------------------------------
+# 3. Parallel coordinates
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class ParallelInfo:
+    """Parallel coordinates of the trials with a finite score: ``values`` (n, p) is each
+    numeric parameter min-max normalised to [0, 1] over those trials (0.5 if constant, NaN if
+    inactive); ``low``/``high`` the observed range (parameter units); ``log``: the parameter
+    spans decades and is normalised as log(x / low) / log(high / low); ``score`` colours the
+    lines; ``best`` marks the best 10 % (at least one) by score."""
+
+    params: tuple[str, ...]
+    values: np.ndarray
+    low: np.ndarray
+    high: np.ndarray
+    log: np.ndarray
+    score: np.ndarray
+    best: np.ndarray
+
+    @property
+    def empty(self) -> bool:
+        return len(self.params) == 0 or len(self.score) == 0
+
+
+def _normalise(column: np.ndarray, log: bool) -> tuple[np.ndarray, float, float]:
+    """Min-max normalised column (of log10 values if ``log``), its min and max (own units)."""
+    finite = column[np.isfinite(column)]
+    if len(finite) == 0:
+        return np.full(len(column), np.nan), np.nan, np.nan
+    lo, hi = float(finite.min()), float(finite.max())
+    if hi == lo:
+        return np.where(np.isfinite(column), 0.5, np.nan), lo, hi
+    if log:
+        return np.log(column / lo) / np.log(hi / lo), lo, hi
+    return (column - lo) / (hi - lo), lo, hi
+
+
+def parallel_info(run: RunData, best_fraction: float = 0.1) -> ParallelInfo:
+    """Parallel coordinates of every numeric parameter over the trials with a finite score,
+    coloured by score, the best ``best_fraction`` highlighted."""
+    ok = _finite_score_mask(run)
+    score = run.column("score")[ok]
+    params = run.numeric_params
+    cols, lows, highs, logs = [], [], [], []
+    for p in params:
+        logs.append(_log_scale(run.trials[p][ok]))
+        v, lo, hi = _normalise(run.trials[p][ok], logs[-1])
+        cols.append(v)
+        lows.append(lo)
+        highs.append(hi)
+    values = np.column_stack(cols) if cols else np.zeros((len(score), 0))
+    best = np.zeros(len(score), dtype=bool)
+    if len(score):
+        n_best = max(1, math.ceil(best_fraction * len(score)))
+        best[np.argsort(score, kind="stable")[:n_best]] = True
+    best.flags.writeable = False
+    log = np.array(logs, dtype=bool)
+    log.flags.writeable = False
+    return ParallelInfo(params, _ro(values), _ro(lows), _ro(highs), log, _ro(score), best)
+
+
+# ---------------------------------------------------------------------------------------------
+# 5./6. Curves of the best confirmed designs and the references
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Curve:
+    """One curve of an FE record: ``x``/``y`` (units of the figure's axes), ``role`` "design"
+    or "reference", and ``value``: the figure's headline metric of that record (hysteresis in
+    N mm for tapping loops, peak force in N for the wedge; None if unknown)."""
+
+    label: str
+    role: str
+    x: np.ndarray
+    y: np.ndarray
+    value: float | None = None
+
+
+def _best_records(run: RunData, n_best: int) -> list[tuple[str, dict[str, Any]]]:
+    """(label, record) of the ``n_best`` confirmed designs (status ok) with the lowest
+    finite FE score and a record on disk, best first."""
+    ok = [
+        c
+        for c in run.confirmations
+        if c.status == "ok" and math.isfinite(c.fe_score) and c.key in run.records
+    ]
+    ok.sort(key=lambda c: c.fe_score)
+    return [(f"{_label(c)} (FE score {c.fe_score:.3g})", run.records[c.key]) for c in ok[:n_best]]
+
+
+def _selected_records(run: RunData, n_best: int) -> list[tuple[str, str, dict[str, Any]]]:
+    designs = [(label, "design", rec) for label, rec in _best_records(run, n_best)]
+    refs = [(name, "reference", rec) for name, rec in sorted(run.references.items())]
+    return designs + refs
+
+
+def _metric(record: Mapping[str, Any], name: str) -> float | None:
+    v = (record.get("metrics") or {}).get(name)
+    return float(v) if isinstance(v, int | float) and math.isfinite(v) else None
+
+
+def _curve(
+    label: str,
+    role: str,
+    record: Mapping[str, Any],
+    protocol: str,
+    xy: tuple[str, str],
+    value: float | None = None,
+    transform: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+) -> Curve | None:
+    data = (record.get("curves") or {}).get(protocol) or {}
+    if xy[0] not in data or xy[1] not in data or not len(data[xy[0]]):
+        return None
+    x = np.asarray(data[xy[0]], dtype=float)
+    y = np.asarray(data[xy[1]], dtype=float)
+    if transform is not None:
+        x = transform(x, y)
+    return Curve(label, role, _ro(x), _ro(y), value)
+
+
+def _from_touch(displacement: np.ndarray, force: np.ndarray) -> np.ndarray:
+    """Displacement from the first touch: minus the displacement where the force leaves 0."""
+    loaded = np.flatnonzero(force > 0)
+    touch = max(int(loaded[0]) - 1, 0) if len(loaded) else 0
+    return displacement - displacement[touch]
+
+
+@dataclass(frozen=True)
+class LoopsInfo:
+    """Tapping loops (x: displacement in mm, read as the targets are; y: force in N) with each
+    curve's hysteresis (N mm) in ``Curve.value``; the human target points
+    ((disp_at_1N_mm, 1 N), (disp_at_4N_mm, 4 N)) and target hysteresis (None: no targets)."""
+
+    curves: tuple[Curve, ...]
+    target_points: tuple[tuple[float, float], ...]
+    target_hysteresis_Nmm: float | None
+    reading: str = "from_undeformed_top"
+
+    @property
+    def empty(self) -> bool:
+        return not self.curves and not self.target_points
+
+
+def loops_info(run: RunData, n_best: int = 3) -> LoopsInfo:
+    """Tapping loops of the best ``n_best`` confirmed designs (lowest FE score, status ok) and
+    of every reference, with the human target points and hysteresis."""
+    targets = run_targets(run)
+    reading = targets.reading if targets else "from_undeformed_top"
+    transform = _from_touch if reading == "from_first_touch" else None
+    curves = []
+    for label, role, rec in _selected_records(run, n_best):
+        hyst = _metric(rec, "hysteresis_Nmm")
+        c = _curve(label, role, rec, "tapping", ("displacement_mm", "force_N"), hyst, transform)
+        if c is not None:
+            curves.append(c)
+    points: tuple[tuple[float, float], ...] = ()
+    hysteresis = None
+    if targets is not None:
+        v = targets.values
+        points = ((v["disp_at_1N_mm"], 1.0), (v["disp_at_4N_mm"], 4.0))
+        hysteresis = v["hysteresis_Nmm"]
+    return LoopsInfo(tuple(curves), points, hysteresis, reading)
+
+
+@dataclass(frozen=True)
+class WedgeInfo:
+    """Wedge force (N) over time (s), peak force (N) in ``Curve.value``; surface deflection
+    (mm) against distance from the wedge (mm) after 1 s and 100 s; same designs as the loops."""
+
+    force: tuple[Curve, ...]
+    profile_1s: tuple[Curve, ...]
+    profile_100s: tuple[Curve, ...]
+
+    @property
+    def empty(self) -> bool:
+        return not (self.force or self.profile_1s or self.profile_100s)
+
+
+def wedge_info(run: RunData, n_best: int = 3) -> WedgeInfo:
+    """Wedge force-time curves and the 1 s / 100 s surface profiles of the best ``n_best``
+    confirmed designs and of every reference."""
+    force, p1, p100 = [], [], []
+    profile_xy = ("distance_mm", "deflection_mm")
+    for label, role, rec in _selected_records(run, n_best):
+        peak = _metric(rec, "wedge_peak_force_N")
+        for out, curve in (
+            (force, _curve(label, role, rec, "wedge", ("time_s", "force_N"), peak)),
+            (p1, _curve(label, role, rec, "profile_1s", profile_xy)),
+            (p100, _curve(label, role, rec, "profile_100s", profile_xy)),
+        ):
+            if curve is not None:
+                out.append(curve)
+    return WedgeInfo(tuple(force), tuple(p1), tuple(p100))
+
+
+# ---------------------------------------------------------------------------------------------
+# 7. Parity: surrogate vs FE on the confirmations
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class ParityMetric:
+    """One scored metric over the confirmations (status ok, finite FE value and prediction):
+    FE value, surrogate mean and 90 % interval (metric unit); ``inside_fraction``: share of the
+    designs with an interval whose FE value lies in it (NaN if none); ``median_abs_rel_error``:
+    median |mean - FE| / |FE| (NaN if none)."""
+
+    name: str
+    unit: str
+    fe: np.ndarray
+    mean: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    labels: tuple[str, ...]
+    inside_fraction: float
+    median_abs_rel_error: float
+
+
+@dataclass(frozen=True)
+class ParityInfo:
+    """Parity of every scored metric (the tapping targets' metrics and the wedge peak force)."""
+
+    metrics: tuple[ParityMetric, ...]
+
+    @property
+    def empty(self) -> bool:
+        return all(len(m.fe) == 0 for m in self.metrics)
+
+
+def _scored_metrics(targets: Targets | None) -> tuple[str, ...]:
+    t = targets or Targets(values={})
+    return (*(t.metric(n) for n in TAPPING), "wedge_peak_force_N")
+
+
+def _num(x: Any) -> float:
+    return float(x) if isinstance(x, int | float) and not isinstance(x, bool) else np.nan
+
+
+def _parity_metric(run: RunData, name: str) -> ParityMetric:
+    fe, mean, lower, upper, labels = [], [], [], [], []
+    for c in run.confirmations:
+        pred = c.candidate.predicted.get(name) or {}
+        f, m = _num(c.fe_metrics.get(name)), _num(pred.get("mean"))
+        if c.status != "ok" or not (math.isfinite(f) and math.isfinite(m)):
+            continue
+        fe.append(f)
+        mean.append(m)
+        lower.append(_num(pred.get("lower_90")))
+        upper.append(_num(pred.get("upper_90")))
+        labels.append(_label(c))
+    fe_a, mean_a, lo, hi = (np.array(v, dtype=float) for v in (fe, mean, lower, upper))
+    has = np.isfinite(lo) & np.isfinite(hi)
+    inside = (
+        float(np.mean((lo[has] <= fe_a[has]) & (fe_a[has] <= hi[has]))) if has.any() else np.nan
+    )
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rel = np.abs(mean_a - fe_a) / np.abs(fe_a)
+    rel = rel[np.isfinite(rel)]
+    median = float(np.median(rel)) if len(rel) else np.nan
+    unit = _UNITS.get(name, "")
+    return ParityMetric(
+        name, unit, _ro(fe_a), _ro(mean_a), _ro(lo), _ro(hi), tuple(labels), inside, median
+    )
+
+
+def parity_info(run: RunData) -> ParityInfo:
+    """FE against surrogate (mean, 90 % interval) per scored metric, over the confirmations
+    with status ok, with the fraction inside the interval and the median |relative error|."""
+    return ParityInfo(tuple(_parity_metric(run, n) for n in _scored_metrics(run_targets(run))))
+
+
+# ---------------------------------------------------------------------------------------------
+# Rendering
+# ---------------------------------------------------------------------------------------------
+
+
+def _figure(width: float, height: float) -> Figure:
+    fig = Figure(figsize=(width, height), layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _no_data(title: str, message: str = "no data") -> Figure:
+    fig = _figure(5.0, 3.0)
+    ax = fig.add_subplot()
+    ax.set_axis_off()
+    ax.set_title(title)
+    ax.text(0.5, 0.5, message, ha="center", va="center", fontsize=12, transform=ax.transAxes)
+    return fig
+
+
+def _score_norm(*arrays: np.ndarray) -> Normalize:
+    """Log colour scale over the positive finite scores (linear if there are none)."""
+    values = np.concatenate([np.ravel(a) for a in arrays]) if arrays else np.zeros(0)
+    pos = values[np.isfinite(values) & (values > 0)]
+    if len(pos) == 0:
+        return Normalize(0.0, 1.0)
+    lo, hi = float(pos.min()), float(pos.max())
+    return LogNorm(lo, hi if hi > lo else lo * 10.0)
+
+
+def _clip(values: np.ndarray, norm: Normalize) -> np.ndarray:
+    return np.clip(values, norm.vmin, None) if isinstance(norm, LogNorm) else values
+
+
+def render_projections(info: ProjectionsInfo) -> Figure:
+    """Lower-triangle matrix of pairwise scatter plots, log colour scale of the score."""
+    title = f"Pairwise projections (top parameters by {info.ranked_by})"
+    if info.empty:
+        return _no_data(title, "not enough numeric parameters")
+    n = len(info.params) - 1
+    fig = _figure(2.6 * n + 1.2, 2.4 * n + 0.6)
+    axes = fig.subplots(n, n, squeeze=False)
+    norm = _score_norm(*(p.score for p in info.pairs))
+    index = {p: k for k, p in enumerate(info.params)}
+    mappable = None
+    for ax in axes.flat:
+        ax.set_visible(False)
+    for pair in info.pairs:
+        ax = axes[index[pair.y_name] - 1, index[pair.x_name]]
+        ax.set_visible(True)
+        mappable = ax.scatter(
+            pair.x, pair.y, c=_clip(pair.score, norm), norm=norm, cmap="viridis_r", s=8, lw=0
+        )
+        ax.scatter(pair.confirmed_x, pair.confirmed_y, marker="*", s=90, c="none", ec="red")
+        ax.set_xscale("log" if pair.x_log else "linear")
+        ax.set_yscale("log" if pair.y_log else "linear")
+        ax.set_xlabel(pair.x_name, fontsize=7)
+        ax.set_ylabel(pair.y_name, fontsize=7)
+        ax.tick_params(labelsize=6)
+    if mappable is not None:
+        fig.colorbar(mappable, ax=axes, label="score (lower is better)", shrink=0.6)
+    fig.suptitle(f"{title}; red stars: FE-confirmed designs", fontsize=9)
+    return fig
+
+
+def render_pareto(info: ParetoInfo) -> Figure:
+    """Compliance error against hysteresis error coloured by wedge effort, the non-dominated
+    set highlighted, the confirmed designs (FE) starred."""
+    title = "Objectives of all trials (minimise all three)"
+    if info.empty:
+        return _no_data(title)
+    fig = _figure(6.0, 4.6)
+    ax = fig.add_subplot()
+    every = np.vstack([info.points, info.confirmed])
+    norm = Normalize(float(every[:, 2].min()), float(every[:, 2].max()) or 1.0)
+    sc = ax.scatter(
+        info.points[:, 0], info.points[:, 1], c=info.points[:, 2], norm=norm, s=10, lw=0
+    )
+    if len(info.front):
+        f = info.points[info.front]
+        label = f"non-dominated ({len(f)})"
+        ax.scatter(f[:, 0], f[:, 1], c=f[:, 2], norm=norm, s=36, ec="red", lw=1.0, label=label)
+    if len(info.confirmed):
+        cx, cy, cz = info.confirmed.T
+        ax.scatter(cx, cy, c=cz, norm=norm, marker="*", s=160, ec="black", label="FE-confirmed")
+        for (x, y, _), label in zip(info.confirmed, info.confirmed_labels, strict=True):
+            ax.annotate(label, (x, y), fontsize=6, xytext=(4, 4), textcoords="offset points")
+    if np.all(every[:, :2] > 0):
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+    fig.colorbar(sc, ax=ax, label="wedge effort F / F_ref")
+    ax.set_xlabel("compliance error (rms relative, 1 N and 4 N)")
+    ax.set_ylabel("hysteresis error (|relative|)")
+    ax.set_title(title, fontsize=9)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
+    return fig
+
+
+def _segments(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Line segments between neighbouring axes where both ends are active, and their rows."""
+    p = values.shape[1]
+    segs, rows = [], []
+    for k in range(p - 1):
+        both = np.isfinite(values[:, k]) & np.isfinite(values[:, k + 1])
+        r = np.flatnonzero(both)
+        seg = np.zeros((len(r), 2, 2))
+        seg[:, 0, 0], seg[:, 1, 0] = k, k + 1
+        seg[:, 0, 1], seg[:, 1, 1] = values[r, k], values[r, k + 1]
+        segs.append(seg)
+        rows.append(r)
+    if not segs:
+        return np.zeros((0, 2, 2)), np.zeros(0, dtype=int)
+    return np.concatenate(segs), np.concatenate(rows)
+
+
+def render_parallel(info: ParallelInfo) -> Figure:
+    """Parallel coordinates: one line per trial, coloured by score (log), best 10 % bold."""
+    title = "Parallel coordinates (each axis: observed min to max)"
+    if info.empty:
+        return _no_data(title)
+    p = len(info.params)
+    fig = _figure(max(6.0, 1.1 * p + 2.0), 4.6)
+    ax = fig.add_subplot()
+    norm = _score_norm(info.score)
+    segs, rows = _segments(info.values)
+    colour = _clip(info.score[rows], norm)
+    for sel, width, alpha in ((~info.best[rows], 0.5, 0.25), (info.best[rows], 1.8, 1.0)):
+        lc = LineCollection(segs[sel], cmap="viridis_r", norm=norm, linewidths=width, alpha=alpha)
+        lc.set_array(colour[sel])
+        ax.add_collection(lc)
+    if p == 1:  # one axis, no segments: mark the values
+        ax.scatter(
+            np.zeros(len(info.score)),
+            info.values[:, 0],
+            c=_clip(info.score, norm),
+            norm=norm,
+            cmap="viridis_r",
+            s=8,
+        )
+    for k in range(p):
+        ax.axvline(k, color="0.3", lw=0.8)
+        ax.text(k, -0.06, f"{info.low[k]:.3g}", ha="center", va="top", fontsize=6)
+        ax.text(k, 1.04, f"{info.high[k]:.3g}", ha="center", va="bottom", fontsize=6)
+    ax.set_xlim(-0.3, p - 0.7)
+    ax.set_ylim(-0.15, 1.12)
+    names = [f"{n} (log)" if log else n for n, log in zip(info.params, info.log, strict=True)]
+    ax.set_xticks(range(p), names, rotation=30, ha="right", fontsize=7)
+    ax.set_yticks([])
+    mappable = LineCollection([], cmap="viridis_r", norm=norm)
+    fig.colorbar(mappable, ax=ax, label="score (lower is better)")
+    ax.set_title(f"{title}\nbold: the best 10 % ({int(info.best.sum())} trials)", fontsize=9)
+    return fig
+
+
+def render_importance(info: ImportanceInfo) -> Figure:
+    """Horizontal bars of the importances, the most important at the top."""
+    title = "Parameter importance for the score"
+    if info.empty:
+        reason = "" if info.message in ("", "not enough trials") else f" ({info.message})"
+        return _no_data(title, f"not enough trials{reason}")
+    fig = _figure(6.0, 0.3 * len(info.names) + 1.4)
+    ax = fig.add_subplot()
+    y = np.arange(len(info.names))[::-1]
+    ax.barh(y, info.importances, color="C0")
+    ax.set_yticks(y, info.names, fontsize=7)
+    for yy, v in zip(y, info.importances, strict=True):
+        ax.text(v, yy, f" {v:.2f}", va="center", fontsize=6)
+    ax.set_xlabel("importance (normalised, sum 1)")
+    ax.set_title(f"{title} (study {info.study_name}, {info.n_trials} trials)", fontsize=9)
+    return fig
+
+
+def _draw_curves(ax: Any, curves: Iterable[Curve], fmt: str = "") -> None:
+    styles = itertools.cycle(["--", ":", "-."])
+    k = 0
+    for c in curves:
+        label = c.label if c.role == "design" else f"{c.label} (reference)"
+        if c.value is not None and fmt:
+            label += f", {format(c.value, fmt)}"
+        if c.role == "design":
+            ax.plot(c.x, c.y, "-", color=f"C{k}", lw=1.5, label=label)
+            k += 1
+        else:
+            ax.plot(c.x, c.y, next(styles), color="0.45", lw=1.2, label=label)
+
+
+def render_loops(info: LoopsInfo) -> Figure:
+    """Force against displacement of each tap; target points as black crosses."""
+    title = "Tapping loops"
+    if info.empty:
+        return _no_data(title)
+    fig = _figure(6.4, 4.6)
+    ax = fig.add_subplot()
+    _draw_curves(ax, info.curves, ".3g")
+    if info.target_points:
+        x, y = zip(*info.target_points, strict=True)
+        hyst = f", hysteresis {info.target_hysteresis_Nmm:.3g} N mm"
+        ax.plot(x, y, "kX", ms=10, label=f"human target{hyst}")
+    reading = "from first touch" if info.reading == "from_first_touch" else "from undeformed top"
+    ax.set_xlabel(f"displacement ({reading}) [mm]")
+    ax.set_ylabel("force [N]")
+    ax.set_title(f"{title} (legend: hysteresis in N mm)", fontsize=9)
+    ax.legend(fontsize=6)
+    return fig
+
+
+def render_wedge(info: WedgeInfo) -> Figure:
+    """Three panels: wedge force over time (symlog time), the 1 s and the 100 s profiles."""
+    title = "Wedge indentation"
+    if info.empty:
+        return _no_data(title)
+    fig = _figure(13.0, 4.0)
+    axes = fig.subplots(1, 3)
+    _draw_curves(axes[0], info.force, ".3g")
+    axes[0].set_xscale("symlog", linthresh=1.0)
+    axes[0].set_xlabel("time [s]")
+    axes[0].set_ylabel("wedge force [N]")
+    axes[0].set_title("force (legend: peak force in N; lower is better)", fontsize=8)
+    profiles = ((axes[1], info.profile_1s, "1 s"), (axes[2], info.profile_100s, "100 s"))
+    for ax, curves, when in profiles:
+        _draw_curves(ax, curves)
+        ax.set_xlabel("distance from the wedge [mm]")
+        ax.set_ylabel("surface deflection [mm]")
+        ax.set_title(f"surface profile after {when}", fontsize=8)
+    for ax in axes:
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=6)
+    return fig
+
+
+def _parity_panel(ax: Any, m: ParityMetric) -> None:
+    unit = f" [{m.unit}]" if m.unit else ""
+    ax.set_xlabel(f"FE{unit}", fontsize=7)
+    ax.set_ylabel(f"surrogate{unit}", fontsize=7)
+    if len(m.fe) == 0:
+        ax.set_title(f"{m.name}: no confirmed designs", fontsize=8)
+        return
+    err = np.nan_to_num(np.vstack([m.mean - m.lower, m.upper - m.mean]), nan=0.0).clip(min=0)
+    ax.errorbar(m.fe, m.mean, yerr=err, fmt="o", ms=4, elinewidth=0.8, capsize=2)
+    lo = float(min(m.fe.min(), m.mean.min()))
+    hi = float(max(m.fe.max(), m.mean.max()))
+    pad = 0.05 * (hi - lo or abs(hi) or 1.0)
+    ax.plot([lo - pad, hi + pad], [lo - pad, hi + pad], "k--", lw=0.8)
+    inside = "–" if math.isnan(m.inside_fraction) else f"{100 * m.inside_fraction:.0f} %"
+    med = "–" if math.isnan(m.median_abs_rel_error) else f"{100 * m.median_abs_rel_error:.1f} %"
+    ax.set_title(
+        f"{m.name} (n = {len(m.fe)})\n{inside} inside 90 % interval, median |rel. err.| {med}",
+        fontsize=8,
+    )
+
+
+def render_parity(info: ParityInfo) -> Figure:
+    """One panel per scored metric: surrogate mean with its 90 % interval against FE."""
+    title = "Surrogate vs FE on the confirmed designs"
+    if info.empty:
+        return _no_data(title, "no confirmed designs")
+    n = len(info.metrics)
+    cols = 2 if n > 1 else 1
+    rows = math.ceil(n / cols)
+    fig = _figure(4.2 * cols, 3.8 * rows)
+    axes = np.atleast_1d(fig.subplots(rows, cols, squeeze=False)).ravel()
+    for ax, m in zip(axes, info.metrics, strict=False):
+        _parity_panel(ax, m)
+    for ax in axes[n:]:
+        ax.set_visible(False)
+    fig.suptitle(f"{title} (dashed: perfect agreement)", fontsize=9)
+    return fig
+
+
+# ---------------------------------------------------------------------------------------------
+# All figures
+# ---------------------------------------------------------------------------------------------
+
+
+def _figures(run: RunData) -> dict[str, Figure]:
+    importance = importance_info(run)
+    return {
+        "loops": render_loops(loops_info(run)),
+        "wedge": render_wedge(wedge_info(run)),
+        "parity": render_parity(parity_info(run)),
+        "pareto": render_pareto(pareto_info(run)),
+        "importance": render_importance(importance),
+        "projections": render_projections(projections_info(run, importance=importance)),
+        "parallel": render_parallel(parallel_info(run)),
+    }
+
+
+def write_figures(run_dir: str | Path) -> dict[str, Path]:
+    """Compute, render and save every figure as ``run_dir/figures/<name>.png`` (dpi 110);
+    returns name -> path in the order of ``FIGURES``. Empty data gives a "no data" figure."""
+    run = load_run(run_dir)
+    folder = Path(run_dir) / "figures"
+    folder.mkdir(parents=True, exist_ok=True)
+    figures = _figures(run)
+    paths = {}
+    for name in FIGURES:
+        path = folder / f"{name}.png"
+        figures[name].savefig(path, dpi=_DPI)
+        figures[name].clear()
+        paths[name] = path
+    return paths

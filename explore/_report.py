@@ -1,0 +1,297 @@
+"""The one-page Markdown report of a search run (``report.md`` next to ``figures/``).
+
+Reads the run folder (``explore._types`` describes it) through ``explore._plots.load_run``,
+writes every figure with ``write_figures`` and links them relatively, so the folder can be
+moved or browsed on GitHub as it is.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.targets import Targets
+
+from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
+from ._plots import FIGURES, RunData, load_run, run_targets, write_figures
+
+__all__ = ["write_report"]
+
+_TARGET_WORDS = {
+    "disp_at_1N_mm": ("displacement at 1 N", "mm"),
+    "disp_at_4N_mm": ("displacement at 4 N", "mm"),
+    "hysteresis_Nmm": ("energy lost per tap (loop area)", "N mm"),
+}
+_ANSWERS = {
+    "best": "Best design (closest to the targets, confirmed by FE)",
+    "buildable": "Best buildable design (catalogue materials only, confirmed by FE)",
+}
+_ROUND_ORDER = ("round", "n_confirmed", "max_rel_error", "median_rel_error", "agreed")
+_UNIT_SUFFIXES = (("_MPa", "MPa"), ("_mm", "mm"), ("_s", "s"), ("_N", "N"))
+
+
+def _fmt(x: Any, spec: str = ".3g") -> str:
+    """A number for a table cell ("–" when missing or not finite)."""
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    if isinstance(x, int | float) and math.isfinite(x):
+        return format(x, spec)
+    return "–"
+
+
+def _pct(x: Any) -> str:
+    """A fraction as a signed percentage ("–" when missing)."""
+    return _fmt(100 * x, "+.1f") + " %" if isinstance(x, int | float) and math.isfinite(x) else "–"
+
+
+# ---------------------------------------------------------------------------------------------
+# Designs in words
+# ---------------------------------------------------------------------------------------------
+
+
+def _quantity(key: str, value: Any) -> str:
+    """``mu_MPa``, [0.01] -> "mu 0.01 MPa" (lists of one value shown as the value)."""
+    if isinstance(value, list | tuple):
+        value = value[0] if len(value) == 1 else "[" + ", ".join(_fmt(v) for v in value) + "]"
+    text = _fmt(value) if isinstance(value, int | float) else str(value)
+    for suffix, unit in _UNIT_SUFFIXES:
+        if key.endswith(suffix):
+            return f"{key[: -len(suffix)]} {text} {unit}"
+    return f"{key} {text}"
+
+
+def _material_words(material: Any) -> str:
+    """A catalogue name, or an inline table (``Material.to_dict()``) in words."""
+    if isinstance(material, str):
+        return f"`{material}` (catalogue)"
+    if not isinstance(material, Mapping):
+        return "unknown material"
+    skip = {"model", "name", "source", "moduli", "prony_g", "prony_tau_s"}
+    law = ", ".join(_quantity(k, v) for k, v in material.items() if k not in skip)
+    text = f"{material.get('name') or 'a custom'} {material.get('model', 'material')} ({law})"
+    g, tau = material.get("prony_g") or [], material.get("prony_tau_s") or []
+    if g and tau:
+        text += (
+            f", relaxing by {100 * sum(g):.0f} % with time constants "
+            f"{min(tau):.3g} to {max(tau):.3g} s"
+        )
+    else:
+        text += ", no relaxation"
+    return text
+
+
+def _layer_words(layers: Sequence[Mapping[str, Any]]) -> list[str]:
+    out = []
+    for k, layer in enumerate(layers):
+        last = k == len(layers) - 1
+        size = "fills the rest (core)" if last else f"{_fmt(layer.get('thickness_mm'))} mm thick"
+        out.append(f"  {k + 1}. {size}: {_material_words(layer.get('material'))}")
+    return out
+
+
+def _design_words(answer: Mapping[str, Any]) -> list[str]:
+    """The design's outline and layers (outermost first), or its design-space point."""
+    design = answer.get("design")
+    if isinstance(design, Mapping):
+        geo = design.get("geometry", {})
+        layers = design.get("layers", [])
+        return [
+            f"- **Outline**: superellipse, half-width {_fmt(geo.get('half_width_mm'))} mm, "
+            f"height {_fmt(geo.get('height_mm'))} mm, exponent {_fmt(geo.get('exponent'))}.",
+            f"- **Layers** ({len(layers)}, outermost first):",
+            *_layer_words(layers),
+        ]
+    point = answer.get("point") or {}
+    items = [
+        f"{k} = {_fmt(v) if isinstance(v, int | float) else v}"
+        for k, v in point.items()
+        if v not in (None, "") and not (isinstance(v, float) and math.isnan(v))
+    ]
+    return ["- **Design-space point**: " + ("; ".join(items) or "not recorded") + "."]
+
+
+# ---------------------------------------------------------------------------------------------
+# Sections
+# ---------------------------------------------------------------------------------------------
+
+
+def _intro(run: RunData) -> list[str]:
+    rounds = {int(r) for r in run.column("round") if math.isfinite(r)}
+    n_ok = sum(c.status == "ok" for c in run.confirmations)
+    return [
+        f"# Fingertip skin search: `{run.run_dir.name}`",
+        "",
+        f"The search scored {run.n_trials} candidate designs with the neural surrogate over "
+        f"{len(rounds)} round(s), then re-ran {len(run.confirmations)} of them with the full "
+        f"finite-element (FE) solver ({n_ok} succeeded). Only FE-confirmed designs count as "
+        "answers: the surrogate proposes, the FE model decides. A design's score is the rms "
+        f"relative error to the three tapping targets plus {WEDGE_WEIGHT:g} x its wedge effort "
+        "(0 is perfect, lower is better).",
+        "",
+    ]
+
+
+def _targets_section(targets: Targets | None, tolerance: Any) -> list[str]:
+    lines = ["## Targets", ""]
+    if targets is None:
+        return [*lines, "No targets were recorded for this run.", ""]
+    lines += ["| target | value | meaning |", "|---|---|---|"]
+    for name in TAPPING:
+        words, unit = _TARGET_WORDS[name]
+        lines.append(f"| `{name}` | {_fmt(targets.values[name])} {unit} | {words} |")
+    lines.append(
+        "| `wedge_peak_force_N` | as low as possible | force to press a wedge into the skin "
+        f"(wedge effort = force / {WEDGE_REFERENCE_N} N, the paper's silicone) |"
+    )
+    reading = {"from_first_touch": "from the first touch of each tap"}.get(
+        targets.reading, "from the undeformed top of the fingertip"
+    )
+    tol = f"±{100 * tolerance:.0f} %" if isinstance(tolerance, int | float) else "not recorded"
+    lines += ["", f"Displacements are read {reading}. Tolerance on each target: {tol}.", ""]
+    return lines
+
+
+def _answer_rows(answer: Mapping[str, Any], targets: Targets, tolerance: Any) -> list[str]:
+    fe = answer.get("fe_metrics") or {}
+    errors = answer.get("errors_vs_targets") or {}
+    within = answer.get("within_tolerance") or {}
+    predicted = answer.get("predicted") or {}
+    rows = [
+        "| metric | target | FE | error vs target | within tolerance | surrogate (90 % interval) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name in (*TAPPING, "wedge_peak_force_N"):
+        metric = targets.metric(name) if name in TAPPING else name
+        value = fe.get(metric)
+        target = targets.values.get(name)
+        err = errors.get(name)
+        if err is None and target and isinstance(value, int | float):
+            err = (value - target) / target
+        ok = within.get(name)
+        if ok is None and isinstance(err, int | float) and isinstance(tolerance, int | float):
+            ok = abs(err) <= tolerance
+        mark = "–" if ok is None or name not in TAPPING else ("✓" if ok else "✗")
+        p = predicted.get(metric) or {}
+        pred = f"{_fmt(p.get('mean'))} ({_fmt(p.get('lower_90'))} to {_fmt(p.get('upper_90'))})"
+        target_text = _fmt(target) if name in TAPPING else "lower is better"
+        err_text = _pct(err) if name in TAPPING else "–"
+        rows.append(
+            f"| `{metric}` | {target_text} | {_fmt(value)} | {err_text} | {mark} | {pred} |"
+        )
+    return rows
+
+
+def _answer_section(
+    kind: str, answer: Mapping[str, Any] | None, targets: Targets | None, tolerance: Any
+) -> list[str]:
+    lines = [f"### {_ANSWERS[kind]}", ""]
+    if not answer:
+        return [*lines, f"No {kind} design was confirmed by FE in this run.", ""]
+    lines += _design_words(answer)
+    lines += [f"- **FE score**: {_fmt(answer.get('fe_score'))} (0 = every target met).", ""]
+    if targets is not None:
+        lines += [*_answer_rows(answer, targets, tolerance), ""]
+    return lines
+
+
+def _answers_section(run: RunData, targets: Targets | None) -> list[str]:
+    answers = run.summary.get("answers") or {}
+    tolerance = run.summary.get("tolerance")
+    lines = ["## Answers", ""]
+    if not run.summary:
+        return [*lines, "No summary.json: the run did not finish its confirmations.", ""]
+    for kind in _ANSWERS:
+        lines += _answer_section(kind, answers.get(kind), targets, tolerance)
+    return lines
+
+
+def _cell(key: str, value: Any) -> str:
+    if "rel_error" in key and isinstance(value, int | float) and not isinstance(value, bool):
+        return _fmt(100 * value, ".1f") + " %" if math.isfinite(value) else "–"
+    return _fmt(value) if isinstance(value, int | float) else str(value)
+
+
+def _rounds_section(run: RunData) -> list[str]:
+    rounds = [r for r in run.summary.get("rounds") or [] if isinstance(r, Mapping)]
+    lines = ["## Surrogate vs FE, per round", ""]
+    if not rounds:
+        return [*lines, "No rounds recorded.", ""]
+    keys = [k for k in _ROUND_ORDER if any(k in r for r in rounds)]
+    keys += sorted({k for r in rounds for k in r} - set(keys))
+    lines += ["| " + " | ".join(keys) + " |", "|" + "---|" * len(keys)]
+    lines += ["| " + " | ".join(_cell(k, r.get(k, "–")) for k in keys) + " |" for r in rounds]
+    lines += [
+        "",
+        "Relative error = (surrogate mean − FE) / |FE| over the scored metrics; a round agrees "
+        "when the surrogate is close enough to FE to trust its ranking.",
+        "",
+    ]
+    return lines
+
+
+def _trust_lines(run: RunData) -> list[str]:
+    lines = []
+    trusted = run.column("trusted")
+    known = trusted[np.isfinite(trusted)]
+    if len(known):
+        lines.append(
+            f"- {int(known.sum())} of {len(known)} trials were trusted by the guard (inside the "
+            "surrogate's training domain and low ensemble disagreement)."
+        )
+    for c in run.confirmations:
+        if c.candidate.flags:
+            where = f"round {c.candidate.round}, trial {c.candidate.trial} ({c.candidate.reason})"
+            lines.append(f"- {where}: " + "; ".join(c.candidate.flags) + ".")
+    return lines
+
+
+def _notes_section(run: RunData) -> list[str]:
+    lines = ["## Trust guard and notes", ""]
+    body = _trust_lines(run) + [f"- {n}" for n in run.summary.get("notes") or []]
+    return [*lines, *(body or ["Nothing to report."]), ""]
+
+
+def _figures_section(paths: Mapping[str, Path]) -> list[str]:
+    lines = ["## Figures", ""]
+    for name in paths:
+        caption = FIGURES.get(name, name)
+        lines += [f"**{name}**: {caption}", "", f"![{name}](figures/{name}.png)", ""]
+    return lines
+
+
+def _study_section(run_dir: Path) -> list[str]:
+    return [
+        "## Explore the study",
+        "",
+        "Every trial of every round is in the Optuna study (`study.db`). Open it with "
+        f"`optuna-dashboard sqlite:///{run_dir.as_posix()}/study.db`; the raw data are in "
+        "`trials.csv`, `confirmations.json` and `fe/records/`.",
+        "",
+    ]
+
+
+def write_report(run_dir: str | Path) -> Path:
+    """Write ``run_dir/report.md`` (and ``run_dir/figures/*.png``); returns the report's path.
+
+    Works on any run folder, also an unfinished or empty one (sections then say what is
+    missing)."""
+    run_dir = Path(run_dir)
+    run = load_run(run_dir)
+    targets = run_targets(run)
+    paths = write_figures(run_dir)
+    lines = [
+        *_intro(run),
+        *_targets_section(targets, run.summary.get("tolerance")),
+        *_answers_section(run, targets),
+        *_rounds_section(run),
+        *_notes_section(run),
+        *_study_section(run_dir),
+        *_figures_section(paths),
+    ]
+    path = run_dir / "report.md"
+    path.write_text("\n".join(lines).rstrip() + "\n", encoding="utf-8")
+    return path

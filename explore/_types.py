@@ -1,0 +1,170 @@
+"""The data that flows through a search run (candidate -> confirmation -> summary).
+
+A run folder ``runs/NAME`` written by ``fingertip optimize`` / ``fingertip run`` holds:
+
+- ``config.json``, ``meta.json``: the resolved configuration and provenance.
+- ``study.db``: the Optuna studies (SQLite; ``optuna-dashboard sqlite:///runs/NAME/study.db``).
+- ``trials.csv``: every finished trial of every round, one row each: ``round``, ``trial``,
+  ``search`` ("continuous" | "buildable"), the design-space parameters (inactive = empty),
+  ``score``, ``compliance_error``, ``hysteresis_error``, ``wedge_effort`` (explore._objective),
+  ``pred.<metric>`` / ``std.<metric>`` (surrogate mean and std, metric units), ``in_domain``,
+  ``disagreement`` and ``trusted`` (0/1).
+- ``fe/records/<key>.json``: FE records of the confirmed designs (the sweep's record form, with
+  ``curves``), and ``fe/references/<name>.json``: silicone and polyurethane on the reference
+  geometry (same form) for the plots.
+- ``confirmations.json``: a list of ``Confirmation.to_json()``.
+- ``summary.json``: ``Summary.to_json()``; ``report.md`` and ``figures/*.png``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["Candidate", "Confirmation", "Summary"]
+
+
+def _num(x: Any) -> float | None:
+    """A JSON-safe float (NaN/inf -> None)."""
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A design proposed by the search for FE confirmation.
+
+    ``point``: the design-space point (parameter name -> value; inactive = NaN or "").
+    ``reason``: why it was chosen — "best" (among the lowest predicted scores),
+    "uncertain" (promising but with a wide predictive interval) or "buildable" (best of the
+    catalogue-only search). ``predicted``: metric -> {"mean", "std", "lower_90", "upper_90"}
+    in the metric's unit. ``score``: predicted closeness (explore._objective, lower is better).
+    ``disagreement``: the largest relative ensemble spread std/|mean| over the scored metrics.
+    ``flags``: trust-guard notes ("out of domain: ...", "high disagreement 0.12 > 0.05").
+    """
+
+    point: dict[str, Any]
+    reason: str
+    round: int
+    trial: int
+    search: str
+    score: float
+    predicted: dict[str, dict[str, float | None]]
+    in_domain: bool
+    disagreement: float
+    flags: tuple[str, ...] = ()
+
+    @property
+    def trusted(self) -> bool:
+        return not self.flags
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "point": {
+                k: (None if isinstance(v, float) and math.isnan(v) else v)
+                for k, v in self.point.items()
+            },
+            "reason": self.reason,
+            "round": self.round,
+            "trial": self.trial,
+            "search": self.search,
+            "score": _num(self.score),
+            "predicted": self.predicted,
+            "in_domain": self.in_domain,
+            "disagreement": _num(self.disagreement),
+            "flags": list(self.flags),
+            "trusted": self.trusted,
+        }
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> Candidate:
+        point = {k: (math.nan if v is None else v) for k, v in d["point"].items()}
+        return cls(
+            point=point,
+            reason=d["reason"],
+            round=int(d["round"]),
+            trial=int(d["trial"]),
+            search=d["search"],
+            score=math.inf if d["score"] is None else float(d["score"]),
+            predicted=d["predicted"],
+            in_domain=bool(d["in_domain"]),
+            disagreement=math.nan if d["disagreement"] is None else float(d["disagreement"]),
+            flags=tuple(d.get("flags", ())),
+        )
+
+
+@dataclass(frozen=True)
+class Confirmation:
+    """A candidate re-run with full FE and compared with its prediction.
+
+    ``key``: the FE record (``fe/records/<key>.json``); ``status``: "ok" | "failed";
+    ``fe_metrics``: metric -> value (None: not reached / failed), the names of
+    ``fingertip simulate --json``; ``fe_score``: closeness of the FE metrics;
+    ``rel_error``: metric -> (surrogate mean - FE) / |FE|; ``inside_90``: metric -> whether the
+    FE value lies in the predicted 90 % interval.
+    """
+
+    candidate: Candidate
+    key: str
+    status: str
+    reason: str
+    fe_metrics: dict[str, float | None]
+    fe_score: float
+    rel_error: dict[str, float | None] = field(default_factory=dict)
+    inside_90: dict[str, bool | None] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "candidate": self.candidate.to_json(),
+            "key": self.key,
+            "status": self.status,
+            "reason": self.reason,
+            "fe_metrics": {k: _num(v) for k, v in self.fe_metrics.items()},
+            "fe_score": _num(self.fe_score),
+            "rel_error": {k: _num(v) for k, v in self.rel_error.items()},
+            "inside_90": self.inside_90,
+        }
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> Confirmation:
+        return cls(
+            candidate=Candidate.from_json(d["candidate"]),
+            key=d["key"],
+            status=d["status"],
+            reason=d.get("reason", ""),
+            fe_metrics=d["fe_metrics"],
+            fe_score=math.inf if d["fe_score"] is None else float(d["fe_score"]),
+            rel_error=d.get("rel_error", {}),
+            inside_90=d.get("inside_90", {}),
+        )
+
+
+@dataclass(frozen=True)
+class Summary:
+    """The answer of a run: the best FE-confirmed design and the best buildable one.
+
+    Each entry of ``answers`` ("best", "buildable") is a dict with ``design`` (the design-file
+    form, ``sim.Design.to_dict()``), ``point``, ``predicted`` (mean/std/lower_90/upper_90 per
+    metric), ``fe_metrics`` (as ``fingertip simulate --json``), ``fe_score``, ``errors_vs_targets``
+    (relative error per tapping target, FE) and ``within_tolerance`` (per target, bool), or None
+    when no design of that kind was confirmed. ``targets``: the target values; ``notes``: what
+    was missed and why.
+    """
+
+    answers: dict[str, dict[str, Any] | None]
+    targets: dict[str, float]
+    tolerance: float
+    rounds: list[dict[str, Any]]
+    notes: list[str]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "answers": self.answers,
+            "targets": self.targets,
+            "tolerance": self.tolerance,
+            "rounds": self.rounds,
+            "notes": self.notes,
+        }

@@ -1,0 +1,442 @@
+"""Design-space figures and the run report: the numbers behind every figure (info objects)."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import itertools
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import optuna
+import pytest
+
+from explore._objective import closeness
+from explore._plots import (
+    FIGURES,
+    importance_info,
+    load_run,
+    loops_info,
+    parallel_info,
+    pareto_front_indices,
+    pareto_info,
+    parity_info,
+    projections_info,
+    wedge_info,
+    write_figures,
+)
+from explore._report import write_report
+from explore._types import Candidate, Confirmation
+from sim.targets import Targets
+
+HUMAN = {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
+F_REF = 2.35  # explore._objective.WEDGE_REFERENCE_N
+PARAMS = ("geometry.half_width_mm", "skin.thickness_mm", "core.material", "core.mu0_MPa")
+NUMERIC = ("geometry.half_width_mm", "skin.thickness_mm", "core.mu0_MPa", "core.g_total")
+N_TRIALS = 40
+INF_ROW = 5  # a trial whose score is infinite (a failed prediction)
+# Hand-checked objectives of the first rows; every other row is >= 0.6 in all three, so the
+# non-dominated set is exactly rows 0-3 (rows 0 and 3 are equal: neither dominates the other).
+FRONT_ROWS = {
+    0: (0.01, 0.5, 0.5),
+    1: (0.5, 0.01, 0.5),
+    2: (0.5, 0.5, 0.01),
+    3: (0.01, 0.5, 0.5),
+    4: (math.nan, 0.1, 0.1),  # not finite: left out
+}
+# Confirmations: FE metrics as factors of the targets (wedge as a factor of F_REF), and the
+# surrogate's disp_at_1N_mm prediction (mean, lower_90, upper_90) for the parity check.
+CONFIRMED = (
+    ("best", 7, (1.1, 0.9, 1.2, 0.5), (2.1, 1.9, 2.3)),  # FE 2.013: inside
+    ("uncertain", 11, (0.8, 1.0, 0.9, 1.0), (1.7, 1.6, 1.8)),  # FE 1.464: below
+    ("buildable", 3, (0.5, 0.6, 0.3, 2.0), (0.85, 0.8, 0.9)),  # FE 0.915: above
+)
+
+
+def _objective(trial: optuna.Trial) -> float:
+    """Cheap analytic score: the skin thickness dominates by far."""
+    hw = trial.suggest_float("geometry.half_width_mm", 5.0, 7.0)
+    t = trial.suggest_float("skin.thickness_mm", 0.2, 1.5)
+    score = 5.0 * (t - 0.6) ** 2 + 0.002 * (hw - 6.0) ** 2 + 0.01
+    if trial.suggest_categorical("core.material", ["param", "silicone_gls40"]) == "param":
+        mu = trial.suggest_float("core.mu0_MPa", 0.001, 0.3, log=True)
+        g = trial.suggest_float("core.g_total", 0.0, 0.9)
+        score += 0.001 * abs(math.log10(mu)) + 0.001 * g
+    trial.set_user_attr("score", score)
+    return score
+
+
+def _tapping(scale: float) -> dict[str, list[float]]:
+    t = np.linspace(0.0, 1.0, 41)
+    force = 4.5 * np.sin(np.pi * t)
+    disp = 0.05 + scale * (np.sqrt(force / 4.5) + 0.1 * np.sin(2 * np.pi * t) ** 2 * (t > 0.5))
+    return {"time_s": t.tolist(), "displacement_mm": disp.tolist(), "force_N": force.tolist()}
+
+
+def _record(key: str, metrics: dict[str, float], scale: float) -> dict:
+    time = np.concatenate([np.linspace(0, 1, 21), np.linspace(2, 100, 10)])
+    wedge = metrics["wedge_peak_force_N"] * np.minimum(time, 1.0) * (1 - 0.002 * time)
+    dist = np.arange(0, 7.0, 0.1)
+    profile = {"distance_mm": dist.tolist(), "deflection_mm": (scale * np.exp(-dist)).tolist()}
+    return {
+        "key": key,
+        "status": "ok",
+        "metrics": metrics,
+        "curves": {
+            "tapping": _tapping(scale),
+            "plate": {"displacement_mm": [0.0, 0.5, 1.0], "force_N": [0.0, 5.0, 20.0]},
+            "wedge": {"time_s": time.tolist(), "force_N": wedge.tolist()},
+            "profile_1s": profile,
+            "profile_100s": profile,
+        },
+    }
+
+
+def _metrics(factors: tuple[float, float, float, float]) -> dict[str, float]:
+    values = [HUMAN[k] * f for k, f in zip(HUMAN, factors[:3], strict=True)]
+    return {**dict(zip(HUMAN, values, strict=True)), "wedge_peak_force_N": F_REF * factors[3]}
+
+
+def _confirmations(run: Path) -> list[Confirmation]:
+    out = []
+    for k, (reason, trial, factors, (mean, lo, hi)) in enumerate(CONFIRMED):
+        metrics = _metrics(factors)
+        predicted = {
+            m: {"mean": 1.05 * v, "std": 0.05 * v, "lower_90": 0.9 * v, "upper_90": 1.1 * v}
+            for m, v in metrics.items()
+        }
+        predicted["disp_at_1N_mm"] = {"mean": mean, "std": 0.1, "lower_90": lo, "upper_90": hi}
+        flags = ("high disagreement 0.12 > 0.05",) if k == 1 else ()
+        point = {"geometry.half_width_mm": 6.0, "skin.thickness_mm": 0.3 + 0.2 * k}
+        core = {"core.mu0_MPa": 0.01, "core.g_total": 0.3} if reason != "buildable" else {}
+        point |= {"core.material": "param" if core else "silicone_gls40", **core}
+        cand = Candidate(point, reason, 0, trial, "continuous", 0.1, predicted, True, 0.01, flags)
+        score = float(closeness(metrics, Targets(values=HUMAN)).score)
+        out.append(Confirmation(cand, f"key{k}", "ok", "", metrics, score))
+        record = _record(f"key{k}", metrics, 1.0 + k)
+        (run / "fe" / "records" / f"key{k}.json").write_text(json.dumps(record))
+    wide = {"disp_at_1N_mm": {"mean": 1.0, "lower_90": 0.0, "upper_90": 9.0}}
+    failed = Candidate(
+        {"skin.thickness_mm": 1.4}, "uncertain", 0, 20, "continuous", 0.2, wide, False, 0.3
+    )
+    out.append(Confirmation(failed, "key_failed", "failed", "did not converge", {}, math.inf))
+    return out
+
+
+def _write_trials(run: Path, study: optuna.Study) -> None:
+    rng = np.random.default_rng(0)
+    objective_names = ("compliance_error", "hysteresis_error", "wedge_effort")
+    surrogate = ("pred.disp_at_1N_mm", "std.disp_at_1N_mm", "in_domain", "disagreement")
+    header = [
+        "round",
+        "trial",
+        "search",
+        *PARAMS,
+        "core.g_total",
+        "score",
+        *objective_names,
+        *surrogate,
+        "trusted",
+    ]
+    with (run / "trials.csv").open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, header)
+        writer.writeheader()
+        for t in study.trials:
+            objs = FRONT_ROWS.get(t.number, tuple(0.6 + rng.random(3)))
+            score = math.inf if t.number == INF_ROW else t.user_attrs["score"]
+            row = dict(zip(surrogate, (1.5, 0.1, 1, 0.01), strict=True))
+            row |= {"round": 0, "trial": t.number, "search": "continuous", "score": score}
+            row["trusted"] = int(t.number % 4 != 0)
+            for name, v in zip(objective_names, objs, strict=True):
+                row[name] = "" if math.isnan(v) else v
+            row |= {p: t.params.get(p, "") for p in (*PARAMS, "core.g_total")}
+            writer.writerow(row)
+
+
+def _summary(confirmations: list[Confirmation]) -> dict:
+    best, buildable = confirmations[0], confirmations[2]
+    design_best = {
+        "geometry": {"half_width_mm": 6.1, "height_mm": 5.2, "exponent": 1.7},
+        "layers": [
+            {"thickness_mm": 0.5, "material": "silicone_gls40"},
+            {
+                "material": {
+                    "model": "hyperfoam",
+                    "mu_MPa": [0.012],
+                    "alpha": [4.2],
+                    "nu": 0.48,
+                    "prony_g": [0.2, 0.2, 0.2],
+                    "prony_tau_s": [0.1, 1.0, 10.0],
+                }
+            },
+        ],
+    }
+    design_build = {
+        "geometry": {"half_width_mm": 5.84, "height_mm": 5.48, "exponent": 1.5},
+        "layers": [{"material": "ecoflex_0010_dawood"}],
+    }
+
+    def answer(c: Confirmation, design: dict) -> dict:
+        errors = {k: c.fe_metrics[k] / HUMAN[k] - 1 for k in HUMAN}
+        within = {k: abs(e) <= 0.15 for k, e in errors.items()}
+        return {
+            "design": design,
+            "point": c.candidate.point,
+            "predicted": c.candidate.predicted,
+            "fe_metrics": c.fe_metrics,
+            "fe_score": c.fe_score,
+            "errors_vs_targets": errors,
+            "within_tolerance": within,
+        }
+
+    return {
+        "answers": {
+            "best": answer(best, design_best),
+            "buildable": answer(buildable, design_build),
+        },
+        "targets": HUMAN,
+        "tolerance": 0.15,
+        "rounds": [
+            {
+                "round": 0,
+                "n_confirmed": 4,
+                "max_rel_error": 0.16,
+                "median_rel_error": 0.05,
+                "agreed": False,
+            }
+        ],
+        "notes": ["The best design's hysteresis is 20 % above the target."],
+    }
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A small finished run: 40 trials, 3 confirmed designs + 1 failed, 2 references."""
+    run = tmp_path_factory.mktemp("run")
+    (run / "fe" / "records").mkdir(parents=True)
+    (run / "fe" / "references").mkdir()
+    storage = f"sqlite:///{run}/study.db"
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    # optimised in memory, then stored in one go: a trial-by-trial SQLite commit is ~10x slower
+    scratch = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=3))
+    scratch.optimize(_objective, n_trials=N_TRIALS)
+    study = optuna.create_study(storage=storage, study_name="r0-continuous")
+    study.add_trials(scratch.trials)
+    _write_trials(run, study)
+    confirmations = _confirmations(run)
+    (run / "confirmations.json").write_text(json.dumps([c.to_json() for c in confirmations]))
+    for name, scale in (("silicone_gls40", 0.3), ("polyurethane_74_45", 0.2)):
+        metrics = _metrics((0.2, 0.3, 0.1, 1.0 + scale))
+        rec = _record(name, metrics, scale)
+        (run / "fe" / "references" / f"{name}.json").write_text(json.dumps(rec))
+    (run / "summary.json").write_text(json.dumps(_summary(confirmations)))
+    studies = [
+        {"name": "r0-buildable", "search": "buildable", "round": 0, "directions": ["minimize"]},
+        {"name": "r0-continuous", "search": "continuous", "round": 0, "directions": ["minimize"]},
+    ]
+    config = {"targets": HUMAN, "storage": storage, "studies": studies}
+    (run / "config.json").write_text(json.dumps(config))
+    return run
+
+
+def _dominates(a: np.ndarray, b: np.ndarray) -> bool:
+    return bool(np.all(a <= b) and np.any(a < b))
+
+
+# ---------------------------------------------------------------------------------------------
+
+
+def test_load_run_reads_every_file_and_marks_inactive_as_nan(run_dir: Path) -> None:
+    run = load_run(run_dir)
+    assert run.n_trials == N_TRIALS
+    assert set(run.params) == {*PARAMS, "core.g_total"}
+    assert set(run.numeric_params) == set(NUMERIC)  # the categorical and pred./std. left out
+    assert len(run.confirmations) == 4
+    assert set(run.records) == {"key0", "key1", "key2"}  # the failed one has no record
+    assert set(run.references) == {"silicone_gls40", "polyurethane_74_45"}
+    inactive = run.trials["core.material"] != "param"
+    assert inactive.any() and (~inactive).any()
+    assert np.all(np.isnan(run.trials["core.mu0_MPa"][inactive]))
+    assert np.all(np.isfinite(run.trials["core.mu0_MPa"][~inactive]))
+    assert math.isinf(run.column("score")[INF_ROW])
+
+
+def test_pareto_front_of_a_hand_checked_example() -> None:
+    points = np.array(
+        [
+            [1.0, 2.0, 3.0],  # 0: front
+            [2.0, 1.0, 3.0],  # 1: front
+            [2.0, 2.0, 3.0],  # 2: dominated by 0 and 1
+            [1.0, 2.0, 3.0],  # 3: equal to 0, so not dominated
+            [0.5, 5.0, 5.0],  # 4: front (best first objective)
+            [3.0, 3.0, 0.0],  # 5: front (best third objective)
+            [3.0, 3.0, 0.5],  # 6: dominated by 5
+        ]
+    )
+    assert pareto_front_indices(points).tolist() == [0, 1, 3, 4, 5]
+    assert pareto_front_indices(np.zeros((0, 3))).tolist() == []
+
+
+@pytest.mark.parametrize("chunk", [1, 7, 1024])
+def test_pareto_front_is_exactly_the_non_dominated_set(chunk: int) -> None:
+    points = np.round(np.random.default_rng(1).random((60, 3)), 1)  # rounding makes ties
+    front = set(pareto_front_indices(points, chunk=chunk).tolist())
+    for i, j in itertools.product(range(len(points)), repeat=2):
+        if i in front:
+            assert not _dominates(points[j], points[i])
+    for i in set(range(len(points))) - front:
+        assert any(_dominates(points[j], points[i]) for j in front)
+
+
+def test_pareto_info_finds_the_planted_front_and_recomputes_fe_objectives(run_dir: Path) -> None:
+    info = pareto_info(load_run(run_dir))
+    # row 4 has a NaN objective and is dropped (INF_ROW has an infinite score, finite objectives)
+    assert len(info.points) == N_TRIALS - 1 and 4 not in info.rows.tolist()
+    assert info.rows[info.front].tolist() == [0, 1, 2, 3]
+    for i in info.front:
+        assert not any(_dominates(p, info.points[i]) for p in info.points)
+    # FE objectives of the first confirmation: errors +10 %, -10 %, +20 %, wedge 0.5 F_ref
+    assert len(info.confirmed) == 3  # the failed confirmation is left out
+    np.testing.assert_allclose(info.confirmed[0], [0.1, 0.2, 0.5], rtol=1e-12)
+    assert info.confirmed_labels[0] == "best r0/t7"
+
+
+def test_parallel_coordinates_are_normalised_with_nan_for_inactive(run_dir: Path) -> None:
+    run = load_run(run_dir)
+    info = parallel_info(run)
+    ok = np.isfinite(run.column("score"))
+    assert info.params == run.numeric_params
+    assert info.values.shape == (ok.sum(), len(info.params))
+    for k, name in enumerate(info.params):
+        col = info.values[:, k]
+        raw = run.trials[name][ok]
+        np.testing.assert_array_equal(np.isnan(col), np.isnan(raw))
+        assert np.nanmin(col) == 0.0 and np.nanmax(col) == 1.0
+        lo, hi = info.low[k], info.high[k]
+        back = lo * (hi / lo) ** col if info.log[k] else lo + col * (hi - lo)
+        np.testing.assert_allclose(back, raw)
+        assert info.log[k] == (name == "core.mu0_MPa")  # 0.001-0.3 MPa spans decades
+    n_best = math.ceil(0.1 * ok.sum())
+    assert info.best.sum() == n_best
+    assert info.score[info.best].max() <= info.score[~info.best].min()
+
+
+def test_parity_inside_fraction_and_median_error_match_a_hand_computation(run_dir: Path) -> None:
+    info = parity_info(load_run(run_dir))
+    by_name = {m.name: m for m in info.metrics}
+    assert set(by_name) == {*HUMAN, "wedge_peak_force_N"}
+    d1 = by_name["disp_at_1N_mm"]
+    assert len(d1.fe) == 3  # status ok only
+    assert d1.inside_fraction == pytest.approx(1 / 3)  # one inside, one below, one above
+    fe = np.array([1.83 * 1.1, 1.83 * 0.8, 1.83 * 0.5])
+    rel = np.abs(np.array([2.1, 1.7, 0.85]) - fe) / fe  # 4.3 %, 16.1 %, 7.1 %
+    assert d1.median_abs_rel_error == pytest.approx(np.median(rel))
+    assert d1.median_abs_rel_error == pytest.approx(0.065 / 0.915)
+    wedge = by_name["wedge_peak_force_N"]
+    assert wedge.inside_fraction == 1.0 and wedge.median_abs_rel_error == pytest.approx(0.05)
+
+
+def test_loops_show_best_designs_references_and_the_human_targets(run_dir: Path) -> None:
+    run = load_run(run_dir)
+    info = loops_info(run, n_best=2)
+    assert info.target_points == ((1.83, 1.0), (2.91, 4.0))
+    assert info.target_hysteresis_Nmm == 2.26
+    designs = [c for c in info.curves if c.role == "design"]
+    refs = [c for c in info.curves if c.role == "reference"]
+    # lowest FE score first: "best" (0.05 wedge term + rms 0.141) before "uncertain"
+    assert [c.label.split(" (")[0] for c in designs] == ["best r0/t7", "uncertain r0/t11"]
+    assert {c.label for c in refs} == {"silicone_gls40", "polyurethane_74_45"}
+    tap = run.records["key0"]["curves"]["tapping"]
+    np.testing.assert_array_equal(designs[0].x, tap["displacement_mm"])
+    np.testing.assert_array_equal(designs[0].y, tap["force_N"])
+    assert designs[0].value == pytest.approx(2.26 * 1.2)  # the record's hysteresis
+    assert max(c.y.max() for c in info.curves) >= 4.0  # the loops reach the 4 N target
+
+
+def test_first_touch_loops_start_at_zero_displacement(run_dir: Path) -> None:
+    run = load_run(run_dir)
+    targets = {**HUMAN, "displacement_reading": "from_first_touch"}
+    touch = dataclasses.replace(run, config={**run.config, "targets": targets})
+    info = loops_info(touch, n_best=1)
+    assert info.reading == "from_first_touch"
+    assert all(c.x[0] == 0.0 for c in info.curves)
+
+
+def test_wedge_info_has_the_same_designs_with_force_and_profiles(run_dir: Path) -> None:
+    info = wedge_info(load_run(run_dir), n_best=3)
+    assert len(info.force) == len(info.profile_1s) == len(info.profile_100s) == 5
+    peaks = [c.value for c in info.force if c.role == "design"]
+    np.testing.assert_allclose(peaks, [F_REF * f for f in (0.5, 1.0, 2.0)])
+    for c in info.force:
+        assert c.y.max() == pytest.approx(c.value, rel=0.01)  # curve peak = recorded peak
+    assert all(c.x[0] == 0.0 and np.all(np.diff(c.x) > 0) for c in info.profile_1s)
+
+
+def test_importance_ranks_the_dominant_parameter_first(run_dir: Path) -> None:
+    info = importance_info(load_run(run_dir))
+    assert info.study_name == "r0-continuous"  # the first *continuous* study, not buildable
+    assert info.names[0] == "skin.thickness_mm"
+    assert sum(info.importances) == pytest.approx(1.0)
+    assert list(info.importances) == sorted(info.importances, reverse=True)
+
+
+def test_projections_follow_importance_and_drop_infinite_scores(run_dir: Path) -> None:
+    run = load_run(run_dir)
+    importance = importance_info(run)
+    info = projections_info(run, top=4, importance=importance)
+    expected = [n for n in importance.names if n in run.numeric_params]
+    assert list(info.params) == expected and info.ranked_by == "importance"
+    assert info.params[0] == "skin.thickness_mm" and len(info.pairs) == 6
+    full = next(p for p in info.pairs if "core." not in p.x_name + p.y_name)
+    assert len(full.x) == N_TRIALS - 1  # the infinite score is left out
+    assert np.all(np.isfinite(full.score))
+    assert len(full.confirmed_x) == len(full.confirmed_y) == 3  # FE status ok only
+    assert np.all(np.isfinite(full.confirmed_x) & np.isfinite(full.confirmed_y))
+    mu = next(p for p in info.pairs if "core.mu0_MPa" in (p.x_name, p.y_name))
+    coords = mu.confirmed_x if mu.x_name == "core.mu0_MPa" else mu.confirmed_y
+    np.testing.assert_array_equal(coords, [0.01, 0.01, np.nan])  # buildable: no param core
+    assert (mu.x_log, mu.y_log) == (mu.x_name == "core.mu0_MPa", mu.y_name == "core.mu0_MPa")
+
+
+def test_projections_fall_back_to_variation_without_a_study(tmp_path: Path, run_dir: Path) -> None:
+    run = load_run(run_dir)
+    missing = tmp_path / "nowhere.db"
+    config = {**run.config, "storage": f"sqlite:///{missing}"}
+    no_study = dataclasses.replace(run, run_dir=tmp_path, config=config)
+    importance = importance_info(no_study)
+    assert importance.empty and not missing.exists()  # loading must not create a database
+    info = projections_info(no_study, top=2, importance=importance)
+    assert info.ranked_by == "variation" and len(info.pairs) == 1
+
+
+def test_report_writes_every_figure_and_links_it(run_dir: Path) -> None:
+    text = write_report(run_dir).read_text()  # calls write_figures (rendering twice is slow)
+    assert sorted(p.stem for p in (run_dir / "figures").glob("*.png")) == sorted(FIGURES)
+    for name in FIGURES:
+        png = (run_dir / "figures" / f"{name}.png").read_bytes()
+        assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
+    assert "Best design" in text and "Best buildable design" in text
+    assert "silicone_gls40" in text and "ecoflex_0010_dawood" in text
+    assert "| `hysteresis_Nmm` | 2.26 | 2.71 | +20.0 % | ✗ |" in text
+    for name in FIGURES:
+        assert f"(figures/{name}.png)" in text
+    assert f"optuna-dashboard sqlite:///{run_dir.as_posix()}/study.db" in text
+    assert "high disagreement 0.12 > 0.05" in text and "20 % above the target" in text
+
+
+def test_an_empty_run_folder_does_not_crash(tmp_path: Path) -> None:
+    (tmp_path / "config.json").write_text(json.dumps({"targets": HUMAN}))
+    run = load_run(tmp_path)
+    assert run.n_trials == 0 and not run.confirmations and not run.summary
+    assert pareto_info(run).empty and parallel_info(run).empty and parity_info(run).empty
+    assert importance_info(run).empty and projections_info(run).empty
+    assert loops_info(run).target_points and not loops_info(run).curves
+    paths = write_figures(tmp_path)
+    assert list(paths) == list(FIGURES)
+    assert all(p == tmp_path / "figures" / f"{n}.png" for n, p in paths.items())
+    assert all(p.read_bytes()[:4] == b"\x89PNG" for p in paths.values())
+    text = write_report(tmp_path).read_text()
+    assert "No summary.json" in text and "(figures/parity.png)" in text
+    assert not (tmp_path / "study.db").exists()
