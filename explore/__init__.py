@@ -1,0 +1,55 @@
+"""Search the design space for human-like skins: Optuna on the surrogate, FE confirmation,
+active learning, design-space plots and the ``fingertip`` command line.
+
+Public API::
+
+    optimize(OptimizeConfig(...), out) -> Summary     # fingertip optimize / run
+    closeness(metrics, targets), objectives(c)         # the documented closeness score
+    write_figures(run_dir), write_report(run_dir)      # fingertip report
+    Candidate, Confirmation, Summary                   # the data of a run folder
+
+Importing this package is cheap; Optuna, torch and matplotlib load on first use.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+from ._objective import WEDGE_REFERENCE_N, WEDGE_WEIGHT, Closeness, closeness, objectives
+from ._types import Candidate, Confirmation, Summary
+
+if TYPE_CHECKING:
+    from ._pipeline import DEFAULT_CHECKPOINT, OptimizeConfig, optimize
+    from ._plots import write_figures
+    from ._report import write_report
+
+__all__ = [
+    "DEFAULT_CHECKPOINT",
+    "WEDGE_REFERENCE_N",
+    "WEDGE_WEIGHT",
+    "Candidate",
+    "Closeness",
+    "Confirmation",
+    "OptimizeConfig",
+    "Summary",
+    "closeness",
+    "objectives",
+    "optimize",
+    "write_figures",
+    "write_report",
+]
+
+_LAZY = {
+    "DEFAULT_CHECKPOINT": "_pipeline",
+    "OptimizeConfig": "_pipeline",
+    "optimize": "_pipeline",
+    "write_figures": "_plots",
+    "write_report": "_report",
+}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        return getattr(import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -220,7 +220,181 @@ def _add_predict(sub) -> None:
     p.set_defaults(func=_cmd_predict)
 
 
-_SUBCOMMANDS: list[Callable] = [_add_simulate, _add_sweep, _add_train, _add_predict]
+def _optimize_config(args: argparse.Namespace):
+    from explore._pipeline import OptimizeConfig
+
+    fields = {
+        "surrogate": str(args.surrogate) if args.surrogate else None,
+        "space": str(args.space) if args.space else None,
+        "targets": str(args.targets) if args.targets else None,
+        "trials": args.trials,
+        "buildable_trials": args.buildable_trials,
+        "confirm": args.confirm,
+        "uncertain": args.uncertain,
+        "rounds": args.rounds,
+        "tolerance": args.tolerance,
+        "mode": args.mode,
+        "max_disagreement": args.max_disagreement,
+        "storage": args.storage,
+        "study": args.study,
+        "seed": args.seed,
+        "workers": args.workers,
+        "dataset": str(args.dataset) if args.dataset else None,
+    }
+    base = OptimizeConfig()
+    return OptimizeConfig(
+        **{k: v for k, v in fields.items() if v is not None or getattr(base, k) is None}
+    )
+
+
+def _finish(out, progress: bool) -> int:
+    from explore._report import write_report
+
+    summary = json.loads((out / "summary.json").read_text())
+    report = write_report(out)
+    for kind, label in (("best", "best design"), ("buildable", "best buildable design")):
+        a = summary["answers"].get(kind)
+        if a is None:
+            print(f"{label}: none confirmed by FE")
+            continue
+        errs = ", ".join(
+            f"{m} {100 * e:+.1f} %{'' if a['within_tolerance'][m] else ' (outside)'}"
+            for m, e in a["errors_vs_targets"].items()
+        )
+        print(f"{label} (FE): {errs}; wedge peak {a['fe_metrics']['wedge_peak_force_N']:.3g} N")
+    for note in summary["notes"]:
+        print(f"  {note}")
+    print(f"report: {report}")
+    return 0
+
+
+def _cmd_optimize(args: argparse.Namespace) -> int:
+    from explore._pipeline import optimize
+
+    config = _optimize_config(args)
+    optimize(config, args.out, progress=not args.no_progress)
+    return _finish(args.out, not args.no_progress)
+
+
+def _add_search_options(p, *, defaults_note: str = "") -> None:
+    from pathlib import Path
+
+    from explore._pipeline import OptimizeConfig
+
+    d = OptimizeConfig()
+    p.add_argument("--surrogate", type=Path, help="checkpoint (default: the shipped one)")
+    p.add_argument("--space", type=Path, help="design-space TOML inside the surrogate's space")
+    p.add_argument("--targets", type=Path, help="targets TOML (default: the human fingertip)")
+    p.add_argument("--trials", type=int, help=f"surrogate trials per round (default {d.trials})")
+    p.add_argument(
+        "--buildable-trials",
+        type=int,
+        help=f"catalogue-only trials per round, 0 = none (default {d.buildable_trials})",
+    )
+    p.add_argument("--confirm", type=int, help=f"best designs FE-confirmed per round ({d.confirm})")
+    p.add_argument(
+        "--uncertain", type=int, help=f"flagged promising designs FE-run per round ({d.uncertain})"
+    )
+    p.add_argument("--rounds", type=int, help=f"active-learning rounds at most ({d.rounds})")
+    p.add_argument(
+        "--tolerance",
+        type=float,
+        help=f"surrogate-FE agreement to stop, and target closeness ({d.tolerance})",
+    )
+    p.add_argument("--mode", choices=["single", "multi"], help="one score or a Pareto front")
+    p.add_argument(
+        "--max-disagreement",
+        type=float,
+        help=f"trust guard: ensemble std/|mean| above this is flagged ({d.max_disagreement})",
+    )
+    p.add_argument("--storage", help="Optuna storage URL (default: sqlite in the run folder)")
+    p.add_argument("--study", help=f"study name prefix (default {d.study})")
+    p.add_argument("--seed", type=int)
+    p.add_argument("--workers", type=int, help=f"FE processes (default {d.workers})")
+    p.add_argument("--dataset", type=Path, help="the surrogate's training sweep (retraining)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+
+
+def _add_optimize(sub) -> None:
+    from pathlib import Path
+
+    p = sub.add_parser(
+        "optimize", help="search the surrogate, confirm with FE, retrain (resumable)"
+    )
+    _add_search_options(p)
+    p.add_argument("--out", type=Path, required=True, help="run folder (resumes if it exists)")
+    p.set_defaults(func=_cmd_optimize)
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from explore._pipeline import optimize
+
+    progress = not args.no_progress
+    if args.from_scratch:
+        from sim.space import load_space
+        from sim.sweep import run_sweep
+        from surrogate import train_surrogate
+        from surrogate._run import CHECKPOINT_NAME
+
+        sweep = args.out.parent / f"{args.out.name}-sweep"
+        run_sweep(load_space(), args.n, sweep, workers=args.workers or 2, seed=0,
+                  progress=progress)  # fmt: skip
+        trained = args.out.parent / f"{args.out.name}-surrogate"
+        ckpt = trained / CHECKPOINT_NAME
+        if not ckpt.exists():
+            train_surrogate(sweep, trained, seed=0, progress=progress)
+        args.surrogate, args.dataset = ckpt, sweep
+    config = _optimize_config(args)
+    optimize(config, args.out, progress=progress)
+    return _finish(args.out, progress)
+
+
+def _add_run(sub) -> None:
+    from pathlib import Path
+
+    p = sub.add_parser(
+        "run",
+        help="the main job: shipped surrogate -> search -> FE confirmation -> report",
+    )
+    _add_search_options(p)
+    p.add_argument(
+        "--out", type=Path, default=Path("runs/main"), help="run folder (default runs/main)"
+    )
+    p.add_argument(
+        "--from-scratch",
+        action="store_true",
+        help="sweep the default space and train a surrogate first (about two hours)",
+    )
+    p.add_argument("--n", type=int, default=2048, help="designs of the --from-scratch sweep")
+    p.set_defaults(func=_cmd_run)
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from explore._report import write_report
+
+    if not (args.run / "config.json").exists():
+        raise UsageError(f"report: {args.run} is not a search run folder (no config.json)")
+    print(f"report: {write_report(args.run)}")
+    return 0
+
+
+def _add_report(sub) -> None:
+    from pathlib import Path
+
+    p = sub.add_parser("report", help="write the one-page report of a search run")
+    p.add_argument("run", type=Path, help="run folder of fingertip optimize / run")
+    p.set_defaults(func=_cmd_report)
+
+
+_SUBCOMMANDS: list[Callable] = [
+    _add_simulate,
+    _add_sweep,
+    _add_train,
+    _add_predict,
+    _add_optimize,
+    _add_run,
+    _add_report,
+]
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,153 @@
+"""FE confirmation of candidates: full simulations, cached per design, compared with the
+surrogate's predictions.
+
+Each candidate's FE record is written atomically to ``fe/records/<key>.json`` (the key of
+``sim.sweep.record_key``: design + options + solver version), so a killed run recomputes
+nothing it already has. References (the paper's silicone and polyurethane on the reference
+geometry) go to ``fe/references/<name>.json`` for the plots.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
+from typing import Any
+
+from sim import SimOptions
+from sim.geometry import REFERENCE_GEOMETRY
+from sim.sweep import evaluate_point, record_key
+from sim.targets import Targets
+
+from ._objective import closeness
+from ._types import Candidate, Confirmation
+
+__all__ = ["REFERENCES", "compare", "confirm", "reference_point", "run_fe"]
+
+REFERENCES = ("silicone_gls40", "polyurethane_74_45")
+
+
+def reference_point(material: str) -> dict[str, Any]:
+    """A one-layer catalogue design on the reference geometry, as a design point."""
+    g = REFERENCE_GEOMETRY
+    return {
+        "geometry.half_width_mm": g.half_width_mm,
+        "geometry.height_mm": g.height_mm,
+        "geometry.exponent": g.exponent,
+        "layers.count": 1,
+        "core.material": material,
+    }
+
+
+def _write(path: Path, record: dict) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(record, allow_nan=False))
+    tmp.replace(path)
+
+
+def _full_point(point: dict[str, Any]) -> dict[str, Any]:
+    """A point with every missing layer entry set inactive (references name only what they
+    use)."""
+    out = dict(point)
+    for role in ("skin", "middle", "core"):
+        for key in ("material", "thickness_mm", "mu0_MPa", "alpha", "nu", "g_total", "tau_s"):
+            name = f"{role}.{key}"
+            out.setdefault(name, "" if key == "material" else math.nan)
+    return out
+
+
+def run_fe(
+    jobs: Sequence[tuple[Path, dict[str, Any]]],
+    options: SimOptions,
+    *,
+    workers: int = 1,
+    progress: bool = True,
+    desc: str = "FE confirm",
+) -> dict[Path, dict]:
+    """Simulate each (record path, point) whose record does not exist yet; returns every
+    record by path. Records are written as they finish (a kill loses only running designs)."""
+    from tqdm import tqdm
+
+    out: dict[Path, dict] = {}
+    todo = []
+    for path, point in jobs:
+        if path.exists():
+            out[path] = json.loads(path.read_text())
+        else:
+            todo.append((path, _full_point(point)))
+    options_dict = dataclasses.asdict(options)
+    bar = tqdm(total=len(todo), desc=desc, unit="design", disable=not progress or not todo)
+    try:
+        if workers <= 1 or len(todo) <= 1:
+            for path, point in todo:
+                out[path] = _keep(path, evaluate_point(point, options_dict))
+                bar.update(1)
+        else:
+            with ProcessPoolExecutor(max_workers=min(workers, len(todo))) as pool:
+                futures = {
+                    pool.submit(evaluate_point, point, options_dict): path for path, point in todo
+                }
+                for fut in as_completed(futures):
+                    path = futures[fut]
+                    out[path] = _keep(path, fut.result())
+                    bar.update(1)
+    finally:
+        bar.close()
+    return out
+
+
+def _keep(path: Path, record: dict) -> dict:
+    record = {"key": path.stem, **record}
+    _write(path, record)
+    return record
+
+
+def confirm(
+    candidates: Sequence[Candidate],
+    run_dir: Path,
+    targets: Targets,
+    options: SimOptions | None = None,
+    *,
+    workers: int = 1,
+    progress: bool = True,
+) -> list[Confirmation]:
+    """Run (or reuse) the FE of each candidate and compare it with its prediction."""
+    options = options or SimOptions()
+    records_dir = Path(run_dir) / "fe" / "records"
+    keyed = [(c, record_key(_full_point(c.point), options)) for c in candidates]
+    records = run_fe(
+        [(records_dir / f"{k}.json", c.point) for c, k in keyed],
+        options,
+        workers=workers,
+        progress=progress,
+    )
+    return [compare(c, k, records[records_dir / f"{k}.json"], targets) for c, k in keyed]
+
+
+def compare(candidate: Candidate, key: str, record: dict, targets: Targets) -> Confirmation:
+    """Surrogate vs FE for one design: relative error and 90 %-interval hit per metric."""
+    fe = {m: record.get("metrics", {}).get(m) for m in candidate.predicted}
+    rel, inside = {}, {}
+    for m, p in candidate.predicted.items():
+        v, mean = fe.get(m), p.get("mean")
+        if v is None or mean is None or v == 0:
+            rel[m], inside[m] = None, None
+            continue
+        rel[m] = (mean - v) / abs(v)
+        lo, hi = p.get("lower_90"), p.get("upper_90")
+        inside[m] = None if lo is None or hi is None else bool(lo <= v <= hi)
+    score = float(closeness(fe, targets).score) if record.get("status") == "ok" else math.inf
+    return Confirmation(
+        candidate=candidate,
+        key=key,
+        status=record.get("status", "failed"),
+        reason=record.get("reason", ""),
+        fe_metrics=fe,
+        fe_score=score,
+        rel_error=rel,
+        inside_90=inside,
+    )

@@ -1,0 +1,429 @@
+"""Optuna searches of a surrogate for designs close to the targets, and candidate selection.
+
+A study proposes design points define-by-run over a ``DesignSpace`` (a layer's parameters are
+suggested only when the design uses them, so the search space is conditional exactly like the
+design space); the surrogate scores batches of asked trials at once (ask/tell). Every trial keeps
+its prediction as user attributes, so the study alone (``optuna-dashboard``) shows what the
+surrogate said. Single-objective mode minimises the closeness score, multi-objective mode the
+triple (compliance error, hysteresis error, wedge effort) — see ``explore._objective``.
+
+The trust guard: a trial is *flagged* when its design lies outside the surrogate's training
+domain or when the ensemble disagrees (relative spread std/|mean| of a scored metric above
+``max_disagreement``). Flagged designs are never reported as answers unless FE confirmed them;
+a few promising flagged designs are sent to FE on purpose ("uncertain" candidates), which is how
+active learning improves the surrogate where the search wants to go.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from sim.space import PARAM_MATERIAL_KEYS, DesignSpace, Parameter, mask_inactive
+from sim.targets import Targets
+
+from ._objective import closeness, objectives
+from ._types import Candidate
+
+__all__ = [
+    "SCORED",
+    "SearchSettings",
+    "TrialRow",
+    "catalogue_only",
+    "check_subspace",
+    "create_study",
+    "point_from_params",
+    "predict_rows",
+    "rows_of",
+    "run_study",
+    "select_candidates",
+    "suggest_point",
+]
+
+#: the metrics the closeness score reads (targets.metric maps the displacement reading)
+SCORED = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm", "wedge_peak_force_N")
+OBJECTIVE_NAMES = ("compliance_error", "hysteresis_error", "wedge_effort")
+
+
+@dataclass(frozen=True)
+class SearchSettings:
+    """How one study searches. ``mode``: "single" (closeness score) or "multi" (Pareto front of
+    the three objectives); ``batch``: trials asked and scored together; ``max_disagreement``:
+    the trust guard's limit on std/|mean| (fraction)."""
+
+    trials: int = 1500
+    mode: str = "single"
+    seed: int = 0
+    batch: int = 16
+    max_disagreement: float = 0.10
+
+
+@dataclass(frozen=True)
+class TrialRow:
+    """One scored trial: its point, prediction and closeness (the trials.csv row)."""
+
+    round: int
+    trial: int
+    search: str
+    point: dict[str, Any]
+    score: float
+    objectives: tuple[float, float, float]
+    predicted: dict[str, dict[str, float | None]]
+    in_domain: bool
+    disagreement: float
+    flags: tuple[str, ...]
+
+    def candidate(self, reason: str) -> Candidate:
+        return Candidate(
+            point=self.point,
+            reason=reason,
+            round=self.round,
+            trial=self.trial,
+            search=self.search,
+            score=self.score,
+            predicted=self.predicted,
+            in_domain=self.in_domain,
+            disagreement=self.disagreement,
+            flags=self.flags,
+        )
+
+
+# ----------------------------------------------------------------------------- spaces
+def catalogue_only(space: DesignSpace) -> DesignSpace:
+    """The space restricted to catalogue materials (no "param"): what can be built today."""
+    params = []
+    for p in space.parameters:
+        if p.name.endswith(".material") and p.kind == "choice":
+            keep = [
+                (c, w)
+                for c, w in zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True)
+                if c != "param"
+            ]
+            if not keep:
+                raise ValueError(f"{p.name}: the space has no catalogue material")
+            p = Parameter(
+                p.name,
+                "choice",
+                choices=tuple(c for c, _ in keep),
+                weights=tuple(w for _, w in keep) if p.weights else (),
+            )
+        params.append(p)
+    return DesignSpace(tuple(params))
+
+
+def check_subspace(space: DesignSpace, trained: DesignSpace) -> None:
+    """A search space must lie inside the surrogate's training space (same parameters, bounds
+    within, choices a subset): a ``ValueError`` naming the first parameter that does not."""
+    if space.names != trained.names:
+        extra = sorted(set(space.names) ^ set(trained.names))
+        raise ValueError(f"{extra[0]}: the surrogate was trained on other parameters")
+    for p in space.parameters:
+        t = trained[p.name]
+        allowed = t.to_dict() if t.kind != "fixed" else {"value": t.value}
+        values = [p.value] if p.kind == "fixed" else list(p.choices) if p.kind == "choice" else []
+        if values:
+            pool = [t.value] if t.kind == "fixed" else list(t.choices) if t.kind == "choice" else []
+            if t.kind == "float":
+                ok = all(isinstance(v, int | float) and t.low <= v <= t.high for v in values)
+            else:
+                ok = all(v in pool for v in values)
+        else:
+            ok = t.kind == "float" and t.low <= p.low and p.high <= t.high
+        if not ok:
+            raise ValueError(f"{p.name}: outside the surrogate's training space {allowed}")
+
+
+def suggest_point(trial, space: DesignSpace) -> dict[str, Any]:
+    """A design point proposed by an Optuna trial, define-by-run: fixed parameters take their
+    value, a layer's parameters are suggested only when the design uses them."""
+    point: dict[str, Any] = {}
+    for p in space.parameters:
+        if not _used(space, point, p):
+            continue
+        if not p.sampled:
+            point[p.name] = p.from_unit(0.0)
+        elif p.kind == "choice":
+            point[p.name] = trial.suggest_categorical(p.name, list(p.choices))
+        else:
+            point[p.name] = trial.suggest_float(p.name, p.low, p.high, log=p.log)
+    full = {n: point.get(n, math.nan) for n in space.names}
+    for n in space.names:
+        if n.endswith(".material") and not isinstance(full[n], str):
+            full[n] = ""
+    return mask_inactive(full)
+
+
+def _used(space: DesignSpace, point: dict[str, Any], p: Parameter) -> bool:
+    """Whether ``p`` matters given the parameters chosen so far (space order: count and a
+    layer's material come before the layer's material parameters)."""
+    head, _, key = p.name.partition(".")
+    if head in ("geometry", "layers"):
+        return True
+    count = point.get("layers.count")
+    if count is None:
+        return True
+    from sim.space import active_roles
+
+    if head not in active_roles(count):
+        return False
+    if key == "thickness_mm":
+        return head != "core"
+    if key in PARAM_MATERIAL_KEYS:
+        return point.get(f"{head}.material") == "param"
+    return True
+
+
+# ----------------------------------------------------------------------------- scoring
+def predict_rows(
+    surrogate,
+    points: Sequence[dict[str, Any]],
+    targets: Targets,
+    *,
+    round_: int = 0,
+    trials: Sequence[int] | None = None,
+    search: str = "continuous",
+    max_disagreement: float = 0.10,
+) -> list[TrialRow]:
+    """Score design points with the surrogate: prediction, closeness and trust-guard flags."""
+    pred = surrogate.predict(list(points))
+    names = list(pred.metric_names)
+    cols = {m: names.index(m) for m in names}
+    metrics = {targets.metric(m): pred.mean[:, cols[targets.metric(m)]] for m in SCORED}
+    metrics["wedge_peak_force_N"] = pred.mean[:, cols["wedge_peak_force_N"]]
+    c = closeness(metrics, targets)
+    obj = objectives(c)
+    scored = [targets.metric(m) for m in SCORED]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        spread = np.stack(
+            [pred.std[:, cols[m]] / np.abs(pred.mean[:, cols[m]]) for m in scored], axis=1
+        )
+    rows = []
+    for i, point in enumerate(points):
+        dis = float(np.nanmax(spread[i])) if np.isfinite(spread[i]).any() else math.inf
+        flags = []
+        if not pred.in_domain[i]:
+            flags.append(f"out of domain: {pred.reasons[i]}")
+        if not dis <= max_disagreement:
+            flags.append(f"high disagreement {dis:.3f} > {max_disagreement:g}")
+        predicted = {
+            m: {k: _num(getattr(pred, k)[i, j]) for k in ("mean", "std", "lower_90", "upper_90")}
+            for j, m in enumerate(names)
+        }
+        rows.append(
+            TrialRow(
+                round=round_,
+                trial=-1 if trials is None else int(trials[i]),
+                search=search,
+                point=dict(point),
+                score=float(c.score[i]),
+                objectives=tuple(float(v) for v in obj[i]),
+                predicted=predicted,
+                in_domain=bool(pred.in_domain[i]),
+                disagreement=dis,
+                flags=tuple(flags),
+            )
+        )
+    return rows
+
+
+def _num(x: float) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+# ----------------------------------------------------------------------------- studies
+def point_from_params(space: DesignSpace, params: dict[str, Any]) -> dict[str, Any]:
+    """The design point of a trial's parameters (fixed values filled, unused ones masked)."""
+    full: dict[str, Any] = {}
+    for p in space.parameters:
+        if p.name in params:
+            full[p.name] = params[p.name]
+        elif not p.sampled:
+            full[p.name] = p.from_unit(0.0)
+        else:
+            full[p.name] = "" if p.kind == "choice" else math.nan
+    return mask_inactive(full)
+
+
+def run_study(
+    study,
+    surrogate,
+    space: DesignSpace,
+    targets: Targets,
+    settings: SearchSettings,
+    *,
+    round_: int,
+    search: str,
+    shared: bool = False,
+    progress: Callable[[int], None] | None = None,
+    flush: int = 128,
+) -> list[TrialRow]:
+    """Run ``study`` (new or resumed) until it holds ``settings.trials`` finished trials and
+    return its complete trials as ``TrialRow``s.
+
+    The surrogate scores a batch of asked trials at once. By default (``shared=False``, the
+    run folder's SQLite file, one writer) the sampler works on an in-memory twin of the study
+    that starts from every stored trial, and finished trials are written to ``study`` every
+    ``flush`` trials: the same sampling at a fraction of the cost of a database transaction
+    per call; a kill loses at most the unwritten batch. ``shared=True`` (a database several
+    workers share) asks and tells on ``study`` itself, so the workers see each other's trials.
+    """
+    import optuna
+
+    target = study if shared else _twin(study, settings)
+    done = _finished(target)
+    pending: list = []
+    multi = settings.mode == "multi"
+    while done < settings.trials:
+        batch = [target.ask() for _ in range(min(settings.batch, settings.trials - done))]
+        points = [suggest_point(t, space) for t in batch]
+        rows = predict_rows(
+            surrogate, points, targets, round_=round_, trials=[t.number for t in batch],
+            search=search, max_disagreement=settings.max_disagreement,
+        )  # fmt: skip
+        for t, row in zip(batch, rows, strict=True):
+            values = list(row.objectives) if multi else [row.score]
+            _store(t, row)
+            if all(math.isfinite(v) for v in values):
+                frozen = target.tell(t, values if multi else values[0])
+            else:
+                frozen = target.tell(t, state=optuna.trial.TrialState.FAIL)
+            pending.append(frozen)
+        done += len(batch)
+        if not shared and (len(pending) >= flush or done >= settings.trials):
+            study.add_trials(pending)
+            pending = []
+        if progress is not None:
+            progress(len(batch))
+    return rows_of(study, surrogate, space, targets, round_=round_, search=search,
+                   max_disagreement=settings.max_disagreement)  # fmt: skip
+
+
+def _twin(study, settings: SearchSettings):
+    """An in-memory study with the same sampler and directions, holding ``study``'s trials."""
+    import optuna
+
+    twin = create_study(None, study.study_name, settings)
+    finished = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
+    twin.add_trials(study.get_trials(deepcopy=False, states=finished))
+    return twin
+
+
+def _finished(study) -> int:
+    import optuna
+
+    states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
+    return len(study.get_trials(deepcopy=False, states=states))
+
+
+def _store(trial, row: TrialRow) -> None:
+    """What the dashboard shows beside the parameters (the full prediction is reproducible
+    from the checkpoint and is re-computed by ``rows_of``)."""
+    trial.set_user_attr("score", row.score if math.isfinite(row.score) else None)
+    trial.set_user_attr("trusted", not row.flags)
+    for name, v in zip(OBJECTIVE_NAMES, row.objectives, strict=True):
+        trial.set_user_attr(name, v if math.isfinite(v) else None)
+
+
+def rows_of(
+    study,
+    surrogate,
+    space: DesignSpace,
+    targets: Targets,
+    *,
+    round_: int,
+    search: str,
+    max_disagreement: float = 0.10,
+) -> list[TrialRow]:
+    """The complete trials of ``study`` as ``TrialRow``s, re-scored by ``surrogate``."""
+    import optuna
+
+    trials = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,))
+    if not trials:
+        return []
+    points = [point_from_params(space, t.params) for t in trials]
+    return predict_rows(
+        surrogate, points, targets, round_=round_, trials=[t.number for t in trials],
+        search=search, max_disagreement=max_disagreement,
+    )  # fmt: skip
+
+
+def create_study(storage, name: str, settings: SearchSettings):
+    """A new or resumed study with a seeded sampler: TPE (multivariate, grouped for the
+    conditional space) for one objective, NSGA-II for three."""
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        if settings.mode == "multi":
+            sampler = optuna.samplers.NSGAIISampler(seed=settings.seed)
+            directions = ["minimize"] * 3
+        else:
+            sampler = optuna.samplers.TPESampler(
+                seed=settings.seed, multivariate=True, group=True, n_startup_trials=64
+            )
+            directions = ["minimize"]
+        study = optuna.create_study(
+            storage=storage,
+            study_name=name,
+            sampler=sampler,
+            directions=directions,
+            load_if_exists=True,
+        )
+    if settings.mode == "multi":
+        study.set_metric_names(list(OBJECTIVE_NAMES))
+    return study
+
+
+# ----------------------------------------------------------------------------- selection
+def select_candidates(
+    rows: Sequence[TrialRow],
+    features: Callable[[list[dict[str, Any]]], np.ndarray],
+    *,
+    best: int,
+    uncertain: int,
+    exclude: Sequence[dict[str, Any]] = (),
+    min_distance: float = 0.05,
+    reason_best: str = "best",
+) -> list[Candidate]:
+    """The ``best`` trusted designs with the lowest predicted score that are distinct (encoded
+    distance per feature >= ``min_distance`` from each other and from ``exclude``, designs
+    already confirmed), then up to ``uncertain`` flagged-but-promising ones (lowest optimistic
+    score, i.e. within the best 10 % of scores, the most disagreeing first)."""
+    finite = [r for r in rows if math.isfinite(r.score)]
+    if not finite:
+        return []
+    order = sorted(finite, key=lambda r: r.score)
+    chosen: list[Candidate] = []
+    taken = [features([p])[0] for p in exclude]
+
+    def distinct(r: TrialRow) -> bool:
+        x = features([r.point])[0]
+        if all(np.linalg.norm(x - y) / math.sqrt(len(x)) >= min_distance for y in taken):
+            taken.append(x)
+            return True
+        return False
+
+    for r in order:
+        if len([c for c in chosen if c.reason == reason_best]) >= best:
+            break
+        if not r.flags and distinct(r):
+            chosen.append(r.candidate(reason_best))
+    cutoff = np.quantile([r.score for r in finite], 0.10)
+    promising = sorted(
+        (r for r in order if r.flags and r.score <= cutoff), key=lambda r: -r.disagreement
+    )
+    n_unc = 0
+    for r in promising:
+        if n_unc >= uncertain:
+            break
+        if distinct(r):
+            chosen.append(r.candidate("uncertain"))
+            n_unc += 1
+    return chosen
