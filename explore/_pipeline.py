@@ -41,7 +41,7 @@ from ._search import (
     run_study,
     select_candidates,
 )
-from ._types import Confirmation, Summary
+from ._types import Candidate, Confirmation, Summary
 
 __all__ = ["DEFAULT_CHECKPOINT", "OptimizeConfig", "optimize"]
 
@@ -103,11 +103,12 @@ class OptimizeConfig:
 
 
 # ----------------------------------------------------------------------------- run folder
-def _prepare(config: OptimizeConfig, out: Path, targets: Targets) -> str:
+def _prepare(config: OptimizeConfig, out: Path, targets: Targets, options: SimOptions) -> str:
     """Create or resume the run folder; returns the storage URL."""
     storage = config.storage or f"sqlite:///{(out / 'study.db').resolve()}"
     record = {
         **dataclasses.asdict(config),
+        "sim_options": dataclasses.asdict(options),
         "storage": storage,
         "targets": dict(targets.values),
         "displacement_reading": targets.reading,
@@ -206,6 +207,17 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     return None
 
 
+def _sim_options(dataset: Path | None) -> SimOptions:
+    """The FE options of the surrogate's training sweep (so FE confirms like with like), else
+    the defaults."""
+    from sim.sweep import options_from_dict
+
+    if dataset is None:
+        return SimOptions()
+    cfg = json.loads((dataset / "config.json").read_text())
+    return options_from_dict(cfg["options"]) if "options" in cfg else SimOptions()
+
+
 def retrain(surrogate, dataset: Path, confirmed: list[Confirmation], epochs: int, seed: int):
     """Warm-started retraining on the training sweep plus the FE-confirmed designs."""
     from surrogate import SweepData, read_sweep
@@ -273,12 +285,20 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
     except ValueError as exc:
         field, _, msg = str(exc).partition(": ")
         raise DesignError(f"space {field}", msg) from None
-    build_space = catalogue_only(space) if config.buildable_trials else None
+    build_space, build_note = None, None
+    if config.buildable_trials:
+        try:
+            build_space = catalogue_only(space)
+        except ValueError as exc:  # e.g. a core that must be "param"
+            build_note = f"no buildable search: {exc}"
     targets = load_targets(config.targets)
-    storage = _prepare(config, out, targets)
-    options = SimOptions()
+    dataset = _find_dataset(config, surrogate)
+    options = _sim_options(dataset)
+    storage = _prepare(config, out, targets, options)
     t0 = time.perf_counter()
+    timings = {"fe_s": 0.0, "search_s": 0.0, "retrain_s": 0.0}
 
+    tic = time.perf_counter()
     refs = run_fe(
         [(out / "fe" / "references" / f"{m}.json", reference_point(m)) for m in REFERENCES],
         options,
@@ -287,10 +307,10 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         desc="FE references",
     )
     del refs
+    timings["fe_s"] += time.perf_counter() - tic
     confirmations = _load_confirmations(out)
     all_rows: list[TrialRow] = []
     rounds: list[dict[str, Any]] = []
-    dataset = _find_dataset(config, surrogate)
     metric_names = list(surrogate.metric_names)
     for r in range(config.rounds):
         ckpt = out / "surrogates" / f"round-{r}.safetensors"
@@ -313,35 +333,21 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             bar = tqdm(total=n, desc=f"round {r + 1}: search {search}", unit="trial",
                        disable=not progress)  # fmt: skip
             bar.update(min(n, _complete(study)))
+            tic = time.perf_counter()
             round_rows[search] = run_study(
                 study, surrogate, sp, targets, dataclasses.replace(settings, trials=n),
                 round_=r, search=search, progress=bar.update, shared=config.storage is not None,
             )  # fmt: skip
             bar.close()
+            timings["search_s"] += time.perf_counter() - tic
             all_rows += round_rows[search]
-        done = [c.candidate.point for c in confirmations]
-        encoder = surrogate.encoder
-
-        def features(pts: list[dict[str, Any]], encoder=encoder) -> np.ndarray:
-            return encoder.encode(pts).features  # unit-scaled columns + active flags
-
-        chosen = select_candidates(
-            round_rows["continuous"], features, best=config.confirm,
-            uncertain=config.uncertain, exclude=done,
-        )  # fmt: skip
-        if "buildable" in round_rows:
-            build = select_candidates(
-                round_rows["buildable"], features, best=1, uncertain=0,
-                exclude=done + [c.point for c in chosen], reason_best="buildable",
-            )  # fmt: skip
-            if not build:  # every buildable design flagged: FE decides anyway
-                flagged = sorted(
-                    (x for x in round_rows["buildable"] if math.isfinite(x.score)),
-                    key=lambda x: x.score,
-                )
-                build = [flagged[0].candidate("buildable")] if flagged else []
-            chosen += build
+        chosen = _load_candidates(out, r)
+        if chosen is None:  # not chosen yet (a resumed run keeps its earlier choice)
+            chosen = _choose(round_rows, surrogate, config, confirmations)
+            _save_candidates(out, r, chosen)
+        tic = time.perf_counter()
         new = confirm(chosen, out, targets, options, workers=config.workers, progress=progress)
+        timings["fe_s"] += time.perf_counter() - tic
         known = {c.key for c in confirmations}
         confirmations += [c for c in new if c.key not in known]
         _save_confirmations(out, confirmations)
@@ -357,14 +363,71 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         if not nxt.exists():
             if progress:
                 print(f"round {r + 1}: retraining the surrogate on {len(confirmations)} FE designs")
+            tic = time.perf_counter()
             model = retrain(surrogate, dataset, confirmations, config.retrain_epochs, config.seed)
+            timings["retrain_s"] += time.perf_counter() - tic
             nxt.parent.mkdir(parents=True, exist_ok=True)
             save_checkpoint(model, nxt)
     summary = summarise(confirmations, targets, config.tolerance, rounds, all_rows, space)
+    if build_note:
+        summary.notes.append(build_note)
     summary_json = summary.to_json()
-    summary_json["wall_time_s"] = time.perf_counter() - t0
+    summary_json["wall_time_s"] = time.perf_counter() - t0  # this invocation (resumes: less)
+    summary_json["timings"] = timings
     write_json(out / "summary.json", summary_json)
     return summary
+
+
+def _choose(
+    round_rows: dict[str, list[TrialRow]],
+    surrogate,
+    config: OptimizeConfig,
+    confirmations: list[Confirmation],
+) -> list[Candidate]:
+    """This round's FE candidates: the best distinct trusted designs, promising flagged ones,
+    and the best buildable design; none that earlier rounds confirmed."""
+    done = [c.candidate.point for c in confirmations]
+    encoder = surrogate.encoder
+
+    def features(pts: list[dict[str, Any]]) -> np.ndarray:
+        return encoder.encode(pts).features  # unit-scaled columns + active flags
+
+    chosen = select_candidates(
+        round_rows["continuous"], features, best=config.confirm,
+        uncertain=config.uncertain, exclude=done,
+    )  # fmt: skip
+    if "buildable" in round_rows:
+        build = select_candidates(
+            round_rows["buildable"], features, best=1, uncertain=0,
+            exclude=done + [c.point for c in chosen], reason_best="buildable",
+        )  # fmt: skip
+        if not build:  # every buildable design flagged: FE decides anyway
+            flagged = sorted(
+                (x for x in round_rows["buildable"] if math.isfinite(x.score)),
+                key=lambda x: x.score,
+            )
+            build = [flagged[0].candidate("buildable")] if flagged else []
+        chosen += build
+    return chosen
+
+
+def _candidates_path(out: Path, r: int) -> Path:
+    return out / "rounds" / f"round-{r}-candidates.json"
+
+
+def _load_candidates(out: Path, r: int) -> list[Candidate] | None:
+    path = _candidates_path(out, r)
+    if not path.exists():
+        return None
+    return [Candidate.from_json(d) for d in json.loads(path.read_text())]
+
+
+def _save_candidates(out: Path, r: int, chosen: list[Candidate]) -> None:
+    path = _candidates_path(out, r)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
+    tmp.replace(path)
 
 
 def _round_info(r: int, new: list[Confirmation], targets: Targets, tol: float) -> dict[str, Any]:

@@ -394,8 +394,9 @@ def select_candidates(
 ) -> list[Candidate]:
     """The ``best`` trusted designs with the lowest predicted score that are distinct (encoded
     distance per feature >= ``min_distance`` from each other and from ``exclude``, designs
-    already confirmed), then up to ``uncertain`` flagged-but-promising ones (lowest optimistic
-    score, i.e. within the best 10 % of scores, the most disagreeing first)."""
+    already confirmed), then ``uncertain`` flagged-but-promising ones (within the best 10 % of
+    scores, the most disagreeing first). When fewer than ``best`` designs are trusted, the
+    best-scored flagged designs take the free slots (as "uncertain")."""
     finite = [r for r in rows if math.isfinite(r.score)]
     if not finite:
         return []
@@ -411,19 +412,23 @@ def select_candidates(
         return False
 
     for r in order:
-        if len([c for c in chosen if c.reason == reason_best]) >= best:
+        if len(chosen) >= best:
             break
         if not r.flags and distinct(r):
             chosen.append(r.candidate(reason_best))
+    # the guard flagged the rest: promising ones go to FE on purpose (FE decides), and they
+    # also fill the best slots no trusted design could take
+    n_unc = uncertain + best - len(chosen)
     cutoff = np.quantile([r.score for r in finite], 0.10)
-    promising = sorted(
-        (r for r in order if r.flags and r.score <= cutoff), key=lambda r: -r.disagreement
-    )
-    n_unc = 0
+    flagged = [r for r in order if r.flags]
+    promising = sorted((r for r in flagged if r.score <= cutoff), key=lambda r: -r.disagreement)
+    if best > len(chosen):  # no trusted design to fill them: the best flagged ones first
+        promising = flagged
+    taken_unc = 0
     for r in promising:
-        if n_unc >= uncertain:
+        if taken_unc >= n_unc:
             break
         if distinct(r):
             chosen.append(r.candidate("uncertain"))
-            n_unc += 1
+            taken_unc += 1
     return chosen

@@ -12,6 +12,9 @@ A run folder ``runs/NAME`` written by ``fingertip optimize`` / ``fingertip run``
 - ``fe/records/<key>.json``: FE records of the confirmed designs (the sweep's record form, with
   ``curves``), and ``fe/references/<name>.json``: silicone and polyurethane on the reference
   geometry (same form) for the plots.
+- ``rounds/round-<r>-candidates.json``: the designs round r sent to FE (``Candidate``s; a
+  resumed run reuses them); ``surrogates/round-<r>.safetensors``: the retrained surrogate that
+  round r searched with (round 0: the given checkpoint).
 - ``confirmations.json``: a list of ``Confirmation.to_json()``.
 - ``summary.json``: ``Summary.to_json()``; ``report.md`` and ``figures/*.png``.
 """

@@ -1,0 +1,77 @@
+"""Copy a trained surrogate and its training data into ``surrogate/pretrained/default``.
+
+    python scripts/ship_pretrained.py runs/default_surrogate runs/default_sweep
+
+The shipped folder is what ``fingertip run`` starts from: ``model.safetensors`` (the
+checkpoint), ``table.csv`` + ``config.json`` (the training sweep without its curves: the
+checkpoint's header records the table's sha256, and active learning retrains on it),
+``report.md`` / ``report.json`` (the held-out evaluation) and a README saying how it was made.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+from pathlib import Path
+
+from surrogate import load_checkpoint
+from surrogate._io import sha256_file
+
+DEST = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained" / "default"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("run", type=Path, help="fingertip train output folder")
+    ap.add_argument("sweep", type=Path, help="the sweep it was trained on")
+    args = ap.parse_args()
+    model = load_checkpoint(args.run / "model.safetensors")
+    table = args.sweep / "table.csv"
+    digest = sha256_file(table)
+    header = model.header
+    if header["training_data"]["table_sha256"] != digest:
+        raise SystemExit("the checkpoint was not trained on this sweep's table.csv")
+    DEST.mkdir(parents=True, exist_ok=True)
+    for src, name in (
+        (args.run / "model.safetensors", "model.safetensors"),
+        (args.run / "report.md", "report.md"),
+        (args.run / "report.json", "report.json"),
+        (table, "table.csv"),
+        (args.sweep / "config.json", "config.json"),
+    ):
+        shutil.copyfile(src, DEST / name)
+    sweep_cfg = json.loads((args.sweep / "config.json").read_text())
+    data = header["training_data"]
+    report = json.loads((args.run / "report.json").read_text())
+    lines = [
+        "# The shipped surrogate of the default design space",
+        "",
+        "How it was made (on the 2-core development machine):",
+        "",
+        "```bash",
+        f"fingertip sweep --n {sweep_cfg['n']} --out runs/default_sweep --workers 2 "
+        f"--seed {sweep_cfg['seed']}",
+        f"fingertip train runs/default_sweep --out runs/default_surrogate "
+        f"--seed {header['training']['seed']}",
+        "python scripts/ship_pretrained.py runs/default_surrogate runs/default_sweep",
+        "```",
+        "",
+        f"- design space: `sim/data/default_space.toml` ({sweep_cfg['sampler']} sampling, "
+        f"seed {sweep_cfg['seed']}), solver version {header['solver_version']}",
+        f"- dataset: `table.csv`, {data['n_rows']} designs, {data['n_used']} with FE results "
+        f"(train {len(data['split_table_index']['train'])}, validation "
+        f"{len(data['split_table_index']['val'])}, test {len(data['split_table_index']['test'])})"
+        f"; sha256 `{digest}`",
+        f"- checkpoint: `model.safetensors` ({(DEST / 'model.safetensors').stat().st_size:,} "
+        f"bytes), {header['architecture']['members']} members, git commit "
+        f"`{header['git_commit'][:12]}`",
+        f"- held-out test designs: {report['n_test']}; see `report.md`",
+        "",
+    ]
+    (DEST / "README.md").write_text("\n".join(lines))
+    print(f"shipped to {DEST}")
+
+
+if __name__ == "__main__":
+    main()

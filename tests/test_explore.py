@@ -1,0 +1,346 @@
+"""The search: conditional suggestions, the trust guard and candidate choice, confirmation
+bookkeeping, resume after kill -9, and a tiny end-to-end pipeline (sweep -> train -> optimize
+-> report) on real FE."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import optuna
+import pytest
+from sweep_fixtures import FAST
+
+import explore.cli
+from explore._confirm import compare, confirm, reference_point
+from explore._search import (
+    SearchSettings,
+    TrialRow,
+    catalogue_only,
+    check_subspace,
+    create_study,
+    point_from_params,
+    select_candidates,
+    suggest_point,
+)
+from explore._types import Candidate, Confirmation
+from sim import METRICS, SimOptions
+from sim.space import load_space, space_from_dict
+from sim.sweep import record_key
+from sim.targets import load_targets
+
+REPO = Path(explore.cli.__file__).resolve().parents[1]
+
+#: a tiny space with catalogue and parametric materials (so both searches run)
+TINY_OPT = """
+[geometry]
+half_width_mm = { value = 5.84 }
+height_mm = { low = 5.2, high = 5.8 }
+exponent = { value = 1.5 }
+[layers]
+count = { choice = [1, 2] }
+[layers.skin]
+thickness_mm = { low = 0.3, high = 1.0 }
+material = { choice = ["silicone_gls40", "polyurethane_74_45"] }
+[layers.core]
+material = { choice = ["param", "silicone_gls40"] }
+mu0_MPa = { low = 0.01, high = 0.1, log = true }
+alpha = { low = 2.0, high = 6.0 }
+nu = { value = 0.47 }
+g_total = { low = 0.1, high = 0.6 }
+tau_s = { low = 0.05, high = 1.0, log = true }
+"""
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1"}
+
+
+# ----------------------------------------------------------------------------- search space
+def test_suggestions_are_conditional_like_the_design_space():
+    space = load_space()
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    seen_counts, seen_param = set(), False
+    for _ in range(60):
+        trial = study.ask()
+        point = suggest_point(trial, space)
+        space.check(point)  # inside the space, a valid design
+        count = point["layers.count"]
+        seen_counts.add(count)
+        # only what the design uses was suggested: one layer never asks for a skin
+        assert ("skin.material" in trial.params) == (count == 2)
+        for role in ("skin", "core"):
+            used = point[f"{role}.material"] == "param"
+            seen_param |= used
+            assert (f"{role}.mu0_MPa" in trial.params) == used
+            assert math.isnan(point[f"{role}.mu0_MPa"]) != used
+        assert point_from_params(space, trial.params) == point or _same(
+            point_from_params(space, trial.params), point
+        )
+        study.tell(trial, 0.0)
+    assert seen_counts == {1, 2} and seen_param
+
+
+def _same(a: dict, b: dict) -> bool:
+    return a.keys() == b.keys() and all(
+        (isinstance(a[k], float) and math.isnan(a[k]) and math.isnan(b[k])) or a[k] == b[k]
+        for k in a
+    )
+
+
+def test_catalogue_only_space_and_subspace_check():
+    space = load_space()
+    build = catalogue_only(space)
+    for role in ("skin", "core"):
+        assert "param" not in build[f"{role}.material"].choices
+        assert set(build[f"{role}.material"].choices) < set(space[f"{role}.material"].choices)
+    check_subspace(build, space)  # a restriction of the trained space is fine
+    wide = space_from_dict({**space.to_dict(), "geometry": {
+        **space.to_dict()["geometry"], "height_mm": {"low": 4.0, "high": 6.5}}})  # fmt: skip
+    with pytest.raises(ValueError, match=r"geometry\.height_mm"):
+        check_subspace(wide, space)
+    with pytest.raises(ValueError, match=r"skin\.material"):
+        check_subspace(space, build)  # "param" is not in the catalogue-only space
+
+
+# ----------------------------------------------------------------------------- candidates
+def _row(i: int, score: float, x: float, flags: tuple[str, ...] = ()) -> TrialRow:
+    pred = {"disp_at_1N_mm": {"mean": 1.0, "std": 0.1, "lower_90": 0.8, "upper_90": 1.2}}
+    return TrialRow(0, i, "continuous", {"x": x}, score, (score, score, 0.0), pred,
+                    not flags, 0.5 if flags else 0.01, flags)  # fmt: skip
+
+
+def test_candidates_are_distinct_trusted_best_then_flagged_promising():
+    rows = [
+        _row(0, 0.10, 0.500, ("high disagreement 0.5 > 0.1",)),  # best score, but flagged
+        _row(1, 0.11, 0.300),
+        _row(2, 0.12, 0.301),  # a near-duplicate of trial 1
+        _row(3, 0.20, 0.700),
+        _row(4, 0.30, 0.900),
+        *[_row(5 + i, 1.0 + i, 0.05 * i) for i in range(20)],
+    ]
+
+    def features(points):
+        return np.array([[p["x"]] for p in points])
+
+    chosen = select_candidates(rows, features, best=2, uncertain=1, min_distance=0.05)
+    best = [c for c in chosen if c.reason == "best"]
+    assert [c.trial for c in best] == [1, 3]  # trial 0 is flagged, trial 2 duplicates trial 1
+    assert all(c.trusted for c in best)
+    unc = [c for c in chosen if c.reason == "uncertain"]
+    assert [c.trial for c in unc] == [0] and not unc[0].trusted
+    # nothing trusted: the best flagged designs still go to FE (FE decides), marked uncertain
+    flagged = [_row(i, 0.1 * (i + 1), 0.1 * i, ("out of domain",)) for i in range(10)]
+    picked = select_candidates(flagged, features, best=2, uncertain=1)
+    assert [c.trial for c in picked] == [0, 1, 2]
+    assert {c.reason for c in picked} == {"uncertain"}
+    # designs confirmed before are not chosen again
+    again = select_candidates(rows, features, best=1, uncertain=0, exclude=[{"x": 0.3}])
+    assert [c.trial for c in again] == [3]
+
+
+def test_confirmation_bookkeeping_compares_prediction_with_fe():
+    targets = load_targets()
+    pred = {
+        "disp_at_1N_mm": {"mean": 2.0, "std": 0.1, "lower_90": 1.8, "upper_90": 2.2},
+        "disp_at_4N_mm": {"mean": 3.0, "std": 0.1, "lower_90": 2.95, "upper_90": 3.05},
+        "hysteresis_Nmm": {"mean": 2.0, "std": 0.2, "lower_90": 1.7, "upper_90": 2.3},
+        "wedge_peak_force_N": {"mean": None, "std": None, "lower_90": None, "upper_90": None},
+    }
+    cand = Candidate({"x": 1.0}, "best", 0, 7, "continuous", 0.1, pred, True, 0.05)
+    record = {
+        "status": "ok",
+        "metrics": {
+            "disp_at_1N_mm": 1.83,
+            "disp_at_4N_mm": 2.91,
+            "hysteresis_Nmm": 2.26,
+            "wedge_peak_force_N": 0.0,
+        },
+    }
+    c = compare(cand, "k", record, targets)
+    assert c.rel_error["disp_at_1N_mm"] == pytest.approx((2.0 - 1.83) / 1.83)
+    assert c.rel_error["hysteresis_Nmm"] == pytest.approx((2.0 - 2.26) / 2.26)
+    assert c.inside_90 == {"disp_at_1N_mm": True, "disp_at_4N_mm": False,
+                           "hysteresis_Nmm": True, "wedge_peak_force_N": None}  # fmt: skip
+    assert c.fe_score == pytest.approx(0.0)  # FE equals the targets, no wedge force
+    back = Confirmation.from_json(json.loads(json.dumps(c.to_json())))
+    assert back.to_json() == c.to_json()
+    failed = compare(cand, "k", {"status": "failed", "reason": "diverged", "metrics": {}}, targets)
+    assert failed.fe_score == math.inf and failed.rel_error["disp_at_1N_mm"] is None
+
+
+def test_confirm_reuses_existing_fe_records(tmp_path, monkeypatch):
+    """A resumed run never recomputes an FE design it already has."""
+    import explore._confirm as mod
+
+    point = {**reference_point("silicone_gls40")}
+    options = SimOptions()
+    key = record_key(mod._full_point(point), options)
+    stored = {"key": key, "status": "ok", "metrics": {m: 1.0 for m in METRICS}}
+    path = tmp_path / "fe" / "records" / f"{key}.json"
+    path.parent.mkdir(parents=True)
+    path.write_text(json.dumps(stored))
+
+    def boom(*a, **k):
+        raise AssertionError("FE was run again")
+
+    monkeypatch.setattr(mod, "evaluate_point", boom)
+    pred = {m: {"mean": 1.1, "std": 0.1, "lower_90": 0.9, "upper_90": 1.3} for m in METRICS}
+    cand = Candidate(point, "best", 0, 0, "continuous", 0.5, pred, True, 0.01)
+    (c,) = confirm([cand], tmp_path, load_targets(), options, progress=False)
+    assert c.key == key and c.status == "ok"
+    assert c.rel_error["disp_at_1N_mm"] == pytest.approx(0.1)
+
+
+def test_study_sampler_is_seeded():
+    space = load_space()
+
+    def points(seed: int) -> list[dict]:
+        study = create_study(None, "s", SearchSettings(seed=seed))
+        out = []
+        for _ in range(5):
+            t = study.ask()
+            out.append(suggest_point(t, space))
+            study.tell(t, 1.0)
+        return out
+
+    a, b, c = points(0), points(0), points(1)
+    assert all(_same(x, y) for x, y in zip(a, b, strict=True))
+    assert not all(_same(x, y) for x, y in zip(a, c, strict=True))
+
+
+# ----------------------------------------------------------------------------- pipeline
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory) -> Path:
+    """A real FE sweep of TINY_OPT (10 designs, fast options) and a small surrogate on it."""
+    root = tmp_path_factory.mktemp("explore")
+    (root / "space.toml").write_text(TINY_OPT)
+    sweep = root / "sweep"
+    argv = ["sweep", root / "space.toml", "--n", "10", "--out", sweep, "--no-progress", *FAST]
+    assert explore.cli.main([str(a) for a in argv]) == 0
+    train = ["train", sweep, "--out", root / "model", "--max-epochs", "30", "--no-progress"]
+    proc = subprocess.run([sys.executable, "-m", "explore.cli", *map(str, train)], cwd=REPO,
+                          capture_output=True, text=True, timeout=600, env=_env())  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    return root / "model" / "model.safetensors"
+
+
+def _run(args: list[str]) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "explore.cli", *args],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        env=_env(),
+    )
+
+
+def _optimize_args(ckpt: Path, out: Path, trials: int, rounds: int = 2) -> list[str]:
+    return [
+        "optimize", "--surrogate", str(ckpt), "--out", str(out), "--trials", str(trials),
+        "--buildable-trials", "20" if rounds > 1 else "0", "--rounds", str(rounds),
+        "--confirm", "1", "--uncertain", "1" if rounds > 1 else "0",
+        "--tolerance", "0.01", "--workers", "2", "--no-progress",
+    ]  # fmt: skip
+
+
+def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
+    out = tmp_path / "opt"
+    proc = _run(_optimize_args(tiny_model, out, 60))
+    assert proc.returncode == 0, proc.stderr
+    assert "report:" in proc.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    best, build = summary["answers"]["best"], summary["answers"]["buildable"]
+    assert best is not None and build is not None
+    # the answers are FE results under the metric names of `fingertip simulate --json`
+    record = json.loads((out / best["fe_record"]).read_text())
+    assert best["fe_metrics"] == record["metrics"] and set(best["fe_metrics"]) == set(METRICS)
+    assert set(best["predicted"]) == set(METRICS)
+    assert {"mean", "std", "lower_90", "upper_90"} == set(best["predicted"]["disp_at_1N_mm"])
+    # the best buildable design uses catalogue materials only, and is a loadable design file
+    assert all(layer["material"] != "param" for layer in _layers(build["design"]))
+    from sim.design import design_from_dict
+
+    design_from_dict(build["design"])
+    # the best is the lowest FE score of all confirmations; two rounds ran (tolerance 1 %)
+    confs = json.loads((out / "confirmations.json").read_text())
+    scores = [c["fe_score"] for c in confs if c["status"] == "ok"]
+    assert best["fe_score"] == pytest.approx(min(scores))
+    assert len(summary["rounds"]) == 2 and (out / "surrogates" / "round-1.safetensors").exists()
+    assert {c["candidate"]["round"] for c in confs} == {0, 1}
+    # the study opens in Optuna (what optuna-dashboard reads)
+    cfg = json.loads((out / "config.json").read_text())
+    names = [s["name"] for s in cfg["studies"]]
+    assert len(names) == 4
+    study = optuna.load_study(study_name=names[0], storage=cfg["storage"])
+    assert len(study.trials) == 60
+    report = (out / "report.md").read_text()
+    assert "figures/loops.png" in report or "figures/" in report
+    assert (out / "figures").is_dir() and any((out / "figures").glob("*.png"))
+    # re-running the finished command computes nothing new and gives the same answer
+    mtimes = {p: p.stat().st_mtime_ns for p in (out / "fe").rglob("*.json")}
+    proc = _run(_optimize_args(tiny_model, out, 60))
+    assert proc.returncode == 0, proc.stderr
+    assert {p: p.stat().st_mtime_ns for p in (out / "fe").rglob("*.json")} == mtimes
+    again = json.loads((out / "summary.json").read_text())
+    assert again["answers"]["best"]["fe_score"] == best["fe_score"]
+
+
+def _layers(design: dict) -> list[dict]:
+    return design.get("layers", [])
+
+
+def test_search_resumes_after_kill(tiny_model, tmp_path):
+    """kill -9 during the search; the same command finishes with exactly the asked number of
+    trials, keeping every trial stored before the kill."""
+    out = tmp_path / "opt"
+    n = 600
+    args = [sys.executable, "-m", "explore.cli", *_optimize_args(tiny_model, out, n, rounds=1)]
+    proc = subprocess.Popen(args, cwd=REPO, env=_env(), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)  # fmt: skip
+    db = out / "study.db"
+    name = "fingertip-r0-continuous"
+    before: list = []
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+        if db.exists():
+            try:
+                before = optuna.load_study(study_name=name, storage=f"sqlite:///{db}").trials
+            except (KeyError, Exception):  # the study may not exist yet
+                before = []
+            if 128 <= len(before) < n:
+                break
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert 128 <= len(before) < n, f"could not catch the search mid-way ({len(before)} trials)"
+    proc = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=900,
+                          env=_env())  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    after = optuna.load_study(study_name=name, storage=f"sqlite:///{db}").trials
+    assert len(after) == n
+    for old, new in zip(before, after, strict=False):
+        assert old.params == new.params and old.values == new.values
+    assert json.loads((out / "summary.json").read_text())["answers"]["best"] is not None
+    assert json.loads((out / "summary.json").read_text())["answers"]["buildable"] is None
+
+
+def test_optimize_bad_input_is_one_line(tiny_model, tmp_path, capsys):
+    code = explore.cli.main(["optimize", "--surrogate", str(tiny_model), "--out",
+                             str(tmp_path / "x"), "--rounds", "0"])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "--rounds" in err and "Traceback" not in err
+    space = tmp_path / "wide.toml"
+    space.write_text(TINY_OPT.replace("low = 5.2, high = 5.8", "low = 4.0, high = 5.8"))
+    code = explore.cli.main(["optimize", "--surrogate", str(tiny_model), "--space", str(space),
+                             "--out", str(tmp_path / "y")])  # fmt: skip
+    err = capsys.readouterr().err
+    assert code == 2 and "geometry.height_mm" in err and err.count("\n") == 1
