@@ -1,0 +1,72 @@
+"""The shipped checkpoint: it loads, matches its shipped training table and the current solver,
+its report's numbers are reproduced on its held-out designs, and the README example runs."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sim import SOLVER_VERSION
+from sim.space import load_space
+from surrogate import load_checkpoint, read_sweep
+from surrogate._evaluate import ParityData, score
+from surrogate._io import sha256_file
+
+REPO = Path(__file__).resolve().parents[1]
+SHIPPED = REPO / "surrogate" / "pretrained" / "default"
+
+
+@pytest.fixture(scope="module")
+def model():
+    return load_checkpoint(SHIPPED / "model.safetensors")
+
+
+def test_shipped_checkpoint_matches_its_data_and_the_solver(model):
+    header = model.header
+    assert header["solver_version"] == SOLVER_VERSION  # else: re-sweep and retrain
+    assert header["training_data"]["table_sha256"] == sha256_file(SHIPPED / "table.csv")
+    assert model.space.to_dict() == load_space().to_dict()  # the default design space
+    assert (SHIPPED / "model.safetensors").stat().st_size < 2_000_000  # a small file
+    readme = (SHIPPED / "README.md").read_text()
+    assert sha256_file(SHIPPED / "table.csv") in readme and "fingertip sweep" in readme
+
+
+def test_shipped_report_is_reproduced_on_the_held_out_designs(model):
+    """The numbers in report.json are what the checkpoint does on its test split."""
+    data = read_sweep(SHIPPED)
+    report = json.loads((SHIPPED / "report.json").read_text())
+    rows = {int(i): r for r, i in enumerate(data.index)}
+    test = [rows[i] for i in model.header["training_data"]["split_table_index"]["test"]]
+    assert len(test) == report["n_test"]
+    pred = model.predict([data.points[i] for i in test])
+    for j, m in enumerate(model.metric_names):
+        s = score(
+            ParityData(
+                m,
+                model.units[j],
+                data.targets[test, j],
+                pred.mean[:, j],
+                pred.lower_90[:, j],
+                pred.upper_90[:, j],
+                pred.in_domain,
+            )
+        )
+        want = report["metrics"][m]
+        if want["r2"] is not None:
+            assert s.r2 == pytest.approx(want["r2"], rel=1e-6)
+            assert s.median_rel_error == pytest.approx(want["median_rel_error"], rel=1e-6)
+
+
+def test_readme_python_example_runs(model, monkeypatch):
+    monkeypatch.chdir(REPO)  # the example names the shipped checkpoint from the repository
+    text = (REPO / "surrogate" / "README.md").read_text()
+    (block,) = [b for b in re.findall(r"```python\n(.*?)```", text, re.S) if "predict" in b]
+    scope: dict = {}
+    exec(compile(block, "surrogate/README.md", "exec"), scope)
+    pred = scope["pred"]
+    assert pred.mean.shape == (10_000, len(model.metric_names))
+    assert np.isfinite(pred.mean).all() and (pred.std > 0).all()
