@@ -344,3 +344,9 @@ def test_optimize_bad_input_is_one_line(tiny_model, tmp_path, capsys):
                              "--out", str(tmp_path / "y")])  # fmt: skip
     err = capsys.readouterr().err
     assert code == 2 and "geometry.height_mm" in err and err.count("\n") == 1
+
+
+def test_report_of_a_folder_that_is_not_a_run_is_one_line(tmp_path, capsys):
+    code = explore.cli.main(["report", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "not a search run folder" in err
