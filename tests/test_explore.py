@@ -350,3 +350,35 @@ def test_report_of_a_folder_that_is_not_a_run_is_one_line(tmp_path, capsys):
     code = explore.cli.main(["report", str(tmp_path)])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "not a search run folder" in err
+
+
+@pytest.mark.parametrize("mode", ["single", "multi"])
+def test_shared_storage_study_by_trial_and_both_modes(tiny_model, tmp_path, mode):
+    """--storage URL: several workers share one study trial by trial (here two in turn);
+    multi-objective mode keeps the three objectives apart."""
+    from explore._search import run_study
+    from surrogate import load_checkpoint
+
+    model = load_checkpoint(tiny_model)
+    storage = f"sqlite:///{tmp_path / 'shared.db'}"
+    settings = SearchSettings(trials=20, mode=mode, seed=0)
+    targets = load_targets()
+    first = create_study(storage, "team", settings)
+    run_study(first, model, model.space, targets, settings, round_=0, search="continuous",
+              shared=True)  # fmt: skip
+    second = create_study(storage, "team", dataclasses_replace(settings, trials=40))
+    rows = run_study(second, model, model.space, targets, dataclasses_replace(settings, trials=40),
+                     round_=0, search="continuous", shared=True)  # fmt: skip
+    study = optuna.load_study(study_name="team", storage=storage)
+    assert len(study.trials) == 40 and len(rows) == 40
+    if mode == "multi":
+        assert len(study.directions) == 3 and all(len(t.values) == 3 for t in study.trials)
+        assert study.metric_names == ["compliance_error", "hysteresis_error", "wedge_effort"]
+    for t, r in zip(study.trials, sorted(rows, key=lambda r: r.trial), strict=True):
+        assert t.user_attrs["score"] == pytest.approx(r.score)  # re-scored rows = stored
+
+
+def dataclasses_replace(obj, **kw):
+    import dataclasses
+
+    return dataclasses.replace(obj, **kw)
