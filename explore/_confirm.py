@@ -133,7 +133,7 @@ def compare(candidate: Candidate, key: str, record: dict, targets: Targets) -> C
     fe = {m: record.get("metrics", {}).get(m) for m in candidate.predicted}
     rel, inside = {}, {}
     for m, p in candidate.predicted.items():
-        v, mean = fe.get(m), p.get("mean")
+        v, mean = fe.get(m), p.get("median", p.get("mean"))
         if v is None or mean is None or v == 0:
             rel[m], inside[m] = None, None
             continue

@@ -173,7 +173,7 @@ def write_trials(out: Path, rows: list[TrialRow], names: list[str], metrics: lis
                 cells.append("" if isinstance(v, float) and math.isnan(v) else v)
             cells.append(_cell(r.score))
             cells += [_cell(v) for v in r.objectives]
-            cells += [_cell(r.predicted.get(m, {}).get("mean")) for m in metrics]
+            cells += [_cell(r.predicted.get(m, {}).get("median")) for m in metrics]
             cells += [_cell(r.predicted.get(m, {}).get("std")) for m in metrics]
             cells += [int(r.in_domain), _cell(r.disagreement), int(not r.flags)]
             w.writerow(cells)
@@ -515,7 +515,8 @@ def _notes(best: dict | None, targets: Targets, tol: float, rows: list[TrialRow]
         feasible = []
         for r in cont:
             errs = {
-                o: _rel(r.predicted[targets.metric(o)]["mean"], targets.values[o]) for o in TAPPING
+                o: _rel(r.predicted[targets.metric(o)]["median"], targets.values[o])
+                for o in TAPPING
             }
             if all(abs(errs[o]) <= tol for o in others):
                 feasible.append(abs(errs[m]))

@@ -758,7 +758,7 @@ def _parity_metric(run: RunData, name: str) -> ParityMetric:
     fe, mean, lower, upper, labels = [], [], [], [], []
     for c in run.confirmations:
         pred = c.candidate.predicted.get(name) or {}
-        f, m = _num(c.fe_metrics.get(name)), _num(pred.get("mean"))
+        f, m = _num(c.fe_metrics.get(name)), _num(pred.get("median", pred.get("mean")))
         if c.status != "ok" or not (math.isfinite(f) and math.isfinite(m)):
             continue
         fe.append(f)

@@ -176,7 +176,8 @@ def _answer_rows(answer: Mapping[str, Any], targets: Targets, tolerance: Any) ->
             ok = abs(err) <= tolerance
         mark = "–" if ok is None or name not in TAPPING else ("✓" if ok else "✗")
         p = predicted.get(metric) or {}
-        pred = f"{_fmt(p.get('mean'))} ({_fmt(p.get('lower_90'))} to {_fmt(p.get('upper_90'))})"
+        point = _fmt(p.get("median", p.get("mean")))
+        pred = f"{point} ({_fmt(p.get('lower_90'))} to {_fmt(p.get('upper_90'))})"
         target_text = _fmt(target) if name in TAPPING else "lower is better"
         err_text = _pct(err) if name in TAPPING else "–"
         rows.append(
@@ -226,7 +227,8 @@ def _rounds_section(run: RunData) -> list[str]:
     lines += ["| " + " | ".join(_cell(k, r.get(k, "–")) for k in keys) + " |" for r in rounds]
     lines += [
         "",
-        "Relative error = (surrogate mean − FE) / |FE| over the scored metrics; a round agrees "
+        "Relative error = (surrogate prediction (median) − FE) / |FE| over the scored "
+        "metrics; a round agrees "
         "when the surrogate is close enough to FE to trust its ranking.",
         "",
     ]

@@ -193,14 +193,15 @@ def predict_rows(
     pred = surrogate.predict(list(points))
     names = list(pred.metric_names)
     cols = {m: names.index(m) for m in names}
-    metrics = {targets.metric(m): pred.mean[:, cols[targets.metric(m)]] for m in SCORED}
-    metrics["wedge_peak_force_N"] = pred.mean[:, cols["wedge_peak_force_N"]]
+    point = pred.median  # the robust point prediction (see surrogate.Prediction)
+    metrics = {targets.metric(m): point[:, cols[targets.metric(m)]] for m in SCORED}
+    metrics["wedge_peak_force_N"] = point[:, cols["wedge_peak_force_N"]]
     c = closeness(metrics, targets)
     obj = objectives(c)
     scored = [targets.metric(m) for m in SCORED]
     with np.errstate(divide="ignore", invalid="ignore"):
         spread = np.stack(
-            [pred.std[:, cols[m]] / np.abs(pred.mean[:, cols[m]]) for m in scored], axis=1
+            [pred.std[:, cols[m]] / np.abs(point[:, cols[m]]) for m in scored], axis=1
         )
     rows = []
     for i, point in enumerate(points):
@@ -211,7 +212,10 @@ def predict_rows(
         if not dis <= max_disagreement:
             flags.append(f"high disagreement {dis:.3f} > {max_disagreement:g}")
         predicted = {
-            m: {k: _num(getattr(pred, k)[i, j]) for k in ("mean", "std", "lower_90", "upper_90")}
+            m: {
+                k: _num(getattr(pred, k)[i, j])
+                for k in ("median", "mean", "std", "lower_90", "upper_90")
+            }
             for j, m in enumerate(names)
         }
         rows.append(

@@ -7,8 +7,8 @@ A run folder ``runs/NAME`` written by ``fingertip optimize`` / ``fingertip run``
 - ``trials.csv``: every finished trial of every round, one row each: ``round``, ``trial``,
   ``search`` ("continuous" | "buildable"), the design-space parameters (inactive = empty),
   ``score``, ``compliance_error``, ``hysteresis_error``, ``wedge_effort`` (explore._objective),
-  ``pred.<metric>`` / ``std.<metric>`` (surrogate mean and std, metric units), ``in_domain``,
-  ``disagreement`` and ``trusted`` (0/1).
+  ``pred.<metric>`` / ``std.<metric>`` (surrogate point prediction = median, and std),
+  ``in_domain``, ``disagreement`` and ``trusted`` (0/1).
 - ``fe/records/<key>.json``: FE records of the confirmed designs (the sweep's record form, with
   ``curves``), and ``fe/references/<name>.json``: silicone and polyurethane on the reference
   geometry (same form) for the plots.
@@ -106,7 +106,7 @@ class Confirmation:
     ``key``: the FE record (``fe/records/<key>.json``); ``status``: "ok" | "failed";
     ``fe_metrics``: metric -> value (None: not reached / failed), the names of
     ``fingertip simulate --json``; ``fe_score``: closeness of the FE metrics;
-    ``rel_error``: metric -> (surrogate mean - FE) / |FE|; ``inside_90``: metric -> whether the
+    ``rel_error``: metric -> (surrogate median - FE) / |FE|; ``inside_90``: metric -> whether the
     FE value lies in the predicted 90 % interval.
     """
 

@@ -54,7 +54,7 @@ def curve(sweep: Path, sizes: list[int], seed: int) -> dict:
                 m,
                 model.units[j],
                 data.targets[test, j],
-                pred.mean[:, j],
+                pred.median[:, j],
                 pred.lower_90[:, j],
                 pred.upper_90[:, j],
                 pred.in_domain,

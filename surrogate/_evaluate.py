@@ -201,7 +201,7 @@ def evaluate(
             m,
             surrogate.units[j],
             targets[:, j],
-            pred.mean[:, j],
+            pred.median[:, j],
             pred.lower_90[:, j],
             pred.upper_90[:, j],
             pred.in_domain,

@@ -85,7 +85,9 @@ class OutputNormaliser:
         return (self._t(y, self.log, self.offset) - self.shift) / self.scale
 
     def to_physical(self, mean_z: np.ndarray, std_z: np.ndarray) -> dict[str, np.ndarray]:
-        """A Gaussian in z -> ``mean``, ``std``, ``lower_90``, ``upper_90`` in metric units."""
+        """A Gaussian in z -> ``mean``, ``median``, ``std``, ``lower_90``, ``upper_90`` in metric
+        units (for a log metric the median ``exp(m) - offset`` is the robust point prediction:
+        the log-normal mean grows like ``exp(s^2 / 2)`` where the ensemble is unsure)."""
         m = self.shift + self.scale * mean_z
         s = self.scale * std_z
         lo, hi = m - Z90 * s, m + Z90 * s
@@ -95,6 +97,7 @@ class OutputNormaliser:
             c = self.offset
             out = {
                 "mean": np.where(self.log, ln_mean - c, m),
+                "median": np.where(self.log, np.exp(m) - c, m),
                 "std": np.where(self.log, ln_std, s),
                 "lower_90": np.where(self.log, np.exp(lo) - c, lo),
                 "upper_90": np.where(self.log, np.exp(hi) - c, hi),

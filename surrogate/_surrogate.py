@@ -28,6 +28,9 @@ BATCH = 16384
 class Prediction:
     """Surrogate predictions for ``n`` designs, in each metric's unit (``units``).
 
+    ``median``: (n, n_metrics) the point prediction (the predictive distribution's median:
+    for a log-scale metric robust where the ensemble is unsure, where the mean is pulled up by
+    the log-normal's tail; equal to the mean for a linear metric).
     ``mean``, ``std``: (n, n_metrics) mean and standard deviation of the ensemble's predictive
     distribution; ``lower_90``, ``upper_90``: its central 90 % interval. ``in_domain`` (n,):
     False for a design outside the training domain (then ``reasons[i]`` says why); such
@@ -42,6 +45,7 @@ class Prediction:
     upper_90: np.ndarray
     in_domain: np.ndarray
     reasons: tuple[str, ...]
+    median: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.mean)
@@ -67,6 +71,7 @@ class Prediction:
                         key: {m: num(a[i, j]) for j, m in enumerate(self.metric_names)}
                         for key, a in (
                             ("mean", self.mean),
+                            ("median", self.median if self.median is not None else self.mean),
                             ("std", self.std),
                             ("lower_90", self.lower_90),
                             ("upper_90", self.upper_90),
@@ -124,6 +129,7 @@ class Surrogate:
             out["upper_90"],
             enc.in_domain,
             enc.reasons,
+            out["median"],
         )
 
     def predict_features(self, features: np.ndarray) -> dict[str, np.ndarray]:

@@ -49,7 +49,7 @@ def test_shipped_report_is_reproduced_on_the_held_out_designs(model):
                 m,
                 model.units[j],
                 data.targets[test, j],
-                pred.mean[:, j],
+                pred.median[:, j],
                 pred.lower_90[:, j],
                 pred.upper_90[:, j],
                 pred.in_domain,
