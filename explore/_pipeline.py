@@ -492,54 +492,72 @@ def summarise(
         "best": _answer(best, targets, tol, space),
         "buildable": _answer(buildable, targets, tol, space),
     }
-    notes = _notes(answers["best"], targets, tol, rows)
+    notes = _notes(answers, targets, tol, rows)
     return Summary(answers, dict(targets.values), tol, rounds, notes)
 
 
-def _notes(best: dict | None, targets: Targets, tol: float, rows: list[TrialRow]) -> list[str]:
-    """Which target the best FE design misses, by how much, and what the search says why."""
-    if best is None:
+def _notes(
+    answers: dict[str, dict | None], targets: Targets, tol: float, rows: list[TrialRow]
+) -> list[str]:
+    """Which target each answer misses, by how much, and what the search says why."""
+    if answers.get("best") is None:
         return ["no design was confirmed by FE (every confirmation failed)"]
     notes = []
-    cont = [r for r in rows if r.search == "continuous" and math.isfinite(r.score)]
-    last = max((r.round for r in cont), default=0)
-    cont = [r for r in cont if r.round == last]
-    for m, e in best["errors_vs_targets"].items():
-        if abs(e) <= tol:
+    for kind, search in (("best", "continuous"), ("buildable", "buildable")):
+        answer = answers.get(kind)
+        if answer is None:
             continue
-        text = (
-            f"{m} is missed: FE {best['fe_metrics'][targets.metric(m)]:.3g} vs target "
-            f"{targets.values[m]:.3g} ({100 * e:+.1f} %, tolerance ±{100 * tol:.0f} %)."
-        )
-        others = [o for o in TAPPING if o != m]
-        feasible = []
-        for r in cont:
-            errs = {
-                o: _rel(r.predicted[targets.metric(o)]["median"], targets.values[o])
-                for o in TAPPING
-            }
-            if all(abs(errs[o]) <= tol for o in others):
-                feasible.append(abs(errs[m]))
-        if not feasible:
-            text += (
-                " No searched design is predicted to meet the other two targets at once, so "
-                "this is a trade-off inside the design space, not only a surrogate error."
-            )
-        elif min(feasible) > tol:
-            text += (
-                f" Among the designs predicted to meet the other two targets, the best error on "
-                f"this one is {100 * min(feasible):.1f} % (surrogate): the space trades it "
-                "against the others."
-            )
-        else:
-            text += (
-                " The surrogate predicts designs that meet all three; FE disagrees with it "
-                "here, so more FE data near the optimum (more --rounds) should close the gap."
-            )
-        notes.append(text)
-    if not notes:
-        notes.append(f"the best FE-confirmed design is within ±{100 * tol:.0f} % of every target")
+        searched = [r for r in rows if r.search == search and math.isfinite(r.score)]
+        last = max((r.round for r in searched), default=0)
+        missed = [
+            _why(kind, m, e, answer, targets, tol, [r for r in searched if r.round == last])
+            for m, e in answer["errors_vs_targets"].items()
+            if abs(e) > tol
+        ]
+        if not missed:
+            missed = [f"{kind}: the FE-confirmed design is within ±{100 * tol:.0f} % of every "
+                      "target"]  # fmt: skip
+        notes += missed
     return notes
+
+
+def _why(
+    kind: str, m: str, e: float, answer: dict, targets: Targets, tol: float, rows: list[TrialRow]
+) -> str:
+    """One missed target: by how much, and the surrogate's view of whether the space (or the
+    catalogue) can reach it while meeting the other two targets."""
+    text = (
+        f"{kind}: {m} is missed: FE {answer['fe_metrics'][targets.metric(m)]:.3g} vs target "
+        f"{targets.values[m]:.3g} ({100 * e:+.1f} %, tolerance ±{100 * tol:.0f} %)."
+    )
+    where = "searched catalogue-only design" if kind == "buildable" else "searched design"
+    errs = [
+        {o: _rel(r.predicted[targets.metric(o)]["median"], targets.values[o]) for o in TAPPING}
+        for r in rows
+    ]
+    alone = min((abs(x[m]) for x in errs), default=math.inf)
+    others = [o for o in TAPPING if o != m]
+    feasible = [abs(x[m]) for x in errs if all(abs(x[o]) <= tol for o in others)]
+    if alone > tol:
+        return text + (
+            f" No {where} is predicted within ±{100 * tol:.0f} % of it even alone (best "
+            f"{100 * alone:.0f} % by the surrogate): out of reach of this space."
+        )
+    if not feasible:
+        return text + (
+            f" Some {where}s are predicted to meet it, but none together with the other two "
+            "targets: a trade-off inside the space, by the surrogate."
+        )
+    if min(feasible) > tol:
+        return text + (
+            f" Among the {where}s predicted to meet the other two targets, the best error on "
+            f"this one is {100 * min(feasible):.1f} % (surrogate): the space trades it against "
+            "the others."
+        )
+    return text + (
+        " The surrogate predicts designs that meet all three; FE disagrees with it here, so "
+        "more FE data near the optimum (more --rounds) should close the gap."
+    )
 
 
 def _rel(v: float | None, target: float) -> float:
