@@ -73,7 +73,7 @@ FIGURES: dict[str, str] = {
     "loops": "Tapping loops (force against displacement) of the best confirmed designs, the "
     "paper's materials and the human target points.",
     "wedge": "Wedge indentation: force over time, and the surface profiles after 1 s and 100 s.",
-    "parity": "Surrogate prediction (mean, 90 % interval) against the FE confirmation.",
+    "parity": "Surrogate prediction (median, 90 % interval) against the FE confirmation.",
     "pareto": "Trade-off between the three objectives over all trials; the non-dominated set "
     "is highlighted and the FE-confirmed designs are starred.",
     "importance": "Which design parameters matter most for the score (Optuna, continuous search).",

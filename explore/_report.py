@@ -276,6 +276,41 @@ def _study_section(run_dir: Path) -> list[str]:
     ]
 
 
+_SCORED = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm", "wedge_peak_force_N")
+
+
+def _confirmations_section(run: RunData) -> list[str]:
+    """Surrogate vs FE per confirmed design and scored metric."""
+    lines = ["## Confirmed designs: surrogate vs FE", ""]
+    if not run.confirmations:
+        return [*lines, "No design was confirmed by FE yet.", ""]
+    head = ["round", "trial", "chosen as", "FE status", "FE score"]
+    lines += [
+        "| " + " | ".join(head + [f"`{m}` error" for m in _SCORED]) + " |",
+        "|" + "---|" * (len(head) + len(_SCORED)),
+    ]
+    for c in run.confirmations:
+        cells = [
+            str(c.candidate.round),
+            str(c.candidate.trial),
+            f"{c.candidate.reason} ({c.candidate.search})",
+            c.status,
+            _fmt(c.fe_score),
+        ]
+        for m in _SCORED:
+            err, inside = c.rel_error.get(m), c.inside_90.get(m)
+            mark = "" if inside is None else (" ✓" if inside else " ✗")
+            cells.append("–" if err is None else f"{100 * err:+.1f} %{mark}")
+        lines.append("| " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "Error = (surrogate prediction − FE) / |FE|; ✓ / ✗: the FE value lies inside / outside "
+        "the surrogate's 90 % interval.",
+        "",
+    ]
+    return lines
+
+
 def write_report(run_dir: str | Path) -> Path:
     """Write ``run_dir/report.md`` (and ``run_dir/figures/*.png``); returns the report's path.
 
@@ -290,6 +325,7 @@ def write_report(run_dir: str | Path) -> Path:
         *_targets_section(targets, run.summary.get("tolerance")),
         *_answers_section(run, targets),
         *_rounds_section(run),
+        *_confirmations_section(run),
         *_notes_section(run),
         *_study_section(run_dir),
         *_figures_section(paths),

@@ -424,6 +424,14 @@ def test_report_writes_every_figure_and_links_it(run_dir: Path) -> None:
         assert f"(figures/{name}.png)" in text
     assert f"optuna-dashboard sqlite:///{run_dir.as_posix()}/study.db" in text
     assert "high disagreement 0.12 > 0.05" in text and "20 % above the target" in text
+    # one row per confirmed design in the surrogate-vs-FE table, errors as the run recorded
+    table = text.split("## Confirmed designs: surrogate vs FE")[1].split("\n## ")[0]
+    rows = [line for line in table.splitlines() if line.startswith("| ") and "---" not in line]
+    confs = json.loads((run_dir / "confirmations.json").read_text())
+    assert len(rows) == 1 + len(confs)  # header + designs
+    for row, c in zip(rows[1:], confs, strict=True):
+        err = c["rel_error"].get("disp_at_1N_mm")
+        assert (f"{100 * err:+.1f} %" if err is not None else "–") in row
 
 
 def test_an_empty_run_folder_does_not_crash(tmp_path: Path) -> None:
