@@ -39,7 +39,14 @@ from .provenance import provenance, write_json
 from .simulate import METRICS, SOLVER_VERSION, SimOptions, simulate
 from .space import DesignSpace, point_to_design, space_from_dict
 
-__all__ = ["SweepSummary", "evaluate_point", "record_key", "run_sweep", "sample_points"]
+__all__ = [
+    "SweepSummary",
+    "evaluate_point",
+    "options_from_dict",
+    "record_key",
+    "run_sweep",
+    "sample_points",
+]
 
 SAMPLERS = ("sobol", "lhs")
 
@@ -82,7 +89,7 @@ def record_key(point: dict[str, Any], options: SimOptions) -> str:
 
 def evaluate_point(point: dict[str, Any], options_dict: dict[str, Any]) -> dict[str, Any]:
     """Simulate one design point; never raises (failures are records with a reason)."""
-    options = _options_from_dict(options_dict)
+    options = options_from_dict(options_dict)
     t0 = time.perf_counter()
     record: dict[str, Any] = {"params": _jsonable(point), "solver_version": SOLVER_VERSION}
     try:
@@ -107,7 +114,8 @@ def evaluate_point(point: dict[str, Any], options_dict: dict[str, Any]) -> dict[
     return record
 
 
-def _options_from_dict(d: dict[str, Any]) -> SimOptions:
+def options_from_dict(d: dict[str, Any]) -> SimOptions:
+    """SimOptions from their ``dataclasses.asdict`` form (as a sweep's config.json holds)."""
     base = SimOptions()
     return dataclasses.replace(
         base,
