@@ -264,7 +264,9 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     record = json.loads((out / best["fe_record"]).read_text())
     assert best["fe_metrics"] == record["metrics"] and set(best["fe_metrics"]) == set(METRICS)
     assert set(best["predicted"]) == set(METRICS)
-    assert {"mean", "std", "lower_90", "upper_90"} == set(best["predicted"]["disp_at_1N_mm"])
+    assert {"median", "mean", "std", "lower_90", "upper_90"} == set(
+        best["predicted"]["disp_at_1N_mm"]
+    )
     # the best buildable design uses catalogue materials only, and is a loadable design file
     assert all(layer["material"] != "param" for layer in _layers(build["design"]))
     from sim.design import design_from_dict
