@@ -193,10 +193,11 @@ def _cmd_predict(args: argparse.Namespace) -> int:
     records = pred.to_records()
     for i, rec in enumerate(records):
         domain = "in domain" if rec["in_domain"] else f"OUT OF DOMAIN ({rec['domain_note']})"
-        print(f"design {i}: {domain}")
+        print(f"design {i}: {domain} (prediction = median, ± std, [90 % interval])")
         for name, unit in zip(pred.metric_names, pred.units, strict=True):
-            mean, std = rec["mean"][name], rec["std"][name]
-            text = "-" if mean is None else f"{mean:.4g} ± {std:.2g} {unit}"
+            mid, std = rec["median"][name], rec["std"][name]
+            lo, hi = rec["lower_90"][name], rec["upper_90"][name]
+            text = "-" if mid is None else f"{mid:.4g} ± {std:.2g} [{lo:.4g}, {hi:.4g}] {unit}"
             print(f"  {name:28s} {text}")
     if any(all(r["mean"][m] is None for r in records) for m in pred.metric_names):
         print("(-: a metric the training sweep never reached, e.g. with a shorter wedge hold)")

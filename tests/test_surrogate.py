@@ -366,7 +366,7 @@ def test_cli_train_and_predict(cli_train, ckpt, data, sweep, tmp_path):
     obj = json.loads(res.stdout)
     assert set(obj) == {"checkpoint", "units", "designs"} and len(obj["designs"]) == 1
     d = obj["designs"][0]
-    assert set(d) == {"in_domain", "domain_note", "mean", "std", "lower_90", "upper_90"}
+    assert set(d) == {"in_domain", "domain_note", "median", "mean", "std", "lower_90", "upper_90"}
     assert set(d["mean"]) == set(METRICS)
     expected = load_checkpoint(ckpt).predict([point])
     assert d["mean"]["disp_at_1N_mm"] == pytest.approx(expected.metric("disp_at_1N_mm")[0][0])
