@@ -381,7 +381,9 @@ def create_study(storage, name: str, settings: SearchSettings):
             load_if_exists=True,
         )
     if settings.mode == "multi":
-        study.set_metric_names(list(OBJECTIVE_NAMES))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+            study.set_metric_names(list(OBJECTIVE_NAMES))
     return study
 
 
