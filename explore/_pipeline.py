@@ -299,14 +299,13 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
     timings = {"fe_s": 0.0, "search_s": 0.0, "retrain_s": 0.0}
 
     tic = time.perf_counter()
-    refs = run_fe(
+    run_fe(
         [(out / "fe" / "references" / f"{m}.json", reference_point(m)) for m in REFERENCES],
         options,
         workers=config.workers,
         progress=progress,
         desc="FE references",
     )
-    del refs
     timings["fe_s"] += time.perf_counter() - tic
     confirmations = _load_confirmations(out)
     all_rows: list[TrialRow] = []

@@ -124,7 +124,6 @@ def check_subspace(space: DesignSpace, trained: DesignSpace) -> None:
         raise ValueError(f"{extra[0]}: the surrogate was trained on other parameters")
     for p in space.parameters:
         t = trained[p.name]
-        allowed = t.to_dict() if t.kind != "fixed" else {"value": t.value}
         values = [p.value] if p.kind == "fixed" else list(p.choices) if p.kind == "choice" else []
         if values:
             pool = [t.value] if t.kind == "fixed" else list(t.choices) if t.kind == "choice" else []
@@ -135,7 +134,7 @@ def check_subspace(space: DesignSpace, trained: DesignSpace) -> None:
         else:
             ok = t.kind == "float" and t.low <= p.low and p.high <= t.high
         if not ok:
-            raise ValueError(f"{p.name}: outside the surrogate's training space {allowed}")
+            raise ValueError(f"{p.name}: outside the surrogate's training space {t.to_dict()}")
 
 
 def suggest_point(trial, space: DesignSpace) -> dict[str, Any]:

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from surrogate._evaluate import ParityData, score
+from surrogate._evaluate import parity_data, score
 from surrogate._io import read_sweep
 from surrogate._train import Split, TrainConfig, fit, split_indices
 
@@ -47,19 +47,10 @@ def curve(sweep: Path, sizes: list[int], seed: int) -> dict:
         result = fit(data, TrainConfig(seed=seed), progress=False, split=split)
         seconds = time.perf_counter() - t0
         model = result.surrogate
-        pred = model.predict([data.points[i] for i in test])
         scores = {}
-        for j, m in enumerate(model.metric_names):
-            p = ParityData(
-                m,
-                model.units[j],
-                data.targets[test, j],
-                pred.median[:, j],
-                pred.lower_90[:, j],
-                pred.upper_90[:, j],
-                pred.in_domain,
-            )
+        for p in parity_data(model, [data.points[i] for i in test], data.targets[test]):
             s = score(p)
+            m = p.metric
             scores[m] = {
                 "r2": s.r2,
                 "median_rel_error": s.median_rel_error,

@@ -29,6 +29,7 @@ __all__ = [
     "Speed",
     "evaluate",
     "inference_speed",
+    "parity_data",
 ]
 
 #: relative errors are taken over designs with |FE| >= REL_FLOOR x median |FE| (see MetricScore)
@@ -191,12 +192,13 @@ def inference_speed(
     )
 
 
-def evaluate(
-    surrogate: Surrogate, points: list[dict], targets: np.ndarray, *, speed_n: int = 65536
-) -> Report:
-    """Score ``surrogate`` on held-out designs (points + FE metrics, NaN = missing)."""
+def parity_data(
+    surrogate: Surrogate, points: list[dict], targets: np.ndarray
+) -> tuple[ParityData, ...]:
+    """Per metric: FE values against the surrogate's point prediction (the median) and its
+    90 % interval, on ``points`` with FE metrics ``targets`` (n, n_metrics; NaN = missing)."""
     pred = surrogate.predict(points)
-    parity = tuple(
+    return tuple(
         ParityData(
             m,
             surrogate.units[j],
@@ -208,12 +210,19 @@ def evaluate(
         )
         for j, m in enumerate(surrogate.metric_names)
     )
+
+
+def evaluate(
+    surrogate: Surrogate, points: list[dict], targets: np.ndarray, *, speed_n: int = 65536
+) -> Report:
+    """Score ``surrogate`` on held-out designs (points + FE metrics, NaN = missing)."""
+    parity = parity_data(surrogate, points, targets)
     return Report(
         tuple(score(p) for p in parity),
         parity,
         inference_speed(surrogate, points, speed_n),
         len(points),
-        float(pred.in_domain.mean()) if len(points) else math.nan,
+        float(parity[0].in_domain.mean()) if len(points) and parity else math.nan,
     )
 
 
