@@ -19,6 +19,7 @@ from typing import Any
 
 from sim import SimOptions
 from sim.geometry import REFERENCE_GEOMETRY
+from sim.space import LAYER_ROLES, PARAM_MATERIAL_KEYS
 from sim.sweep import evaluate_point, record_key
 from sim.targets import Targets
 
@@ -53,8 +54,8 @@ def _full_point(point: dict[str, Any]) -> dict[str, Any]:
     """A point with every missing layer entry set inactive (references name only what they
     use)."""
     out = dict(point)
-    for role in ("skin", "middle", "core"):
-        for key in ("material", "thickness_mm", "mu0_MPa", "alpha", "nu", "g_total", "tau_s"):
+    for role in LAYER_ROLES:
+        for key in ("material", "thickness_mm", *PARAM_MATERIAL_KEYS):
             name = f"{role}.{key}"
             out.setdefault(name, "" if key == "material" else math.nan)
     return out

@@ -35,6 +35,7 @@ from ._search import (
     OBJECTIVE_NAMES,
     SearchSettings,
     TrialRow,
+    _finished,
     catalogue_only,
     check_subspace,
     create_study,
@@ -113,12 +114,12 @@ def _prepare(config: OptimizeConfig, out: Path, targets: Targets, options: SimOp
         "targets": dict(targets.values),
         "displacement_reading": targets.reading,
     }
+    record = json.loads(json.dumps(record))  # as config.json holds it (lists, not tuples)
     path = out / "config.json"
     if path.exists():
         old = json.loads(path.read_text())
-        same = {k: v for k, v in old.items() if k != "studies"} == json.loads(json.dumps(record))
-        if not same:
-            diff = next(k for k in record if json.loads(json.dumps(record)).get(k) != old.get(k))
+        if {k: v for k, v in old.items() if k != "studies"} != record:
+            diff = next(k for k in record if record[k] != old.get(k))
             raise DesignError(
                 "--out",
                 f"{out} holds a run with another configuration ({diff}); "
@@ -331,7 +332,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             study = create_study(storage, name, dataclasses.replace(settings, trials=n))
             bar = tqdm(total=n, desc=f"round {r + 1}: search {search}", unit="trial",
                        disable=not progress)  # fmt: skip
-            bar.update(min(n, _complete(study)))
+            bar.update(min(n, _finished(study)))
             tic = time.perf_counter()
             round_rows[search] = run_study(
                 study, surrogate, sp, targets, dataclasses.replace(settings, trials=n),
@@ -561,9 +562,3 @@ def _why(
 
 def _rel(v: float | None, target: float) -> float:
     return math.inf if v is None else (v - target) / target
-
-
-def _complete(study) -> int:
-    import optuna
-
-    return len(study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.COMPLETE,)))

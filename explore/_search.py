@@ -150,11 +150,7 @@ def suggest_point(trial, space: DesignSpace) -> dict[str, Any]:
             point[p.name] = trial.suggest_categorical(p.name, list(p.choices))
         else:
             point[p.name] = trial.suggest_float(p.name, p.low, p.high, log=p.log)
-    full = {n: point.get(n, math.nan) for n in space.names}
-    for n in space.names:
-        if n.endswith(".material") and not isinstance(full[n], str):
-            full[n] = ""
-    return mask_inactive(full)
+    return point_from_params(space, point)
 
 
 def _used(space: DesignSpace, point: dict[str, Any], p: Parameter) -> bool:
