@@ -331,6 +331,9 @@ class Body:
             u, d, ev = accepted
             if ev[1] is None:  # accepted a backtracked step: its tangent is still needed
                 ev = self._evaluate(u, control, d, dt, True, frozen_history)
+                if ev is None:  # the tangent's evaluation found an inverted element
+                    self.newton_iterations += it
+                    return StepResult(False, it, "inverted element")
         self.newton_iterations += opts.max_iterations
         return StepResult(False, opts.max_iterations, "no convergence")
 

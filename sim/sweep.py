@@ -97,6 +97,10 @@ def evaluate_point(point: dict[str, Any], options_dict: dict[str, Any]) -> dict[
         res = simulate(design, options=options)
     except (DesignError, SimulationError, ArithmeticError, ValueError, RuntimeError) as exc:
         record.update(status="failed", reason=f"{type(exc).__name__}: {exc}", metrics={})
+    except Exception as exc:  # a bug must not stop a sweep of thousands: record it, loudly
+        record.update(
+            status="failed", reason=f"internal error {type(exc).__name__}: {exc}", metrics={}
+        )
     else:
         record.update(
             status="ok" if res.ok else "failed",

@@ -145,6 +145,29 @@ def test_tangent_matches_finite_differences_at_undeformed_state():
     assert err < 1e-6
 
 
+def test_a_non_finite_tangent_after_a_line_search_fails_the_step_not_the_program(monkeypatch):
+    """After a backtracked step the tangent is evaluated again; at an extreme state it can be
+    non-finite (evaluation not ok). That is a failed step (the protocol cuts back), not a crash:
+    it once raised a TypeError that stopped a whole sweep."""
+    body = uniaxial_body(CATALOGUE["silicone_gls40"])
+    real = body._evaluate
+    tangents = []
+
+    def no_tangent_after_the_first(u, control, d, dt, tangent, frozen=False):
+        if tangent:
+            tangents.append(1)
+            if len(tangents) > 1:
+                return None  # what Discretization.evaluate's not-ok gives
+        return real(u, control, d, dt, tangent, frozen)
+
+    monkeypatch.setattr(body, "_evaluate", no_tangent_after_the_first)
+    X = body.disc.X
+    body.u[:, 1] = -0.1 * X[:, 1]  # a compressed start that is not in equilibrium
+    res = body.advance(0.1, Control.free())
+    assert not res.converged and res.reason == "inverted element"
+    assert len(tangents) >= 2
+
+
 def test_force_control_border_is_consistent():
     """d(residual)/d(plate position) equals the coupling column used in the bordered solve."""
     fm = build_mesh(homogeneous_design("polyurethane_74_45").geometry, (), MeshOptions(0.1))

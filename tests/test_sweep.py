@@ -182,6 +182,21 @@ def test_failed_designs_are_recorded_and_retried(tiny_space, tmp_path):
     assert "2 computed now" in retry.stdout
 
 
+def test_an_internal_error_in_one_design_is_recorded_not_raised(monkeypatch):
+    """One design hitting a bug must not stop a sweep of thousands (it once did: a TypeError
+    from the solver killed the process pool); the record names the error."""
+    import sim.sweep
+
+    def bug(*args, **kwargs):
+        raise TypeError("cannot unpack non-iterable NoneType object")
+
+    monkeypatch.setattr(sim.sweep, "simulate", bug)
+    point = sample_points(load_space(), 1, 0)[0]
+    record = sim.sweep.evaluate_point(point, {})
+    assert record["status"] == "failed"
+    assert record["reason"] == "internal error TypeError: cannot unpack non-iterable NoneType object"
+
+
 def test_sweep_survives_kill_9_without_losing_or_repeating_work(tiny_space, tmp_path):
     out = tmp_path / "killed"
     args = [sys.executable, "-m", "explore.cli", "sweep", str(tiny_space), "--n", "6",
