@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -192,9 +193,11 @@ def test_an_internal_error_in_one_design_is_recorded_not_raised(monkeypatch):
 
     monkeypatch.setattr(sim.sweep, "simulate", bug)
     point = sample_points(load_space(), 1, 0)[0]
-    record = sim.sweep.evaluate_point(point, {})
+    record = sim.sweep.evaluate_point(point, dataclasses.asdict(SimOptions()))
     assert record["status"] == "failed"
-    assert record["reason"] == "internal error TypeError: cannot unpack non-iterable NoneType object"
+    assert record["reason"] == (
+        "internal error TypeError: cannot unpack non-iterable NoneType object"
+    )
 
 
 def test_sweep_survives_kill_9_without_losing_or_repeating_work(tiny_space, tmp_path):
