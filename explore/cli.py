@@ -366,7 +366,7 @@ def _add_run(sub) -> None:
         action="store_true",
         help="sweep the default space and train a surrogate first (about two hours)",
     )
-    p.add_argument("--n", type=int, default=2048, help="designs of the --from-scratch sweep")
+    p.add_argument("--n", type=int, default=3072, help="designs of the --from-scratch sweep")
     p.set_defaults(func=_cmd_run)
 
 

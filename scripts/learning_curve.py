@@ -1,13 +1,15 @@
 """Learning curve of the surrogate: test error vs the number of FE designs it is trained on.
 
     python scripts/learning_curve.py runs/default_sweep [--sizes 128 256 512 1024 4096]
-        [--seed 0] [--out docs/learning_curve.md]
+        [--seed 0] [--repeats 3] [--jobs 2] [--out docs/learning_curve.md]
 
 One fixed test set (15 % of the sweep's designs, drawn with the seed) scores ensembles trained
 on nested subsets of the other designs (a size above their number means all of them), each
-subset split 85/15 into training and early-stopping validation. Per size and metric: R²,
-median and 95th-percentile relative error (over designs with |FE| >= 1 % of the median, as in
-the surrogate's report). A power law, error ~ n^-b, is
+subset split 85/15 into training and early-stopping validation. Each size is trained
+``--repeats`` times (repeat r: subset order and training seed ``seed + r``), in ``--jobs``
+processes, and the scores are averaged over the repeats (each repeat's value is kept in the
+JSON). Per size and metric: R², median and 95th-percentile relative error (over designs with
+|FE| >= 1 % of the median, as in the surrogate's report). A power law, error ~ n^-b, is
 fitted to the largest sizes with ``np.polyfit`` in log-log coordinates and extrapolated to the
 design count at which the targets (median relative error <= 3 %, R² >= 0.99) would be met.
 Writes a Markdown section, a JSON file and a PNG beside ``--out``.
@@ -32,43 +34,73 @@ TARGET_MEDIAN = 0.03
 TARGET_R2 = 0.99
 
 
-def curve(sweep: Path, sizes: list[int], seed: int) -> dict:
-    data = read_sweep(sweep)
+SCORE_KEYS = ("r2", "median_rel_error", "p95_rel_error", "coverage_90")
+
+
+def _test_and_pool(data, seed: int) -> tuple[np.ndarray, np.ndarray]:
     outer = split_indices(len(data.points), seed, (0.85, 0.0, 0.15))
-    test = outer.test
-    pool = np.random.default_rng(seed).permutation(np.concatenate([outer.train, outer.val]))
-    rows = []
+    return outer.test, np.concatenate([outer.train, outer.val])
+
+
+def train_one(sweep: Path, seed: int, repeat: int, n: int) -> dict:
+    """Train on the first ``n`` designs of repeat ``repeat``'s order; scores on the test set."""
+    import torch
+
+    torch.set_num_threads(1)  # one process per core (--jobs)
+    data = read_sweep(sweep)
+    test, pool = _test_and_pool(data, seed)
+    chosen = np.random.default_rng(seed + repeat).permutation(pool)[:n]
+    n_val = max(1, round(0.15 * n))
+    split = Split(np.sort(chosen[n_val:]), np.sort(chosen[:n_val]), test)
+    t0 = time.perf_counter()
+    result = fit(data, TrainConfig(seed=seed + repeat), progress=False, split=split)
+    seconds = time.perf_counter() - t0
+    scores = {}
+    for p in parity_data(result.surrogate, [data.points[i] for i in test], data.targets[test]):
+        s = score(p)
+        scores[p.metric] = {k: getattr(s, k) for k in SCORE_KEYS}
+    return {"n": n, "repeat": repeat, "seconds": seconds, "epochs": result.epochs, **scores}
+
+
+def curve(sweep: Path, sizes: list[int], seed: int, repeats: int, jobs: int) -> dict:
+    from concurrent.futures import ProcessPoolExecutor
+
+    data = read_sweep(sweep)
+    test, pool = _test_and_pool(data, seed)
     sizes = sorted({min(n, len(pool)) for n in sizes})  # larger than the pool: all of it
+    tasks = [(n, r) for n in sizes for r in range(repeats)]
+    with ProcessPoolExecutor(max_workers=jobs) as ex:
+        futures = {t: ex.submit(train_one, sweep, seed, t[1], t[0]) for t in tasks}
+        runs = {t: f.result() for t, f in futures.items()}
+    rows = []
     for n in sizes:
-        chosen = pool[:n]
-        n_val = max(1, round(0.15 * n))
-        split = Split(np.sort(chosen[n_val:]), np.sort(chosen[:n_val]), test)
-        t0 = time.perf_counter()
-        result = fit(data, TrainConfig(seed=seed), progress=False, split=split)
-        seconds = time.perf_counter() - t0
-        model = result.surrogate
-        scores = {}
-        for p in parity_data(model, [data.points[i] for i in test], data.targets[test]):
-            s = score(p)
-            m = p.metric
-            scores[m] = {
-                "r2": s.r2,
-                "median_rel_error": s.median_rel_error,
-                "p95_rel_error": s.p95_rel_error,
-                "coverage_90": s.coverage_90,
-            }
-        rows.append({"n_designs": n, "train_seconds": seconds, "epochs": result.epochs, **scores})
+        mine = [runs[(n, r)] for r in range(repeats)]
+        metrics = [m for m in data.metric_names if m in mine[0]]
+        row = {
+            "n_designs": n,
+            "train_seconds": float(np.mean([r["seconds"] for r in mine])),
+            "epochs": float(np.mean([r["epochs"] for r in mine])),
+        }
+        for m in metrics:
+            row[m] = {}
+            for k in SCORE_KEYS:
+                vals = [r[m][k] for r in mine]
+                finite = [v for v in vals if v is not None and math.isfinite(v)]
+                row[m][k] = float(np.mean(finite)) if finite else None
+                row[m][f"{k}_repeats"] = vals
+        rows.append(row)
         summary = ", ".join(
-            f"{m}: R2 {scores[m]['r2']:.3f} med {100 * scores[m]['median_rel_error']:.1f} %"
+            f"{m}: R2 {row[m]['r2']:.3f} med {100 * row[m]['median_rel_error']:.1f} %"
             for m in CHECKED
         )
-        print(f"n = {n:5d} ({seconds:.0f} s): {summary}", flush=True)
+        print(f"n = {n:5d} ({row['train_seconds']:.0f} s per fit): {summary}", flush=True)
     return {
         "sweep": str(sweep),
         "table_sha256": data.table_sha256,
         "n_designs_with_results": len(data.points),
         "n_test": len(test),
         "seed": seed,
+        "repeats": repeats,
         "rows": rows,
     }
 
@@ -125,7 +157,8 @@ def markdown(result: dict, png: Path, out: Path, command: str) -> str:
         f"Generated by `{command}` from `{result['sweep']}` "
         f"({result['n_designs_with_results']} designs with FE results, table sha256 "
         f"`{result['table_sha256'][:16]}…`); {result['n_test']} fixed test designs; ensembles "
-        "with the default training settings, each size a nested subset.",
+        "with the default training settings, each size a nested subset; every number is the "
+        f"mean over {result['repeats']} repeats (other subsets and training seeds).",
         "",
         "| designs | " + " | ".join(f"{m} R² / median err" for m in CHECKED) + " | train time |",
         "|---|" + "---|" * (len(CHECKED) + 1),
@@ -163,9 +196,11 @@ def main() -> None:
     ap.add_argument("sweep", type=Path)
     ap.add_argument("--sizes", type=int, nargs="+", default=[128, 256, 512, 1024, 4096])
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--repeats", type=int, default=3, help="fits per size (averaged)")
+    ap.add_argument("--jobs", type=int, default=2, help="parallel fits (processes)")
     ap.add_argument("--out", type=Path, default=Path("docs/learning_curve.md"))
     args = ap.parse_args()
-    result = curve(args.sweep, sorted(args.sizes), args.seed)
+    result = curve(args.sweep, sorted(args.sizes), args.seed, args.repeats, args.jobs)
     result["extrapolation"] = {
         m: {
             "median_rel_error": extrapolate(result["rows"], m, "median_rel_error", TARGET_MEDIAN),
@@ -176,7 +211,15 @@ def main() -> None:
     png = args.out.parent / "figures" / "learning_curve.png"
     render(result, png)
     command = "python scripts/learning_curve.py " + " ".join(
-        [str(args.sweep), "--sizes", *map(str, sorted(args.sizes)), "--seed", str(args.seed)]
+        [
+            str(args.sweep),
+            "--sizes",
+            *map(str, sorted(args.sizes)),
+            "--seed",
+            str(args.seed),
+            "--repeats",
+            str(args.repeats),
+        ]
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")

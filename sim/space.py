@@ -44,6 +44,7 @@ __all__ = [
     "DEFAULT_SPACE_PATH",
     "LAYER_ROLES",
     "PARAM_MATERIAL_KEYS",
+    "PRONY_TIME_RATIOS",
     "DesignSpace",
     "Parameter",
     "load_space",
@@ -69,9 +70,9 @@ def param_material(
     A one-term Abaqus hyperfoam, U = 2 mu0 / alpha^2 [sum_a (lambda_a^alpha - 1)
     + (J^(-alpha beta) - 1) / beta], with long-term initial shear modulus ``mu0_MPa``,
     nonlinearity ``alpha`` (alpha = 2 is close to neo-Hookean; larger stiffens faster in
-    compression) and Poisson's ratio ``nu``; relaxed by three Prony terms at ``tau_s``,
-    10 ``tau_s`` and 100 ``tau_s`` sharing the total relaxation ``g_total`` equally
-    (g(inf) = 1 - g_total; the instantaneous modulus is mu0 / (1 - g_total)).
+    compression) and Poisson's ratio ``nu``; relaxed by three Prony terms at ``tau_s`` / 3,
+    ``tau_s`` and 3 ``tau_s`` (``PRONY_TIME_RATIOS``) sharing the total relaxation ``g_total``
+    equally (g(inf) = 1 - g_total; the instantaneous modulus is mu0 / (1 - g_total)).
     Valid for every mu0 > 0, alpha != 0, -1 < nu < 0.5, 0 <= g_total < 1, tau > 0.
     """
     law = LAWS["hyperfoam"](mu_MPa=(float(mu0_MPa),), alpha=(float(alpha),), nu=float(nu))

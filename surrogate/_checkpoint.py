@@ -24,14 +24,22 @@ import numpy as np
 from sim.simulate import METRICS, SOLVER_VERSION
 from sim.space import space_from_dict
 
-from ._encoding import Encoder, is_optional, parameter_unit
+from ._encoding import (
+    DESCRIPTOR_OMEGA_RAD_S,
+    ELASTIC_FEATURE,
+    Encoder,
+    is_optional,
+    material_descriptors,
+    parameter_unit,
+)
 from ._errors import CheckpointError
 from ._normalise import OutputNormaliser
+from ._surrogate import ZERO_IF_ELASTIC
 
 __all__ = ["FORMAT", "SCHEMA_VERSION", "load_checkpoint", "save_checkpoint"]
 
 FORMAT = "fingertip-surrogate"
-SCHEMA_VERSION = 2  # 2: output.offset (shifted-log metrics)
+SCHEMA_VERSION = 3  # 2: output.offset (shifted-log metrics); 3: material descriptors, groups
 META_KEY = "fingertip_surrogate"
 
 
@@ -80,6 +88,14 @@ def describe(surrogate) -> dict[str, Any]:
         "space": space.to_dict(),
         "parameters": params,
         "features": enc.feature_names,
+        "material_descriptors": {
+            "omega_rad_s": DESCRIPTOR_OMEGA_RAD_S,
+            "definition": " ".join((material_descriptors.__doc__ or "").split()),
+        },
+        "exact_by_rule": {
+            "metrics": sorted(ZERO_IF_ELASTIC),
+            "rule": f"0 when {ELASTIC_FEATURE} (no active layer relaxes)",
+        },
         "domain": enc.to_dict(),
         "metrics": [
             {

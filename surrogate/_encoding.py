@@ -8,6 +8,11 @@ Encoding of a design space's parameters, in the space's order:
 - choice: one-hot over the space's choices; an inactive choice is all zeros;
 - fixed: no feature (the parameter stays in the header and is checked on input).
 
+Then physical descriptors that put every material, catalogue or "param", on the same axes
+(``material_descriptors``): per layer the long-term shear modulus, the storage modulus and the
+loss tangent of its Prony series around the tap's frequency; and one flag, ``design:elastic``,
+set when no active material relaxes (such a design dissipates nothing in a closed cycle).
+
 Points are flat dicts ``name -> value`` (``sim.space``); tables are ``name -> column``. Both are
 masked like ``sim.space.mask_inactive`` before encoding, so values of parameters a design does
 not use never reach the network.
@@ -23,9 +28,35 @@ from typing import Any
 import numpy as np
 
 from sim.errors import DesignError
-from sim.space import LAYER_ROLES, PARAM_MATERIAL_KEYS, DesignSpace, Parameter, active_roles
+from sim.materials import CATALOGUE
+from sim.protocols import TappingOptions
+from sim.space import (
+    LAYER_ROLES,
+    PARAM_MATERIAL_KEYS,
+    PRONY_TIME_RATIOS,
+    DesignSpace,
+    Parameter,
+    active_roles,
+)
 
-__all__ = ["Encoded", "Encoder", "is_optional", "parameter_unit", "to_columns"]
+__all__ = [
+    "DESCRIPTOR_OMEGA_RAD_S",
+    "ELASTIC_FEATURE",
+    "Encoded",
+    "Encoder",
+    "is_optional",
+    "material_descriptors",
+    "parameter_unit",
+    "to_columns",
+]
+
+#: angular frequency of the default tap (a half-sine loaded for 1 / (2 f) s): 2 pi f
+DESCRIPTOR_OMEGA_RAD_S = 2.0 * math.pi * TappingOptions().frequency_Hz
+#: the loss tangent is given at these multiples of ``DESCRIPTOR_OMEGA_RAD_S``
+_OMEGA_RATIOS = (1.0 / 3.0, 1.0, 3.0)
+#: moduli enter as (log10(G / MPa) + 3) / 3: 1 kPa -> 0, 1 MPa -> 1
+_LOG_MODULUS_LOW, _LOG_MODULUS_DECADES = -3.0, 3.0
+ELASTIC_FEATURE = "design:elastic"
 
 #: a table of design points: one column (sequence) per parameter name
 Columns = dict[str, list[Any]]
@@ -149,7 +180,15 @@ class Encoder:
                     out.append(f"{p.name}:active")
             elif p.kind == "choice":
                 out += [f"{p.name}={_choice_key(c)}" for c in p.choices]
+        for role in self.material_roles:
+            out += [f"{role}:{d}" for d in _DESCRIPTOR_NAMES]
+        out.append(ELASTIC_FEATURE)
         return out
+
+    @property
+    def material_roles(self) -> list[str]:
+        """The layer roles this space can use, outermost first."""
+        return [r for r in LAYER_ROLES if f"{r}.material" in self.space.names]
 
     @property
     def n_features(self) -> int:
@@ -284,7 +323,9 @@ class Encoder:
                     unseen = np.asarray([v != "" and v not in seen for v in col], dtype=bool)
                     flag(unseen, f"{p.name}: choice never seen in training")
                 blocks.append(onehot)
-        features = np.concatenate(blocks, axis=1) if blocks else np.zeros((n, 0))
+        desc, elastic = material_descriptors(cols, n, self.material_roles)
+        blocks += [desc, elastic[:, None].astype(float)]
+        features = np.concatenate(blocks, axis=1)
         return Encoded(features.astype(np.float32), in_domain, tuple(reasons))
 
     def fit_domain(self, points) -> Encoder:
@@ -328,6 +369,83 @@ class Encoder:
                     pt[p.name] = p.choices[int(np.argmax(block))] if block.max() > 0.5 else ""
                 j += k
         return [mask_inactive(pt) for pt in points]
+
+
+_DESCRIPTOR_NAMES = (
+    "log10_mu_MPa",
+    "log10_storage_MPa",
+    *(f"tan_delta@{r:.3g}w" for r in _OMEGA_RATIOS),
+)
+
+
+def _catalogue_entry(name: str) -> tuple[float, np.ndarray, np.ndarray]:
+    """Long-term shear modulus (MPa), Prony g and tau_s of a catalogue material."""
+    if name not in _CATALOGUE_CACHE:
+        m = CATALOGUE[name]
+        _CATALOGUE_CACHE[name] = (
+            m.long_term.initial_shear_modulus_MPa,
+            np.asarray(m.prony.g, dtype=float),
+            np.asarray(m.prony.tau_s, dtype=float),
+        )
+    return _CATALOGUE_CACHE[name]
+
+
+_CATALOGUE_CACHE: dict[str, tuple[float, np.ndarray, np.ndarray]] = {}
+
+
+def material_descriptors(
+    cols: Mapping[str, Any], n: int, roles: Sequence[str]
+) -> tuple[np.ndarray, np.ndarray]:
+    """Linear-viscoelastic descriptors of each layer's material, and the elastic-design flag.
+
+    ``cols``: masked columns (``Encoder.columns``). For each role, five features (zeros when
+    the layer is inactive): the long-term small-strain shear modulus mu, the storage modulus
+    G'(w) and the loss tangent G''/G' at w/3, w, 3w (w = ``DESCRIPTOR_OMEGA_RAD_S``) of the
+    Prony series g_i, tau_i in relative (Abaqus) form, with G0 = mu / (1 - sum g):
+    G'(w) = G0 [1 - sum g_i / (1 + (w tau_i)^2)], G''(w) = G0 sum g_i w tau_i / (1 + (w tau_i)^2).
+    Returns ``(features (n, 5 len(roles)), elastic (n,) bool)``; a design is elastic when no
+    active layer relaxes.
+    """
+    blocks = []
+    elastic = np.ones(n, dtype=bool)
+    k = len(PRONY_TIME_RATIOS)
+    for role in roles:
+        names = np.asarray(cols[f"{role}.material"], dtype=object)
+        on = names != ""
+        mu = np.ones(n)
+        g = np.zeros((n, k))
+        tau = np.ones((n, k))
+        param = names == "param"
+        if param.any():
+            mu[param] = cols[f"{role}.mu0_MPa"][param]
+            g[param] = cols[f"{role}.g_total"][param, None] / k
+            tau[param] = cols[f"{role}.tau_s"][param, None] * np.asarray(PRONY_TIME_RATIOS)
+        for name in set(names[on & ~param]):
+            rows = names == name
+            mu_c, g_c, tau_c = _catalogue_entry(name)
+            if g_c.size > g.shape[1]:
+                pad = g_c.size - g.shape[1]
+                g = np.pad(g, ((0, 0), (0, pad)))
+                tau = np.pad(tau, ((0, 0), (0, pad)), constant_values=1.0)
+            mu[rows] = mu_c
+            g[rows] = 0.0
+            g[np.ix_(rows, np.arange(g_c.size))] = g_c
+            tau[np.ix_(rows, np.arange(tau_c.size))] = tau_c
+        g_sum = g.sum(axis=1)
+        elastic &= ~on | (g_sum <= 0)
+        g0 = mu / (1.0 - g_sum)
+        moduli, tangents = [mu], []
+        for r in _OMEGA_RATIOS:
+            wt = DESCRIPTOR_OMEGA_RAD_S * r * tau
+            storage = g0 * (1.0 - (g / (1.0 + wt**2)).sum(axis=1))
+            loss = g0 * (g * wt / (1.0 + wt**2)).sum(axis=1)
+            if r == 1.0:
+                moduli.append(storage)
+            tangents.append(loss / storage)
+        log_moduli = (np.log10(np.stack(moduli, axis=1)) - _LOG_MODULUS_LOW) / _LOG_MODULUS_DECADES
+        block = np.concatenate([log_moduli, np.stack(tangents, axis=1)], axis=1)
+        blocks.append(np.where(on[:, None], block, 0.0))
+    return np.concatenate(blocks, axis=1) if blocks else np.zeros((n, 0)), elastic
 
 
 def _blank(v: Any) -> bool:

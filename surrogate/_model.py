@@ -1,10 +1,13 @@
-"""The deep ensemble: M independent MLPs evaluated as one batched network.
+"""The deep ensemble: M independent members evaluated as one batched network.
 
 Each member maps encoded design features to a Gaussian per (normalised) metric: a mean and a
-log-variance. Member weights are stacked along a leading member axis, ``W[l]`` of shape
-(M, in, out), so one ``torch.baddbmm`` per layer evaluates every member at once; members never
-share parameters, so training them together with a summed loss trains them independently.
-The ensemble is the equal-weight mixture of its members (``mixture``).
+log-variance. A member is one MLP per *group* of metrics (by default two: the tapping
+protocol's metrics, and the rest), so that metrics of different protocols do not compete for
+one hidden representation. All M x G MLPs ("nets") are stacked along a leading axis,
+``W[l]`` of shape (M G, in, out), net ``s = m G + g`` for member m and group g; one
+``torch.baddbmm`` per layer evaluates every net at once. Nets never share parameters, so
+training them together with a summed loss trains them independently (and each keeps its own
+early-stopping point). The ensemble is the equal-weight mixture of its members (``mixture``).
 """
 
 from __future__ import annotations
@@ -23,11 +26,13 @@ LOGVAR_MIN, LOGVAR_MAX = -12.0, 4.0
 
 
 class EnsembleMLP(nn.Module):
-    """``members`` MLPs with SiLU hidden layers, from ``n_inputs`` features to a mean and a
-    log-variance for each of ``n_outputs`` normalised metrics.
+    """``members`` members of one SiLU MLP per metric group, from ``n_inputs`` features to a
+    mean and a log-variance for each of ``n_outputs`` normalised metrics.
 
+    ``groups``: the group index of each output (default: one group, a single MLP per member).
+    Every net has all ``2 n_outputs`` output units; only its group's are used (and trained).
     The initial weights are drawn from ``seed`` (PyTorch's ``nn.Linear`` rule, uniform
-    +-1/sqrt(fan_in)), member after member.
+    +-1/sqrt(fan_in)), net after net.
     """
 
     def __init__(
@@ -37,23 +42,42 @@ class EnsembleMLP(nn.Module):
         *,
         members: int = 5,
         hidden: Sequence[int] = (96, 96),
+        groups: Sequence[int] | None = None,
         seed: int,
     ) -> None:
         super().__init__()
         if members < 1:
             raise ValueError(f"members must be >= 1, got {members}")
+        groups = tuple(int(g) for g in (groups if groups is not None else [0] * n_outputs))
+        numbered = sorted(set(groups)) == list(range(max(groups, default=0) + 1))
+        if len(groups) != n_outputs or not numbered:
+            raise ValueError(f"groups must number the {n_outputs} outputs 0..G-1, got {groups}")
         self.n_inputs, self.n_outputs, self.members = n_inputs, n_outputs, members
         self.hidden = tuple(int(h) for h in hidden)
+        self.groups = groups
+        self.n_groups = max(groups, default=0) + 1
+        nets = members * self.n_groups
+        # (G, m) one-hot: which outputs each group's net gives
+        self.register_buffer(
+            "group_mask",
+            nn.functional.one_hot(torch.tensor(groups), self.n_groups).T.float(),
+            persistent=False,
+        )
         gen = torch.Generator().manual_seed(int(seed))
         dims = [n_inputs, *self.hidden, 2 * n_outputs]
         self.weights = nn.ParameterList()
         self.biases = nn.ParameterList()
         for d_in, d_out in itertools.pairwise(dims):
             bound = 1.0 / math.sqrt(max(d_in, 1))
-            w = (torch.rand(members, d_in, d_out, generator=gen) * 2 - 1) * bound
-            b = (torch.rand(members, 1, d_out, generator=gen) * 2 - 1) * bound
+            w = (torch.rand(nets, d_in, d_out, generator=gen) * 2 - 1) * bound
+            b = (torch.rand(nets, 1, d_out, generator=gen) * 2 - 1) * bound
             self.weights.append(nn.Parameter(w))
             self.biases.append(nn.Parameter(b))
+
+    @property
+    def nets(self) -> int:
+        """Number of stacked MLPs: members x groups."""
+        return self.members * self.n_groups
 
     def config(self) -> dict:
         return {
@@ -61,7 +85,30 @@ class EnsembleMLP(nn.Module):
             "n_outputs": self.n_outputs,
             "members": self.members,
             "hidden": list(self.hidden),
+            "groups": list(self.groups),
         }
+
+    def net_mask(self) -> torch.Tensor:
+        """(nets, 1, n_outputs): 1 where a net's output belongs to its group."""
+        return self.group_mask.repeat(self.members, 1).unsqueeze(1)
+
+    def forward_nets(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Every net's ``(mean, logvar)``, each (nets, n, n_outputs). ``x``: (n, n_inputs)
+        shared by every net, or (nets, n, n_inputs) one batch per net."""
+        h = x if x.dim() == 3 else x.unsqueeze(0).expand(self.nets, -1, -1)
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+            h = torch.baddbmm(b, h, w)
+            if i < last:
+                h = nn.functional.silu(h)
+        return self._head(h, self.n_outputs)
+
+    def _assemble(self, t: torch.Tensor) -> torch.Tensor:
+        """(nets, n, m) -> (members, n, m): each output from its group's net."""
+        if self.n_groups == 1:
+            return t
+        t = t.view(self.members, self.n_groups, *t.shape[1:])
+        return (t * self.group_mask[None, :, None, :]).sum(dim=1)
 
     @staticmethod
     def _head(out: torch.Tensor, n_outputs: int) -> tuple[torch.Tensor, torch.Tensor]:
@@ -72,24 +119,28 @@ class EnsembleMLP(nn.Module):
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``x``: (n, n_inputs) shared by every member, or (M, n, n_inputs) one batch per
-        member. Returns ``(mean, logvar)``, each (M, n, n_outputs)."""
-        h = x if x.dim() == 3 else x.unsqueeze(0).expand(self.members, -1, -1)
-        last = len(self.weights) - 1
-        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
-            h = torch.baddbmm(b, h, w)
-            if i < last:
-                h = nn.functional.silu(h)
-        return self._head(h, self.n_outputs)
+        member (shared by its group nets). Returns ``(mean, logvar)``, each (M, n, n_outputs)."""
+        if x.dim() == 3:
+            x = x.repeat_interleave(self.n_groups, dim=0)
+        mean, logvar = self.forward_nets(x)
+        return self._assemble(mean), self._assemble(logvar)
 
     def forward_member(self, x: torch.Tensor, k: int) -> tuple[torch.Tensor, torch.Tensor]:
-        """Member ``k`` alone, layer by layer (the reference for the batched ``forward``)."""
-        h = x
+        """Member ``k`` alone, net by net and layer by layer (the reference for the batched
+        ``forward``)."""
+        mean = torch.empty(len(x), self.n_outputs)
+        logvar = torch.empty(len(x), self.n_outputs)
         last = len(self.weights) - 1
-        for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
-            h = h @ w[k] + b[k, 0]
-            if i < last:
-                h = nn.functional.silu(h)
-        return self._head(h, self.n_outputs)
+        for g in range(self.n_groups):
+            s, cols = k * self.n_groups + g, [j for j, gj in enumerate(self.groups) if gj == g]
+            h = x
+            for i, (w, b) in enumerate(zip(self.weights, self.biases, strict=True)):
+                h = h @ w[s] + b[s, 0]
+                if i < last:
+                    h = nn.functional.silu(h)
+            mu, lv = self._head(h, self.n_outputs)
+            mean[:, cols], logvar[:, cols] = mu[:, cols], lv[:, cols]
+        return mean, logvar
 
 
 #: architectures by name (the checkpoint records the name and ``config()``)

@@ -1,13 +1,15 @@
 """Per-metric output normalisation, fitted on the training designs only.
 
-A metric that is nonnegative on the training designs (up to round-off: hysteresis is exactly 0
-for an elastic skin and may come out as -1e-4 N mm) is learnt as ``log(y + offset)``, any
-other as ``y``; either is then standardised, ``z = (t(y) - shift) / scale``. ``offset`` is 0
-for a strictly positive metric (a plain log), else a floor of ``OFFSET_FRACTION`` of the
-median training value above the most negative one, so that values near zero neither dominate
-the loss nor vanish from it. The network's Gaussian lives in z; ``to_physical`` maps a Gaussian
-in z back to the metric's units (a shifted log-normal for log metrics: mean
-``exp(m + s^2 / 2) - offset``, quantiles ``exp(m +- q s) - offset``).
+A metric that is nonnegative on the training designs (up to round-off: a value that is 0 in
+exact arithmetic may come out as -1e-4) is learnt as ``log(y + offset)``, any other as ``y``;
+either is then standardised, ``z = (t(y) - shift) / scale``. ``offset`` is 0 for a strictly
+positive metric (a plain log), else a floor of ``OFFSET_FRACTION`` of the median training
+value above the most negative one, so that values near zero neither dominate the loss nor
+vanish from it. (The hysteresis of an elastic design, exactly 0 by physics, is not learnt at
+all, see ``surrogate._surrogate.ZERO_IF_ELASTIC``: the rest is strictly positive, a plain
+log.) The network's Gaussian lives in z; ``to_physical`` maps a Gaussian in z back to the
+metric's units (a shifted log-normal for log metrics: mean ``exp(m + s^2 / 2) - offset``,
+quantiles ``exp(m +- q s) - offset``).
 """
 
 from __future__ import annotations

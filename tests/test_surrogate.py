@@ -23,6 +23,9 @@ from sweep_fixtures import FAST, TINY
 import explore.cli
 from sim import METRICS, SOLVER_VERSION
 from sim.errors import DesignError
+from sim.materials import CATALOGUE
+from sim.space import load_space, param_material
+from sim.sweep import sample_points
 from surrogate import (
     CheckpointError,
     Encoder,
@@ -33,9 +36,12 @@ from surrogate import (
     save_checkpoint,
 )
 from surrogate._checkpoint import SCHEMA_VERSION, read_checkpoint, write_checkpoint
+from surrogate._encoding import DESCRIPTOR_OMEGA_RAD_S, ELASTIC_FEATURE
 from surrogate._io import sha256_file
+from surrogate._model import EnsembleMLP
 from surrogate._normalise import OutputNormaliser
-from surrogate._train import fit
+from surrogate._surrogate import ZERO_IF_ELASTIC, Surrogate
+from surrogate._train import fit, metric_groups
 
 REPO = Path(explore.cli.__file__).resolve().parents[1]
 SHORT = TrainConfig(members=5, hidden=(16, 16), max_epochs=25, patience=25)
@@ -154,6 +160,97 @@ def test_encoding_round_trip_and_inactive_parameters(data):
         enc.encode([{**data.points[one], "core.mu0_mpa": 0.05}])
 
 
+# ----------------------------------------------------------------------------- descriptors
+def _dynamic_moduli(material, omega: float) -> tuple[float, float]:
+    """Storage and loss modulus (MPa) from the Fourier transform of the relaxation function:
+    G*(w) = G0 [g_inf + i w int_0^inf (g(t) - g_inf) exp(-i w t) dt] (quadrature)."""
+    from scipy.integrate import quad
+
+    prony = material.prony
+    g_inf = prony.g_inf
+    g0 = material.long_term.initial_shear_modulus_MPa / g_inf
+    if prony.is_elastic:
+        return g0, 0.0
+    end = 60.0 * max(prony.tau_s)
+
+    def f(t: float) -> float:
+        return float(prony.relaxation(t)) - g_inf
+
+    sin = quad(f, 0.0, end, weight="sin", wvar=omega, limit=500)[0]
+    cos = quad(f, 0.0, end, weight="cos", wvar=omega, limit=500)[0]
+    return g0 * (g_inf + omega * sin), g0 * omega * cos
+
+
+def test_material_descriptors_are_the_dynamic_moduli_of_the_prony_series():
+    """Catalogue and "param" materials land on the same axes: long-term modulus, storage
+    modulus and loss tangent, checked against a quadrature of the relaxation function."""
+    space = load_space()
+    enc = Encoder(space)
+    core = {"mu0_MPa": 0.02, "alpha": 4.0, "nu": 0.47, "g_total": 0.5, "tau_s": 0.7}
+    base = {
+        "geometry.half_width_mm": 6.0,
+        "geometry.height_mm": 5.5,
+        "geometry.exponent": 2.0,
+        "layers.count": 2,
+        "skin.thickness_mm": 0.8,
+        "skin.material": "polyurethane_74_45",
+        "core.material": "param",
+        **{f"core.{k}": v for k, v in core.items()},
+    }
+    x = enc.encode([base]).features[0]
+    col = {f: j for j, f in enumerate(enc.feature_names)}
+    w = DESCRIPTOR_OMEGA_RAD_S
+    assert w == pytest.approx(2 * math.pi * 0.5)  # the default tap: 0.5 Hz
+    for role, material in (
+        ("skin", CATALOGUE["polyurethane_74_45"]),
+        ("core", param_material(**core)),
+    ):
+        mu = material.long_term.initial_shear_modulus_MPa
+        assert x[col[f"{role}:log10_mu_MPa"]] == pytest.approx((math.log10(mu) + 3) / 3, rel=1e-6)
+        storage, _ = _dynamic_moduli(material, w)
+        got = 10 ** (3 * x[col[f"{role}:log10_storage_MPa"]] - 3)
+        assert got == pytest.approx(storage, rel=1e-5)
+        for r in (1 / 3, 1, 3):
+            s_r, l_r = _dynamic_moduli(material, r * w)
+            assert x[col[f"{role}:tan_delta@{r:.3g}w"]] == pytest.approx(l_r / s_r, rel=1e-5)
+        assert x[col[f"{role}:tan_delta@1w"]] > 0.01  # both relax around the tap's frequency
+    assert x[col[ELASTIC_FEATURE]] == 0
+    # elastic: no active layer relaxes (an Ecoflex skin over a core with g_total = 0; Ecoflex
+    # alone); the skin's descriptors vanish when the skin is inactive
+    elastic_two = {**base, "skin.material": "ecoflex_0030_dawood", "core.g_total": 0.0}
+    one = {**base, "layers.count": 1, "core.material": "ecoflex_0010_dawood"}
+    xe = enc.encode([elastic_two, one, {**base, "core.g_total": 0.0}]).features
+    assert xe[:, col[ELASTIC_FEATURE]].tolist() == [1.0, 1.0, 0.0]
+    assert np.all(xe[1, [j for f, j in col.items() if f.startswith("skin:")]] == 0)
+    assert xe[0, col["skin:tan_delta@1w"]] == 0 and xe[0, col["core:tan_delta@1w"]] == 0
+
+
+def test_an_elastic_designs_hysteresis_is_exactly_zero_by_rule():
+    """No relaxation, no dissipation: the surrogate gives exactly 0 (std 0, marked by_rule)
+    for the hysteresis of an elastic design and a learnt value for every other entry."""
+    space = load_space()
+    enc = Encoder(space)
+    names = list(METRICS)
+    rng = np.random.default_rng(0)
+    norm = OutputNormaliser.fit(rng.lognormal(size=(40, len(names))))
+    model = EnsembleMLP(enc.n_features, len(names), members=5, seed=0)
+    sur = Surrogate(model, enc, norm, names)
+    pts = [
+        {**p, "core.g_total": 0.0} if p.get("core.material") == "param" else p
+        for p in sample_points(space, 32, 0)
+    ]
+    elastic = enc.encode(pts).features[:, enc.feature_names.index(ELASTIC_FEATURE)] > 0.5
+    assert 0 < elastic.sum() < len(pts)
+    pred = sur.predict(pts)
+    j = names.index("hysteresis_Nmm")
+    np.testing.assert_array_equal(pred.by_rule[:, j], elastic)
+    assert not np.delete(pred.by_rule, j, axis=1).any()
+    for a in (pred.mean, pred.median, pred.std, pred.lower_90, pred.upper_90):
+        assert np.all(a[elastic, j] == 0)
+    assert np.all(pred.median[~elastic, j] > 0) and np.all(pred.std[~elastic, j] > 0)
+    assert ZERO_IF_ELASTIC == {"hysteresis_Nmm"}
+
+
 # ----------------------------------------------------------------------------- normaliser
 def test_output_normaliser_is_fitted_on_training_designs_only(data, ckpt):
     model = load_checkpoint(ckpt)
@@ -202,11 +299,23 @@ def test_a_nonnegative_metric_that_reaches_zero_is_learnt_on_a_shifted_log_scale
 
 
 # ----------------------------------------------------------------------------- ensemble
+def test_the_tapping_metrics_have_nets_of_their_own():
+    names = list(METRICS)
+    groups = metric_groups(names, "tapping")
+    for name, g in zip(names, groups, strict=True):
+        assert g == (0 if METRICS[name][0] == "tapping" else 1), name
+    assert set(metric_groups(names, "none")) == {0}
+    with pytest.raises(ValueError, match="groups"):
+        metric_groups(names, "by_unit")
+
+
 def test_ensemble_is_vectorised_and_equals_a_loop_over_members(ckpt, data):
     model = load_checkpoint(ckpt)
     assert model.members >= 5
     net = model.model
-    assert net.weights[0].shape[0] == model.members  # stacked member weights
+    # stacked weights: one net per member and metric group (tapping | plate and wedge)
+    assert net.n_groups == 2
+    assert net.weights[0].shape[0] == model.members * net.n_groups
     x = torch.from_numpy(model.encoder.encode(data.points).features)
     with torch.no_grad():
         mean, logvar = net(x)
