@@ -69,12 +69,15 @@ GROUPINGS = ("tapping", "none")
 
 
 def metric_groups(metric_names: Sequence[str], grouping: str) -> tuple[int, ...]:
-    """The net-group index of each metric (0 = the tapping protocol's, 1 = the rest)."""
+    """The net-group index of each metric: the tapping protocol's first, then the rest (one
+    group when only one kind is present)."""
     if grouping not in GROUPINGS:
         raise ValueError(f"groups must be one of {', '.join(GROUPINGS)}, got {grouping!r}")
     if grouping == "none":
         return tuple(0 for _ in metric_names)
-    return tuple(0 if METRICS.get(m, ("",))[0] == "tapping" else 1 for m in metric_names)
+    kind = [0 if METRICS.get(m, ("",))[0] == "tapping" else 1 for m in metric_names]
+    present = sorted(set(kind))
+    return tuple(present.index(k) for k in kind)
 
 
 @dataclass(frozen=True, eq=False)

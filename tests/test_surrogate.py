@@ -305,6 +305,7 @@ def test_the_tapping_metrics_have_nets_of_their_own():
     for name, g in zip(names, groups, strict=True):
         assert g == (0 if METRICS[name][0] == "tapping" else 1), name
     assert set(metric_groups(names, "none")) == {0}
+    assert metric_groups(["wedge_peak_force_N", "plate_force_at_1mm_N"], "tapping") == (0, 0)
     with pytest.raises(ValueError, match="groups"):
         metric_groups(names, "by_unit")
 
