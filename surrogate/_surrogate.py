@@ -34,9 +34,10 @@ def rule_mask(encoder: Encoder, features: np.ndarray, metric_names: Sequence[str
 
 
 #: designs per forward pass: small enough that a layer's activations (nets x batch x hidden
-#: floats, ~8 MB) stay in cache, large enough to amortise per-operation overhead (on the 2-core
-#: machine: 2048 -> 99k designs/s, 16384 -> 31k/s, for 3 x 5 nets of 96 x 96)
-BATCH = 2048
+#: floats, ~4 MB) stay in cache, large enough to amortise per-operation overhead (2-core
+#: machine, 10 nets of 96 x 96, one thread: 512 -> 134k designs/s, 1024 -> 135k/s,
+#: 2048 -> 131k/s; 3 x 5 nets: 16384 -> 31k/s against 2048 -> 99k/s)
+BATCH = 1024
 
 
 @dataclass(frozen=True, eq=False)
