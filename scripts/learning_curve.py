@@ -158,7 +158,9 @@ def markdown(result: dict, png: Path, out: Path, command: str) -> str:
         f"({result['n_designs_with_results']} designs with FE results, table sha256 "
         f"`{result['table_sha256'][:16]}…`); {result['n_test']} fixed test designs; ensembles "
         "with the default training settings, each size a nested subset; every number is the "
-        f"mean over {result['repeats']} repeats (other subsets and training seeds).",
+        f"mean over {result['repeats']} repeats (other subsets and training seeds). "
+        "Designs = training + validation designs: `fingertip train` on a sweep of N designs "
+        "uses 0.85 N of them (70/15/15 split).",
         "",
         "| designs | " + " | ".join(f"{m} R² / median err" for m in CHECKED) + " | train time |",
         "|---|" + "---|" * (len(CHECKED) + 1),
