@@ -139,7 +139,12 @@ def render(result: dict, png: Path) -> None:
     b.axhline(1 - TARGET_R2, color="k", ls="--", lw=1, label="target R² 0.99")
     a.set(xlabel="FE designs (train + validation)", ylabel="median relative error (%)")
     b.set(xlabel="FE designs (train + validation)", ylabel="1 - R² (test)")
+    from matplotlib.ticker import NullFormatter
+
     for ax in (a, b):
+        ax.set_xticks(n, [str(v) for v in n], fontsize=7)  # the trained sizes, uncluttered
+        ax.xaxis.set_minor_formatter(NullFormatter())
+        ax.tick_params(axis="x", labelrotation=45)
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
     fig.suptitle(f"Surrogate learning curve ({result['n_test']} fixed test designs)")
