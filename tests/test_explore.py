@@ -174,6 +174,14 @@ def test_confirmation_bookkeeping_compares_prediction_with_fe():
     assert back.to_json() == c.to_json()
     failed = compare(cand, "k", {"status": "failed", "reason": "diverged", "metrics": {}}, targets)
     assert failed.fe_score == math.inf and failed.rel_error["disp_at_1N_mm"] is None
+    # an elastic design's hysteresis is exactly 0 by rule; the FE's round-off is not an error
+    exact = {**pred, "hysteresis_Nmm": {"median": 0.0, "mean": 0.0, "std": 0.0,
+                                        "lower_90": 0.0, "upper_90": 0.0}}  # fmt: skip
+    elastic = Candidate({"x": 1.0}, "best", 0, 7, "continuous", 0.1, exact, True, 0.05)
+    noisy = {**record, "metrics": {**record["metrics"], "hysteresis_Nmm": 1.2e-4}}
+    c = compare(elastic, "k", noisy, targets)
+    assert c.rel_error["hysteresis_Nmm"] is None and c.inside_90["hysteresis_Nmm"] is None
+    assert c.rel_error["disp_at_1N_mm"] == pytest.approx((2.0 - 1.83) / 1.83)
 
 
 def test_confirm_reuses_existing_fe_records(tmp_path, monkeypatch):
