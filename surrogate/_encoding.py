@@ -404,7 +404,8 @@ def material_descriptors(
     Prony series g_i, tau_i in relative (Abaqus) form, with G0 = mu / (1 - sum g):
     G'(w) = G0 [1 - sum g_i / (1 + (w tau_i)^2)], G''(w) = G0 sum g_i w tau_i / (1 + (w tau_i)^2).
     Returns ``(features (n, 5 len(roles)), elastic (n,) bool)``; a design is elastic when no
-    active layer relaxes.
+    active layer relaxes (a material name outside the catalogue gives zero descriptors and is
+    never taken as elastic).
     """
     blocks = []
     elastic = np.ones(n, dtype=bool)
@@ -416,6 +417,10 @@ def material_descriptors(
         g = np.zeros((n, k))
         tau = np.ones((n, k))
         param = names == "param"
+        # an unknown name (flagged out of domain by ``encode``): no descriptors, and not elastic
+        unknown = on & ~param & ~np.isin(names, list(CATALOGUE))
+        elastic &= ~unknown
+        on &= ~unknown
         if param.any():
             mu[param] = cols[f"{role}.mu0_MPa"][param]
             g[param] = cols[f"{role}.g_total"][param, None] / k

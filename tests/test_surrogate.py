@@ -223,6 +223,11 @@ def test_material_descriptors_are_the_dynamic_moduli_of_the_prony_series():
     assert xe[:, col[ELASTIC_FEATURE]].tolist() == [1.0, 1.0, 0.0]
     assert np.all(xe[1, [j for f, j in col.items() if f.startswith("skin:")]] == 0)
     assert xe[0, col["skin:tan_delta@1w"]] == 0 and xe[0, col["core:tan_delta@1w"]] == 0
+    # an unknown material is flagged out of domain, has no descriptors and is not "elastic"
+    odd = enc.encode([{**elastic_two, "skin.material": "unobtainium"}])
+    assert not odd.in_domain[0] and "unknown choice" in odd.reasons[0]
+    assert odd.features[0, col[ELASTIC_FEATURE]] == 0
+    assert np.all(odd.features[0, [j for f, j in col.items() if f.startswith("skin:")]] == 0)
 
 
 def test_an_elastic_designs_hysteresis_is_exactly_zero_by_rule():
