@@ -61,8 +61,9 @@ class OptimizeConfig:
     the catalogue-only study; ``confirm``: best distinct designs sent to FE per round;
     ``uncertain``: promising designs the trust guard flagged, also sent to FE; ``rounds``: at
     most this many search/confirm/retrain rounds; ``tolerance``: agreement needed to stop
-    (|surrogate - FE| / FE on the tapping metrics) and the closeness counted as "within" a
-    target; ``max_disagreement``: the trust guard's limit on the ensemble's std/|mean|.
+    (|surrogate - FE| / FE on the tapping metrics, together with an FE-confirmed design within
+    it of every tapping target) and the closeness counted as "within" a target;
+    ``max_disagreement``: the trust guard's limit on the ensemble's std/|mean|.
     """
 
     surrogate: str = str(DEFAULT_CHECKPOINT)
@@ -354,7 +355,10 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         info = _round_info(r, new, targets, config.tolerance)
         rounds.append(info)
         write_trials(out, all_rows, space.names, metric_names)
-        if info["agreed"] or r == config.rounds - 1:
+        info["target_met"] = _target_met(confirmations, targets, config.tolerance)
+        # done when the surrogate can be trusted AND an FE-confirmed design meets every tapping
+        # target; a trusted surrogate whose best design misses searches again (new seed)
+        if (info["agreed"] and info["target_met"]) or r == config.rounds - 1:
             break
         if dataset is None:
             rounds[-1]["note"] = "no training data found beside the checkpoint: not retrained"
@@ -428,6 +432,16 @@ def _save_candidates(out: Path, r: int, chosen: list[Candidate]) -> None:
     tmp = path.with_suffix(".tmp")
     tmp.write_text(json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
     tmp.replace(path)
+
+
+def _target_met(confirmations: list[Confirmation], targets: Targets, tol: float) -> bool:
+    """Whether some FE-confirmed design is within ``tol`` of every tapping target."""
+    for c in confirmations:
+        if c.status == "ok":
+            errors = closeness(c.fe_metrics, targets).errors
+            if all(abs(float(e)) <= tol for e in errors.values()):
+                return True
+    return False
 
 
 def _round_info(r: int, new: list[Confirmation], targets: Targets, tol: float) -> dict[str, Any]:

@@ -20,6 +20,7 @@ from sweep_fixtures import FAST
 
 import explore.cli
 from explore._confirm import compare, confirm, reference_point
+from explore._objective import TAPPING
 from explore._search import (
     SearchSettings,
     TrialRow,
@@ -182,6 +183,24 @@ def test_confirmation_bookkeeping_compares_prediction_with_fe():
     c = compare(elastic, "k", noisy, targets)
     assert c.rel_error["hysteresis_Nmm"] is None and c.inside_90["hysteresis_Nmm"] is None
     assert c.rel_error["disp_at_1N_mm"] == pytest.approx((2.0 - 1.83) / 1.83)
+
+
+def test_rounds_stop_only_when_an_fe_design_meets_every_tapping_target():
+    from explore._pipeline import _target_met
+
+    targets = load_targets()
+    cand = Candidate({"x": 1.0}, "best", 0, 7, "continuous", 0.1, {}, True, 0.05)
+    human = {targets.metric(m): targets.values[m] for m in TAPPING}
+
+    def conf(scale: dict, status: str = "ok") -> Confirmation:
+        fe = {k: v * scale.get(k, 1.0) for k, v in human.items()}
+        return Confirmation(cand, "k", status, "", {**fe, "wedge_peak_force_N": 0.1}, 0.0)
+
+    near = conf({targets.metric("hysteresis_Nmm"): 1.04})
+    far = conf({targets.metric("disp_at_1N_mm"): 1.06})
+    assert _target_met([far, near], targets, 0.05)
+    assert not _target_met([far], targets, 0.05)
+    assert not _target_met([conf({}, status="failed")], targets, 0.05)
 
 
 def test_confirm_reuses_existing_fe_records(tmp_path, monkeypatch):
