@@ -135,9 +135,9 @@ def compare(candidate: Candidate, key: str, record: dict, targets: Targets) -> C
     rel, inside = {}, {}
     for m, p in candidate.predicted.items():
         v, mean = fe.get(m), p.get("median", p.get("mean"))
-        exact = mean == 0 and p.get("std") == 0  # exact by physics (an elastic design's
-        # hysteresis): the FE's round-off (|h| < 1e-3 N mm) has no meaningful relative error
-        if v is None or mean is None or v == 0 or exact:
+        # a value exact by physics (an elastic design's hysteresis, 0) has no meaningful
+        # relative error against the FE's round-off (|h| < 1e-3 N mm)
+        if v is None or mean is None or v == 0 or p.get("by_rule"):
             rel[m], inside[m] = None, None
             continue
         rel[m] = (mean - v) / abs(v)

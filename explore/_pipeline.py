@@ -434,14 +434,18 @@ def _save_candidates(out: Path, r: int, chosen: list[Candidate]) -> None:
     tmp.replace(path)
 
 
+def _target_errors(c: Confirmation, targets: Targets) -> dict[str, float]:
+    """FE relative error of a confirmed design against each tapping target."""
+    cl = closeness(c.fe_metrics, targets)
+    return {m: float(cl.errors[m]) for m in TAPPING}
+
+
 def _target_met(confirmations: list[Confirmation], targets: Targets, tol: float) -> bool:
     """Whether some FE-confirmed design is within ``tol`` of every tapping target."""
-    for c in confirmations:
-        if c.status == "ok":
-            errors = closeness(c.fe_metrics, targets).errors
-            if all(abs(float(e)) <= tol for e in errors.values()):
-                return True
-    return False
+    return any(
+        c.status == "ok" and all(abs(e) <= tol for e in _target_errors(c, targets).values())
+        for c in confirmations
+    )
 
 
 def _round_info(r: int, new: list[Confirmation], targets: Targets, tol: float) -> dict[str, Any]:
@@ -468,8 +472,7 @@ def _round_info(r: int, new: list[Confirmation], targets: Targets, tol: float) -
 def _answer(c: Confirmation | None, targets: Targets, tol: float, space) -> dict | None:
     if c is None:
         return None
-    cl = closeness(c.fe_metrics, targets)
-    errors = {m: float(cl.errors[m]) for m in TAPPING}
+    errors = _target_errors(c, targets)
     return {
         "design": space.design(c.candidate.point).to_dict(),
         "point": c.to_json()["candidate"]["point"],

@@ -208,8 +208,11 @@ def predict_rows(
             flags.append(f"high disagreement {dis:.3f} > {max_disagreement:g}")
         predicted = {
             m: {
-                k: _num(getattr(pred, k)[i, j])
-                for k in ("median", "mean", "std", "lower_90", "upper_90")
+                **{
+                    k: _num(getattr(pred, k)[i, j])
+                    for k in ("median", "mean", "std", "lower_90", "upper_90")
+                },
+                "by_rule": bool(pred.by_rule[i, j]),  # exact by physics, not learnt
             }
             for j, m in enumerate(names)
         }

@@ -43,8 +43,9 @@ class Candidate:
     ``point``: the design-space point (parameter name -> value; inactive = NaN or "").
     ``reason``: why it was chosen — "best" (among the lowest predicted scores),
     "uncertain" (promising but with a wide predictive interval) or "buildable" (best of the
-    catalogue-only search). ``predicted``: metric -> {"mean", "std", "lower_90", "upper_90"}
-    in the metric's unit. ``score``: predicted closeness (explore._objective, lower is better).
+    catalogue-only search). ``predicted``: metric -> {"median", "mean", "std", "lower_90",
+    "upper_90"} in the metric's unit, and "by_rule" (exact by physics, e.g. an elastic design's
+    hysteresis: 0). ``score``: predicted closeness (explore._objective, lower is better).
     ``disagreement``: the largest relative ensemble spread std/|mean| over the scored metrics.
     ``flags``: trust-guard notes ("out of domain: ...", "high disagreement 0.12 > 0.05").
     """

@@ -35,8 +35,8 @@ def rule_mask(encoder: Encoder, features: np.ndarray, metric_names: Sequence[str
 
 #: designs per forward pass: small enough that a layer's activations (nets x batch x hidden
 #: floats, ~4 MB) stay in cache, large enough to amortise per-operation overhead (2-core
-#: machine, 10 nets of 96 x 96, one thread: 512 -> 134k designs/s, 1024 -> 135k/s,
-#: 2048 -> 131k/s; 3 x 5 nets: 16384 -> 31k/s against 2048 -> 99k/s)
+#: machine, one thread, predict_features on 65,536 designs with the shipped checkpoint:
+#: 512 -> 134k designs/s, 1024 -> 135k/s, 2048 -> 131k/s; with 3 x 5 nets 16384 gave 31k/s)
 BATCH = 1024
 
 

@@ -62,9 +62,10 @@ class TrainConfig:
 
 #: how metrics share nets (``TrainConfig.groups``): "tapping" gives the tapping protocol's
 #: metrics (compliance, hysteresis) a net of their own and the plate and wedge metrics another
-#: (3 seeds on 2560 designs: hysteresis median error 3.6 % against 4.0 % in one net; measured
-#: with the plate and wedge split as well, the tapping net is trained alone either way; a net
-#: for the plate's single metric was not worth its inference time); "none": one net for all
+#: (3 seeds on 2560 designs, fit(..., TrainConfig(seed=s, groups=...)) scored on each seed's
+#: test split: hysteresis median error 3.6 % against 4.0 % in one net; measured with the plate
+#: and wedge split as well, the tapping net is trained alone either way; a net for the plate's
+#: single metric was not worth its inference time); "none": one net for all
 GROUPINGS = ("tapping", "none")
 
 

@@ -177,7 +177,8 @@ def test_confirmation_bookkeeping_compares_prediction_with_fe():
     assert failed.fe_score == math.inf and failed.rel_error["disp_at_1N_mm"] is None
     # an elastic design's hysteresis is exactly 0 by rule; the FE's round-off is not an error
     exact = {**pred, "hysteresis_Nmm": {"median": 0.0, "mean": 0.0, "std": 0.0,
-                                        "lower_90": 0.0, "upper_90": 0.0}}  # fmt: skip
+                                        "lower_90": 0.0, "upper_90": 0.0,
+                                        "by_rule": True}}  # fmt: skip
     elastic = Candidate({"x": 1.0}, "best", 0, 7, "continuous", 0.1, exact, True, 0.05)
     noisy = {**record, "metrics": {**record["metrics"], "hysteresis_Nmm": 1.2e-4}}
     c = compare(elastic, "k", noisy, targets)
@@ -291,9 +292,10 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     record = json.loads((out / best["fe_record"]).read_text())
     assert best["fe_metrics"] == record["metrics"] and set(best["fe_metrics"]) == set(METRICS)
     assert set(best["predicted"]) == set(METRICS)
-    assert {"median", "mean", "std", "lower_90", "upper_90"} == set(
+    assert {"median", "mean", "std", "lower_90", "upper_90", "by_rule"} == set(
         best["predicted"]["disp_at_1N_mm"]
     )
+    assert best["predicted"]["disp_at_1N_mm"]["by_rule"] is False  # learnt, not by rule
     # the best buildable design uses catalogue materials only, and is a loadable design file
     assert all(layer["material"] != "param" for layer in _layers(build["design"]))
     from sim.design import design_from_dict
