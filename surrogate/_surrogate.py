@@ -96,6 +96,11 @@ class Prediction:
                             ("upper_90", self.upper_90),
                         )
                     },
+                    "by_rule": [
+                        m
+                        for j, m in enumerate(self.metric_names)
+                        if self.by_rule is not None and self.by_rule[i, j]
+                    ],  # metrics exact by physics for this design (an elastic one: hysteresis)
                 }
             )
         return out

@@ -254,6 +254,8 @@ def test_an_elastic_designs_hysteresis_is_exactly_zero_by_rule():
         assert np.all(a[elastic, j] == 0)
     assert np.all(pred.median[~elastic, j] > 0) and np.all(pred.std[~elastic, j] > 0)
     assert ZERO_IF_ELASTIC == {"hysteresis_Nmm"}
+    records = pred.to_records()
+    assert [r["by_rule"] for r in records] == [["hysteresis_Nmm"] if e else [] for e in elastic]
 
 
 # ----------------------------------------------------------------------------- normaliser
@@ -481,7 +483,10 @@ def test_cli_train_and_predict(cli_train, ckpt, data, sweep, tmp_path):
     obj = json.loads(res.stdout)
     assert set(obj) == {"checkpoint", "units", "designs"} and len(obj["designs"]) == 1
     d = obj["designs"][0]
-    assert set(d) == {"in_domain", "domain_note", "median", "mean", "std", "lower_90", "upper_90"}
+    assert set(d) == {
+        "in_domain", "domain_note", "median", "mean", "std", "lower_90", "upper_90", "by_rule"
+    }  # fmt: skip
+    assert d["by_rule"] == []  # the tiny space has no elastic design
     assert set(d["mean"]) == set(METRICS)
     expected = load_checkpoint(ckpt).predict([point])
     assert d["mean"]["disp_at_1N_mm"] == pytest.approx(expected.metric("disp_at_1N_mm")[0][0])
