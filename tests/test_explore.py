@@ -8,9 +8,11 @@ import json
 import math
 import os
 import signal
+import sqlite3
 import subprocess
 import sys
 import time
+from contextlib import closing
 from pathlib import Path
 
 import numpy as np
@@ -329,6 +331,18 @@ def _layers(design: dict) -> list[dict]:
     return design.get("layers", [])
 
 
+def _stored_trials(db: Path) -> int:
+    """Finished trials in an Optuna SQLite file, read with plain SQL (0 while it has none)."""
+    if not db.exists():
+        return 0
+    try:
+        with closing(sqlite3.connect(db, timeout=5)) as con:
+            sql = "SELECT COUNT(*) FROM trials WHERE state IN ('COMPLETE', 'FAIL')"
+            return con.execute(sql).fetchone()[0]
+    except sqlite3.Error:  # the schema is not written yet, or the file is busy
+        return 0
+
+
 def test_search_resumes_after_kill(tiny_model, tmp_path):
     """kill -9 during the search; the same command finishes with exactly the asked number of
     trials, keeping every trial stored before the kill."""
@@ -339,19 +353,14 @@ def test_search_resumes_after_kill(tiny_model, tmp_path):
                             stderr=subprocess.DEVNULL)  # fmt: skip
     db = out / "study.db"
     name = "fingertip-r0-continuous"
-    before: list = []
+    stored = 0
     deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None:
-        time.sleep(0.2)
-        if db.exists():
-            try:
-                before = optuna.load_study(study_name=name, storage=f"sqlite:///{db}").trials
-            except (KeyError, Exception):  # the study may not exist yet
-                before = []
-            if 128 <= len(before) < n:
-                break
+    while time.monotonic() < deadline and proc.poll() is None and not 128 <= stored < n:
+        time.sleep(0.05)
+        stored = _stored_trials(db)  # a cheap read, so the kill lands right after a flush
     proc.send_signal(signal.SIGKILL)
     proc.wait()
+    before = optuna.load_study(study_name=name, storage=f"sqlite:///{db}").trials
     assert 128 <= len(before) < n, f"could not catch the search mid-way ({len(before)} trials)"
     proc = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=900,
                           env=_env())  # fmt: skip
