@@ -114,6 +114,7 @@ class Body:
         self.t = 0.0
         self.indenter_position = np.inf
         self._solver = None
+        self._upper = None  # the upper-triangle matrix handed to qdldl, refilled in place
         self.timings: dict[str, float] = dict.fromkeys(TIMED, 0.0)
         self._last = None  # (kind, previous value, value, du, dd) of the last committed step
         self._last_control: Control | None = None
@@ -169,8 +170,9 @@ class Body:
             f = np.where(act, k * p, 0.0)  # pushes the node along n
             fx, fy = f * n[:, 0], f * n[:, 1]
             ok_x, ok_y = dof_x >= 0, dof_y >= 0
-            np.add.at(r, dof_x[ok_x], -fx[ok_x])
-            np.add.at(r, dof_y[ok_y], -fy[ok_y])
+            # every surface node has its own dofs and matrix entries: plain indexed updates
+            r[dof_x[ok_x]] -= fx[ok_x]
+            r[dof_y[ok_y]] -= fy[ok_y]
             if data is not None:
                 ka = np.where(act, k, 0.0)
                 c = 0.0 if curv is None else np.where(act, p * curv, 0.0)
@@ -180,7 +182,7 @@ class Body:
                 kyy = ka * (nyy - c * (1.0 - nyy))
                 for pos, val in zip(self._kpos, (kxx, kxy, kxy, kyy), strict=True):
                     ok = pos >= 0
-                    np.add.at(data, pos[ok], val[ok])
+                    data[pos[ok]] += val[ok]
             if is_indenter:
                 force = float(np.sum(-f * n[:, 1]))  # vertical force on the indenter (up > 0)
                 coupling = np.where(act, k, 0.0)
@@ -216,11 +218,12 @@ class Body:
 
     def _factor(self, data):
         t0 = time.perf_counter()
-        A = self.disc.upper_matrix(data)
         if self._solver is None:
-            self._solver = qdldl.Solver(A, upper=True)
-        else:
-            self._solver.update(A, upper=True)
+            self._upper = self.disc.upper_matrix(data)
+            self._solver = qdldl.Solver(self._upper, upper=True)
+        else:  # same pattern: refill the matrix qdldl reads, keep the symbolic analysis
+            np.take(data, self.disc.upper_data, out=self._upper.data)
+            self._solver.update(self._upper, upper=True)
         self.factorizations += 1
         self.timings["LDL^T factorisation"] += time.perf_counter() - t0
         return self._solver
@@ -274,7 +277,7 @@ class Body:
                     dof_y = self._sdof[1]
                     kcol = np.zeros(disc.n_free)
                     ok = dof_y >= 0
-                    np.add.at(kcol, dof_y[ok], -coupling[ok])
+                    kcol[dof_y[ok]] = -coupling[ok]
                     x2 = solver.solve(kcol)
                     c = float(np.sum(coupling))
                     dd = (-rd - kcol @ du) / (c - kcol @ x2)

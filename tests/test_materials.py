@@ -123,6 +123,9 @@ def test_stress_and_tangent_match_finite_differences(name: str) -> None:
         assert np.abs(D_fd[:, :, k] - D[:, :, k]).max() <= 1e-7 * d_scale, (k, C[:, k])
     np.testing.assert_array_equal(D, np.swapaxes(D, 0, 1))
     np.testing.assert_array_equal(law.stress(C), S)
+    S2, D2 = law.stress_tangent(C)  # what the Newton iterations call: the same S and D
+    np.testing.assert_array_equal(S2, S)
+    np.testing.assert_array_equal(D2, D)
 
 
 @pytest.mark.parametrize("name", ["silicone", "polyurethane", "hyperfoam_3term"])
@@ -151,6 +154,8 @@ def test_batch_shapes(name: str) -> None:
     W, S, D = law.evaluate(C)
     assert W.shape == (2, 3) and S.shape == (3, 2, 3) and D.shape == (3, 3, 2, 3)
     assert law.S33(C).shape == (2, 3)
+    S2, D2 = law.stress_tangent(C)
+    assert S2.shape == (3, 2, 3) and D2.shape == (3, 3, 2, 3)
     W1, S1, D1 = law.evaluate(C[:, 1, 2])
     assert np.ndim(W1) == 0 and S1.shape == (3,) and D1.shape == (3, 3)
     np.testing.assert_allclose(S1, S[:, 1, 2], rtol=1e-14, atol=0)

@@ -199,20 +199,27 @@ class Hyperfoam(Law):
         """``(W, S, D)`` (MPa) at ``C``; shapes ``batch``, ``(3, *batch)``, ``(3, 3, *batch)``."""
         C = as_C(C)
         batch = C.shape[1:]
-        C = C.reshape(3, -1)
-        c1, c2, d, cos2, sin2 = _spectral(C)
-        s1, s2 = np.log(c1), np.log(c2)
-        f1, df1 = self._f(c1, s1, slope=True)
-        f2, df2 = self._f(c2, s2, slope=True)
-        lnJ, dG, ddG = self._volumetric(d, second=True)
-
+        c1, c2, d = _spectral(C.reshape(3, -1))[:3]
+        s1, s2, lnJ = np.log(c1), np.log(c2), 0.5 * np.log(d)
         W = np.zeros_like(d)
         beta = self.beta
         for mu, alpha in zip(self.mu_MPa, self.alpha, strict=True):
             a = 0.5 * alpha
             W += 0.5 * mu * (s1 * s1 * _psi(a * s1) + s2 * s2 * _psi(a * s2))
             W += 2.0 * mu * beta * lnJ * lnJ * _psi(-alpha * beta * lnJ)
+        S, D = self.stress_tangent(C)
+        return W.reshape(batch), S, D
 
+    def stress_tangent(self, C: Any) -> tuple[Array, Array]:
+        """``(S, D)`` (MPa) at ``C`` without the energy (what a Newton iteration needs)."""
+        C = as_C(C)
+        batch = C.shape[1:]
+        C = C.reshape(3, -1)
+        c1, c2, d, cos2, sin2 = _spectral(C)
+        s1, s2 = np.log(c1), np.log(c2)
+        f1, df1 = self._f(c1, s1, slope=True)
+        f2, df2 = self._f(c2, s2, slope=True)
+        _, dG, ddG = self._volumetric(d, second=True)
         S = self._iso_stress(f1, f2, cos2, sin2) + td_stress(C, None, dG)
 
         # Spectral part: 4 f'(c1) P1(x)P1 + 4 f'(c2) P2(x)P2 + 2 f[c1, c2] w(x)w with
@@ -229,7 +236,7 @@ class Hyperfoam(Law):
         D[1, 2] = D[2, 1] = q * (A * w_ - B * u) + sc
         D[2, 2] = (A + B) * q * q + F2 * cos2 * cos2
         td_tangent(C, dG, None, None, ddG, out=D)
-        return W.reshape(batch), S.reshape(3, *batch), D.reshape(3, 3, *batch)
+        return S.reshape(3, *batch), D.reshape(3, 3, *batch)
 
     def S33(self, C: Any) -> Array:
         """Out-of-plane 2nd Piola-Kirchhoff stress ``S33 = sum 2 mu_i beta ln J exprel(y_i)``.

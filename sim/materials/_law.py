@@ -190,6 +190,11 @@ class Law:
         """In-plane 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(3, *batch)``; no tangent."""
         raise NotImplementedError
 
+    def stress_tangent(self, C: Any) -> tuple[Array, Array]:
+        """``(S, D)`` as in ``evaluate``; a law overrides it when the energy costs extra."""
+        _, S, D = self.evaluate(C)
+        return S, D
+
     def S33(self, C: Any) -> Array:
         """Out-of-plane 2nd Piola-Kirchhoff stress ``S33`` (MPa), shape ``batch``.
 
