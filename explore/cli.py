@@ -364,7 +364,7 @@ def _add_run(sub) -> None:
     p.add_argument(
         "--from-scratch",
         action="store_true",
-        help="sweep the default space and train a surrogate first (about 2.5 hours)",
+        help="sweep the default space and train a surrogate first (about 2 hours)",
     )
     p.add_argument("--n", type=int, default=4096, help="designs of the --from-scratch sweep")
     p.set_defaults(func=_cmd_run)

@@ -3,8 +3,9 @@
 scikit-fem supplies the P2 basis (shape-function gradients and quadrature weights on the reference
 configuration) and the degree-of-freedom map. The Newton loop then needs the residual and the
 tangent thousands of times per design, so they are assembled here directly from those arrays:
-one batched evaluation of the constitutive law per layer, element matrices from a few ``einsum``
-calls, and a scatter into a CSR pattern that is built once (``np.bincount`` into fixed positions).
+one batched evaluation of the constitutive law per layer, element vectors and matrices from a
+few batched ``matmul`` calls, and a scatter into a CSR pattern that is built once
+(``np.bincount`` into fixed positions).
 ``tests/test_fe.py`` checks this assembly against scikit-fem's own ``BilinearForm``/``LinearForm``
 assembly of the same weak form and against finite differences.
 

@@ -7,6 +7,7 @@ vectorised over a batch of points (e.g. ``(n_elements, n_quadrature_points)``):
   ``W`` (MPa) shape ``batch``, ``S = 2 dW/dC`` = ``[S11, S22, S12]`` (MPa) shape
   ``(3, *batch)``, ``D = 4 d2W/dCdC`` (MPa) shape ``(3, 3, *batch)`` in Voigt form with
   engineering shear (``dS_i = D_ij dE_j``, ``dE = [dE11, dE22, 2 dE12]``), symmetric;
+* ``law.stress_tangent(C) -> (S, D)`` (no energy: what a Newton iteration needs);
 * ``law.stress(C) -> S`` (no tangent) and ``law.S33(C)`` (out-of-plane 2nd PK stress, MPa;
   Cauchy ``sigma33 = S33 / J``).
 
