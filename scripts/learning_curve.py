@@ -128,6 +128,7 @@ def render(result: dict, png: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
 
     rows = result["rows"]
     n = [r["n_designs"] for r in rows]
@@ -139,8 +140,6 @@ def render(result: dict, png: Path) -> None:
     b.axhline(1 - TARGET_R2, color="k", ls="--", lw=1, label="target R² 0.99")
     a.set(xlabel="FE designs (train + validation)", ylabel="median relative error (%)")
     b.set(xlabel="FE designs (train + validation)", ylabel="1 - R² (test)")
-    from matplotlib.ticker import NullFormatter
-
     for ax in (a, b):
         ax.set_xticks(n, [str(v) for v in n], fontsize=7)  # the trained sizes, uncluttered
         ax.xaxis.set_minor_formatter(NullFormatter())
