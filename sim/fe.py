@@ -37,7 +37,11 @@ INTORDER = 2  # 3-point rule: exact for the P2 stiffness in small strain, no spu
 
 @dataclass
 class LayerState:
-    """History of one layer at the quadrature points (shapes (3, n_el, n_q) and (N_G, 3, ...))."""
+    """History of one layer at the quadrature points: the instantaneous stress ``S0`` and the
+    Prony internal stresses ``H`` (MPa), shapes (3, n_el, n_q) and (N_G, 3, n_el, n_q); for a
+    material whose shear and bulk relax apart (``Material.split_relaxation``) the isochoric and
+    volumetric parts are kept apart on an axis of length 2: (2, 3, ...) and (N_G, 2, 3, ...).
+    The Prony term axis of ``H`` is always first (and matches ``mat.prony.tau_s``)."""
 
     S0: np.ndarray
     H: np.ndarray
@@ -204,9 +208,7 @@ class Discretization:
     def initial_states(self) -> list[LayerState]:
         states = []
         for mat, sl in zip(self.materials, self.slices, strict=True):
-            n = sl.stop - sl.start
-            ng = len(mat.prony.g)
-            states.append(LayerState(np.zeros((3, n, self.n_q)), np.zeros((ng, 3, n, self.n_q))))
+            states.append(LayerState(*mat.initial_state((sl.stop - sl.start, self.n_q))))
         return states
 
     # ------------------------------------------------------------------ kinematics
@@ -232,7 +234,8 @@ class Discretization:
 
         ``states`` is the history committed at the start of the step and ``dt_s`` the step size.
         With ``frozen_history`` the Prony internal stresses keep their committed values
-        (S = g_inf S0(u) + sum g_i H_i): used to re-equilibrate after a cycle jump.
+        (S = g_inf S0(u) + sum g_i H_i, plus the bulk terms when shear and bulk relax apart):
+        used to re-equilibrate after a cycle jump.
         """
         with np.errstate(all="ignore"):
             F = self.deformation_gradient(u)
@@ -249,21 +252,20 @@ class Discretization:
         new_states = []
         with np.errstate(all="ignore"):  # extreme trial states are rejected, not warned about
             for mat, sl, st in zip(self.materials, self.slices, states, strict=True):
-                law = mat.instantaneous
+                # S0/D0 of the instantaneous law, split [iso, vol] when shear and bulk relax
+                # apart (Material.split_relaxation); otherwise exactly the whole-stress path
                 if tangent:
-                    S0, D0 = law.stress_tangent(C[:, sl])
+                    S0, D0 = mat.instantaneous_stress_tangent(C[:, sl])
                 else:
-                    S0 = law.stress(C[:, sl])
+                    S0 = mat.instantaneous_stress(C[:, sl])
                 if frozen_history:
-                    g = np.asarray(mat.prony.g, dtype=float)
                     Hk = st.H
-                    Sk = mat.prony.g_inf * S0 + np.tensordot(g, Hk, axes=1)
-                    factor = mat.prony.g_inf
+                    Sk, factor = mat.history_stress(S0, Hk)
                 else:
-                    Sk, Hk, factor = mat.prony.update(S0, st.S0, st.H, dt_s)
+                    Sk, Hk, factor = mat.relax(S0, st.S0, st.H, dt_s)
                 S[:, sl] = Sk
                 if tangent:
-                    D[:, :, sl] = factor * D0
+                    D[:, :, sl] = mat.tangent(D0, factor)
                 new_states.append(LayerState(S0, Hk))
         if not np.all(np.isfinite(S)) or (tangent and not np.all(np.isfinite(D))):
             return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)

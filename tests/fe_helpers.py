@@ -65,8 +65,7 @@ def cauchy(body: Body) -> np.ndarray:
     F = disc.deformation_gradient(body.u)
     S = np.empty((3, disc.n_el, disc.n_q))
     for mat, sl, st in zip(disc.materials, disc.slices, body.states, strict=True):
-        g = np.asarray(mat.prony.g, dtype=float)
-        S[:, sl] = mat.prony.g_inf * st.S0 + (np.tensordot(g, st.H, axes=1) if len(g) else 0.0)
+        S[:, sl] = mat.history_stress(st.S0, st.H)[0]  # split into iso/vol parts or not
     Sm = np.array([[S[0], S[2]], [S[2], S[1]]])
     J = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
     return np.einsum("iJeq,JKeq,kKeq->ikeq", F, Sm, F) / J

@@ -24,7 +24,14 @@ _Derivs2 = tuple[Any, Any, Any]  # (U_aa, U_ab, U_bb); None = identically zero
 
 
 class InvariantLaw(Law):
-    """``U(I1b, I2b, J)`` with the isochoric part given by the subclass (MPa)."""
+    """``U(I1b, I2b, J)`` with the isochoric part given by the subclass (MPa).
+
+    Decoupled: ``U_iso(I1b, I2b)`` (isochoric; its Kirchhoff stress is deviatoric) plus
+    ``U_vol = K/2 (J - 1)^2`` (volumetric; its stress is the pressure ``-K (J - 1)``), so the
+    ``*_split`` methods give the two parts apart.
+    """
+
+    decoupled: ClassVar[bool] = True
 
     def _iso(self, a: Array, b: Array) -> Array:
         """``U_iso(I1b = a, I2b = b)`` (MPa)."""
@@ -69,23 +76,22 @@ class InvariantLaw(Law):
         *_, W_t, W_d = self._first(C)
         return td_stress(C, W_t, W_d)
 
-    def evaluate(self, C: Any) -> tuple[Array, Array, Array]:
-        """``(W, S, D)`` (MPa) at ``C``; shapes ``batch``, ``(3, *batch)``, ``(3, 3, *batch)``."""
-        C = as_C(C)
-        (t, d, inv_d, J, a, b, a_t, b_t, a_d, b_d, J_d, U_a, U_b, U_J, W_t, W_d) = self._first(C)
-        K = self.bulk_modulus_MPa
-        W = self._iso(a, b) + 0.5 * K * (J - 1.0) ** 2
-        S = td_stress(C, W_t, W_d)
-
+    def _second(self, C: Array, first: tuple[Any, ...], volumetric: bool) -> tuple[Any, ...]:
+        """``(W_tt, W_td, W_dd)`` of the isochoric part, plus the volumetric part's ``W_dd``
+        when ``volumetric`` (in the order of operations of the whole-law tangent)."""
+        (t, d, inv_d, J, a, b, a_t, b_t, a_d, b_d, J_d, U_a, U_b, U_J, _, _) = first
         U_aa, U_ab, U_bb = self._iso_d2(a, b)
         inv_d2 = inv_d * inv_d
-        # Second derivatives of a = I1b, b = I2b, J w.r.t. (t, d) (a_tt = b_tt = 0).
+        # Second derivatives of a = I1b, b = I2b w.r.t. (t, d) (a_tt = b_tt = 0).
         a_td = -a_t * inv_d / 3.0
         a_dd = (4.0 / 9.0) * a * inv_d2
-        J_dd = -0.25 * J * inv_d2
         W_tt = 0.0
         W_td = U_a * a_td
-        W_dd = U_a * a_dd + K * J_d * J_d + U_J * J_dd
+        if volumetric:
+            J_dd = -0.25 * J * inv_d2
+            W_dd = U_a * a_dd + self.bulk_modulus_MPa * J_d * J_d + U_J * J_dd
+        else:
+            W_dd = U_a * a_dd
         if U_aa is not None:
             W_tt = W_tt + U_aa * a_t * a_t
             W_td = W_td + U_aa * a_t * a_d
@@ -103,9 +109,86 @@ class InvariantLaw(Law):
                 W_tt = W_tt + U_bb * b_t * b_t
                 W_td = W_td + U_bb * b_t * b_d
                 W_dd = W_dd + U_bb * b_d * b_d
+        return W_tt, W_td, W_dd
+
+    def _vol_W_dd(self, J: Array, J_d: Array, U_J: Array, inv_d2: Array) -> Array:
+        """``d2 W_vol / dd2`` of ``W_vol = K/2 (J - 1)^2``, ``J = sqrt(d)``."""
+        return self.bulk_modulus_MPa * J_d * J_d + U_J * (-0.25 * J * inv_d2)
+
+    def evaluate(self, C: Any) -> tuple[Array, Array, Array]:
+        """``(W, S, D)`` (MPa) at ``C``; shapes ``batch``, ``(3, *batch)``, ``(3, 3, *batch)``."""
+        C = as_C(C)
+        first = self._first(C)
+        J, a, b, W_t, W_d = first[3], first[4], first[5], first[14], first[15]
+        K = self.bulk_modulus_MPa
+        W = self._iso(a, b) + 0.5 * K * (J - 1.0) ** 2
+        S = td_stress(C, W_t, W_d)
+        W_tt, W_td, W_dd = self._second(C, first, volumetric=True)
         D = np.zeros((3, 3, *C.shape[1:]))
         td_tangent(C, W_d, W_tt, W_td, W_dd, out=D)
         return W, S, D
+
+    # -- isochoric / volumetric split ---------------------------------------------------------
+    @staticmethod
+    def _split_W_d(first: tuple[Any, ...]) -> tuple[Any, Any]:
+        """``dW/dd`` of the isochoric and of the volumetric part."""
+        a_d, b_d, J_d, U_a, U_b, U_J = first[8:14]
+        W_d_iso = U_a * a_d
+        if U_b is not None:
+            W_d_iso = W_d_iso + U_b * b_d
+        return W_d_iso, U_J * J_d
+
+    def _split_stress(self, C: Array, first: tuple[Any, ...]) -> Array:
+        W_d_iso, W_d_vol = self._split_W_d(first)
+        S = np.empty((2, *C.shape))
+        S[0] = td_stress(C, first[14], W_d_iso)  # W_t comes from the isochoric part only
+        S[1] = td_stress(C, None, W_d_vol)
+        return S
+
+    def _split_tangent(self, C: Array, first: tuple[Any, ...]) -> Array:
+        W_d_iso, W_d_vol = self._split_W_d(first)
+        W_tt, W_td, W_dd_iso = self._second(C, first, volumetric=False)
+        J, inv_d, J_d, U_J = first[3], first[2], first[10], first[13]
+        D = np.zeros((2, 3, 3, *C.shape[1:]))
+        td_tangent(C, W_d_iso, W_tt, W_td, W_dd_iso, out=D[0])
+        td_tangent(C, W_d_vol, None, None, self._vol_W_dd(J, J_d, U_J, inv_d * inv_d), out=D[1])
+        return D
+
+    def evaluate_split(self, C: Any) -> tuple[Array, Array, Array]:
+        """``(W, S, D)`` split as ``[iso, vol]`` (MPa): ``W_iso = U_iso(I1b, I2b)``,
+        ``W_vol = K/2 (J - 1)^2``; shapes ``(2, *batch)``, ``(2, 3, *batch)``,
+        ``(2, 3, 3, *batch)``."""
+        C = as_C(C)
+        first = self._first(C)
+        J, a, b = first[3], first[4], first[5]
+        W = np.empty((2, *C.shape[1:]))
+        W[0] = self._iso(a, b)
+        W[1] = 0.5 * self.bulk_modulus_MPa * (J - 1.0) ** 2
+        return W, self._split_stress(C, first), self._split_tangent(C, first)
+
+    def stress_split(self, C: Any) -> Array:
+        """``S`` split as ``[iso, vol]``, shape ``(2, 3, *batch)`` (MPa)."""
+        C = as_C(C)
+        return self._split_stress(C, self._first(C))
+
+    def stress_tangent_split(self, C: Any) -> tuple[Array, Array]:
+        """``(S, D)`` split as ``[iso, vol]`` (MPa), shapes ``(2, 3, *batch)``,
+        ``(2, 3, 3, *batch)``."""
+        C = as_C(C)
+        first = self._first(C)
+        return self._split_stress(C, first), self._split_tangent(C, first)
+
+    def S33_split(self, C: Any) -> Array:
+        """``S33`` split as ``[iso, vol]``, shape ``(2, *batch)`` (MPa); see :meth:`S33`."""
+        C = as_C(C)
+        t, _, _, J, a, b, a_t, b_t, _, _, _, U_a, U_b, U_J, _, _ = self._first(C)
+        S33 = np.empty((2, *C.shape[1:]))
+        iso = U_a * (a_t - a / 3.0)
+        if U_b is not None:
+            iso = iso + U_b * (t * b_t - (2.0 / 3.0) * b)
+        S33[0] = 2.0 * iso
+        S33[1] = U_J * J
+        return S33
 
     def S33(self, C: Any) -> Array:
         """Out-of-plane 2nd Piola-Kirchhoff stress ``S33`` (MPa), shape ``batch``.

@@ -12,6 +12,12 @@ Many laws are functions of ``t = tr C`` and ``d = det C`` of the 2x2 block only 
 ``I2 = d + t``, ``J = sqrt(d)``).  ``dt/dC = I`` and ``dd/dC = cof C`` (linear in ``C``), so the
 stress and tangent follow from the derivatives of ``W(t, d)`` exactly, without eigenvalues
 (:func:`td_stress`, :func:`td_tangent`).
+
+A *decoupled* law (``Law.decoupled``; the invariant laws, ``W = W_iso(C) + W_vol(J)``) also gives
+its energy, stress and tangent split into the isochoric and the volumetric part, stacked on a
+leading axis of length 2 (``[iso, vol]``): ``evaluate_split(C) -> (W, S, D)`` with shapes
+``(2, *batch)``, ``(2, 3, *batch)``, ``(2, 3, 3, *batch)``; the parts sum to ``evaluate(C)``.
+The Prony series can then relax shear and bulk with different coefficients.
 """
 
 from __future__ import annotations
@@ -98,6 +104,9 @@ class Law:
 
     model: ClassVar[str]
     moduli_fields: ClassVar[tuple[str, ...]]
+    #: True when ``W = W_iso(C) + W_vol(J)``: the ``*_split`` methods exist and
+    #: :meth:`scaled_moduli` can scale shear and bulk apart.
+    decoupled: ClassVar[bool] = False
     nu: float
 
     # --- construction and validation -------------------------------------------------------
@@ -170,6 +179,26 @@ class Law:
                 changes[name] = factor * value
         return dataclasses.replace(self, **changes)  # type: ignore[type-var]
 
+    def scaled_moduli(self, shear: float, bulk: float) -> Self:
+        """The law with its shear moduli times ``shear`` and its bulk modulus times ``bulk`` (> 0).
+
+        Equal factors are :meth:`scaled` (``nu`` kept).  Different factors change ``nu``; only a
+        decoupled law (whose bulk modulus enters through ``W_vol`` alone) supports them.
+        """
+        if shear == bulk:
+            return self.scaled(shear)
+        if not (shear > 0.0 and bulk > 0.0):
+            raise ValueError(f"factors must be > 0, got shear={shear}, bulk={bulk}")
+        if not self.decoupled:
+            raise ValueError(
+                f"{self.model} couples shear and bulk: it can only scale both by one factor"
+            )
+        mu = shear * self.initial_shear_modulus_MPa
+        K = bulk * self.bulk_modulus_MPa
+        # nu of (mu, K), the inverse of bulk_modulus(): K = 2 mu (1 + nu) / (3 (1 - 2 nu))
+        nu = (3.0 * K - 2.0 * mu) / (2.0 * (3.0 * K + mu))
+        return dataclasses.replace(self.scaled(shear), nu=nu)  # type: ignore[type-var]
+
     # --- moduli ------------------------------------------------------------------------------
     @property
     def initial_shear_modulus_MPa(self) -> float:
@@ -201,3 +230,26 @@ class Law:
         With ``F33 = 1`` the Cauchy stress is ``sigma33 = S33 / J``, ``J = sqrt(det C)``.
         """
         raise NotImplementedError
+
+    # --- isochoric / volumetric split (decoupled laws only) -----------------------------------
+    def _not_decoupled(self) -> NotImplementedError:
+        return NotImplementedError(
+            f"{self.model}'s energy does not split into isochoric and volumetric parts"
+        )
+
+    def evaluate_split(self, C: Any) -> tuple[Array, Array, Array]:
+        """``(W, S, D)`` split as ``[iso, vol]``: shapes ``(2, *batch)``, ``(2, 3, *batch)``,
+        ``(2, 3, 3, *batch)`` (MPa); each part is the derivative of its own energy."""
+        raise self._not_decoupled()
+
+    def stress_split(self, C: Any) -> Array:
+        """``S`` split as ``[iso, vol]``, shape ``(2, 3, *batch)`` (MPa); no tangent."""
+        raise self._not_decoupled()
+
+    def stress_tangent_split(self, C: Any) -> tuple[Array, Array]:
+        """``(S, D)`` split as ``[iso, vol]``, as in :meth:`evaluate_split` (no energy)."""
+        raise self._not_decoupled()
+
+    def S33_split(self, C: Any) -> Array:
+        """``S33`` split as ``[iso, vol]``, shape ``(2, *batch)`` (MPa)."""
+        raise self._not_decoupled()

@@ -7,12 +7,16 @@ from collections.abc import Mapping
 from functools import cached_property
 from typing import Any
 
+import numpy as np
+
 from sim.errors import DesignError
 from sim.materials import _validate as v
 from sim.materials._hyperfoam import Hyperfoam
 from sim.materials._invariant import MooneyRivlin, NeoHookean, Yeoh
 from sim.materials._law import Law
-from sim.materials._prony import Prony
+from sim.materials._prony import Prony, prony_stress_split, prony_update_split
+
+Array = np.ndarray
 
 #: Registry of the hyperelastic laws, design-file ``model`` name -> class.
 LAWS: dict[str, type[Law]] = {cls.model: cls for cls in (Hyperfoam, NeoHookean, MooneyRivlin, Yeoh)}
@@ -21,7 +25,40 @@ LAWS: dict[str, type[Law]] = {cls.model: cls for cls in (Hyperfoam, NeoHookean, 
 MODULI = ("long_term", "instantaneous")
 
 # Keys of a material table besides the law's own keys.
-_MATERIAL_KEYS = ("model", "prony_g", "prony_tau_s", "moduli", "name", "source")
+_MATERIAL_KEYS = ("model", "prony_g", "prony_tau_s", "prony_k", "moduli", "name", "source")
+
+# Abaqus, "Time domain viscoelasticity" (Abaqus 2017 Materials Guide,
+# abaqus-docs.mit.edu/2017/English/SIMACAEMATRefMap/simamat-c-timevisco.htm): "if the
+# instantaneous behavior is defined by the hyperfoam model, the deviatoric and volumetric
+# constitutive behavior are coupled and it is mandatory to use the same relaxation data for both
+# behaviors" (Theory Guide, "Finite-strain viscoelasticity", simathe-c-finitestrvisco.htm, says
+# the same).  So a hyperfoam relaxes its whole stress (k_i = g_i), the paper's convention.
+_COUPLED_PRONY_K = (
+    "must equal prony_g (or be left out) for {model}: shear and bulk are coupled in its energy, "
+    "so it relaxes its whole stress (as Abaqus requires)"
+)
+
+
+def default_prony_k(law: Law, g: tuple[float, ...]) -> tuple[float, ...]:
+    """The bulk coefficients ``k_i`` a material gets when ``prony_k`` is left out.
+
+    * Decoupled (invariant) laws: ``k_i = 0``, shear-only relaxation, the bulk response stays
+      elastic.  Elastomers and gels are nearly incompressible because their bulk modulus comes
+      from the liquid-like packing of the chains (and the solvent), which barely relaxes, while
+      the shear modulus is the entropic network that does; the usual modelling assumption
+      (e.g. COMSOL, "Linear Viscoelasticity": "the viscous part of the deformation is
+      incompressible so that the volumetric deformation is purely elastic").  With ``k = g``
+      a ``nu = 0.45`` material relaxing by 68 % would also lose 68 % of its bulk modulus.
+    * Hyperfoam (not decoupled): ``k_i = g_i``, the whole stress relaxes (Abaqus' rule, see
+      ``_COUPLED_PRONY_K``; the paper's Table 2 convention).
+    """
+    return tuple(0.0 for _ in g) if law.decoupled else g
+
+
+def _check_prony_k(law: Law, prony: Prony, prefix: str) -> None:
+    """Refuse bulk coefficients a law cannot have (``DesignError`` naming ``prony_k``)."""
+    if prony.k is not None and not law.decoupled and prony.k != prony.g:
+        raise DesignError(f"{prefix}prony_k", _COUPLED_PRONY_K.format(model=law.model))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -29,10 +66,19 @@ class Material:
     """A visco-hyperelastic material.
 
     ``law``: the hyperelastic law as given (MPa moduli); ``prony``: relaxation (empty =
-    elastic); ``moduli``: ``"long_term"`` (default, as Abaqus: the law's moduli are the
-    ``t -> inf`` moduli, the instantaneous law is the law scaled by ``1 / g_inf``) or
-    ``"instantaneous"`` (the law's moduli are the ``t = 0+`` moduli); ``name``: catalogue name;
-    ``source``: citation of the numbers.
+    elastic), shear coefficients ``g_i`` and optional bulk coefficients ``k_i``
+    (``prony.k = None``: the law's default, :func:`default_prony_k`; a ``k`` equal to the
+    default is stored as ``None``, so equal materials compare equal); ``moduli``:
+    ``"long_term"`` (default, as Abaqus: the law's moduli are the ``t -> inf`` moduli, the
+    instantaneous law has its shear moduli divided by ``g_inf`` and its bulk modulus by
+    ``k_inf``) or ``"instantaneous"`` (the law's moduli are the ``t = 0+`` moduli); ``name``:
+    catalogue name; ``source``: citation of the numbers.
+
+    When ``k != g`` (:attr:`split_relaxation`) the isochoric and volumetric stresses relax
+    apart and the state keeps them apart: ``S0`` has shape ``(2, 3, ...)`` (``[iso, vol]``) and
+    ``H`` ``(N_G, 2, 3, ...)``; otherwise ``(3, ...)`` and ``(N_G, 3, ...)``.  The methods
+    :meth:`initial_state`, :meth:`instantaneous_stress_tangent`, :meth:`relax`,
+    :meth:`history_stress` and :meth:`tangent` hide the difference from the assembly.
     """
 
     law: Law
@@ -48,25 +94,96 @@ class Material:
             raise TypeError(f"prony must be a Prony, got {type(self.prony)}")
         if self.moduli not in MODULI:
             raise DesignError("moduli", f"must be one of {', '.join(MODULI)}, got {self.moduli!r}")
+        _check_prony_k(self.law, self.prony, "")
+        if self.prony.k is not None and self.prony.k == default_prony_k(self.law, self.prony.g):
+            object.__setattr__(self, "prony", dataclasses.replace(self.prony, k=None))
+
+    # --- relaxation coefficients ------------------------------------------------------------
+    @cached_property
+    def prony_k(self) -> tuple[float, ...]:
+        """The bulk coefficients ``k_i`` in force (``prony.k`` or the law's default)."""
+        return default_prony_k(self.law, self.prony.g) if self.prony.k is None else self.prony.k
+
+    @property
+    def k_inf(self) -> float:
+        """Long-term relative bulk modulus ``k_inf = 1 - sum k_i``."""
+        return 1.0 - float(sum(self.prony_k))
+
+    @cached_property
+    def split_relaxation(self) -> bool:
+        """True when shear and bulk relax differently (``k != g``): the split state is used."""
+        return self.prony_k != self.prony.g
 
     @property
     def is_elastic(self) -> bool:
-        """True when there is no relaxation."""
-        return self.prony.is_elastic
+        """True when there is no relaxation (all ``g_i`` and ``k_i`` zero)."""
+        return not any(self.prony.g) and not any(self.prony_k)
 
+    def bulk_relaxation(self, t_s: Any) -> Array:
+        """``k(t) = 1 - sum k_i (1 - exp(-t / tau_i))`` for ``t_s`` (s, any shape)."""
+        return self.prony.relaxation(t_s, self.prony_k)
+
+    # --- the two elastic limits ---------------------------------------------------------------
     @cached_property
     def instantaneous(self) -> Law:
         """The law with the instantaneous (``t = 0+``) moduli: evaluate this for ``S0``/``D0``."""
         if self.moduli == "long_term" and not self.is_elastic:
-            return self.law.scaled(1.0 / self.prony.g_inf)
+            if not self.split_relaxation:
+                return self.law.scaled(1.0 / self.prony.g_inf)
+            return self.law.scaled_moduli(shear=1.0 / self.prony.g_inf, bulk=1.0 / self.k_inf)
         return self.law
 
     @cached_property
     def long_term(self) -> Law:
-        """The law with the long-term (``t -> inf``) moduli, ``g_inf`` times the instantaneous."""
+        """The law with the long-term (``t -> inf``) moduli: shear moduli ``g_inf`` times, bulk
+        modulus ``k_inf`` times the instantaneous ones."""
         if self.moduli == "instantaneous" and not self.is_elastic:
-            return self.law.scaled(self.prony.g_inf)
+            if not self.split_relaxation:
+                return self.law.scaled(self.prony.g_inf)
+            return self.law.scaled_moduli(shear=self.prony.g_inf, bulk=self.k_inf)
         return self.law
+
+    # --- the viscoelastic update (what the assembly calls) ------------------------------------
+    def initial_state(self, batch: tuple[int, ...]) -> tuple[Array, Array]:
+        """Zero ``(S0, H)`` (undeformed, at rest) for a batch of points; shapes in the class
+        docstring (MPa)."""
+        parts = (2,) if self.split_relaxation else ()
+        return np.zeros((*parts, 3, *batch)), np.zeros((self.prony.n_terms, *parts, 3, *batch))
+
+    def instantaneous_stress(self, C: Any) -> Array:
+        """``S0`` of the instantaneous law at ``C`` (MPa), split when :attr:`split_relaxation`."""
+        law = self.instantaneous
+        return law.stress_split(C) if self.split_relaxation else law.stress(C)
+
+    def instantaneous_stress_tangent(self, C: Any) -> tuple[Array, Array]:
+        """``(S0, D0)`` of the instantaneous law (MPa), split when :attr:`split_relaxation`."""
+        law = self.instantaneous
+        return law.stress_tangent_split(C) if self.split_relaxation else law.stress_tangent(C)
+
+    def relax(
+        self, S0_new: Array, S0_old: Array, H_old: Array, dt_s: float
+    ) -> tuple[Array, Array, Any]:
+        """One recursive step: ``(S, H_new, factor)``, ``S`` (MPa) shape ``(3, ...)``; ``factor``
+        goes to :meth:`tangent` (:func:`prony_update`, :func:`prony_update_split`)."""
+        if not self.split_relaxation:
+            return self.prony.update(S0_new, S0_old, H_old, dt_s)
+        prony = self.prony
+        return prony_update_split(S0_new, S0_old, H_old, dt_s, prony.g, self.prony_k, prony.tau_s)
+
+    def history_stress(self, S0: Array, H: Array) -> tuple[Array, Any]:
+        """``(S, factor)`` with the history ``H`` held as it is (no time passes):
+        ``S = g_inf S0 + sum g_i H_i`` (split: plus the bulk terms with ``k``)."""
+        if not self.split_relaxation:
+            g = np.asarray(self.prony.g, dtype=float)
+            return self.prony.g_inf * S0 + np.tensordot(g, H, axes=1), self.prony.g_inf
+        return prony_stress_split(S0, H, self.prony.g, self.prony_k)
+
+    def tangent(self, D0: Array, factor: Any) -> Array:
+        """The viscoelastic tangent (MPa), shape ``(3, 3, ...)``, from the instantaneous ``D0``
+        and the ``factor`` of :meth:`relax` or :meth:`history_stress`."""
+        if not self.split_relaxation:
+            return factor * D0
+        return factor[0] * D0[0] + factor[1] * D0[1]
 
     def to_dict(self) -> dict[str, Any]:
         """The design-file table; round-trips through :func:`material_from_spec`."""
@@ -88,7 +205,8 @@ def material_from_table(table: Mapping[str, Any], field: str = "material") -> Ma
     """Build a ``Material`` from an inline design-file table (errors name ``f"{field}.key"``).
 
     Keys: ``model`` (one of ``LAWS``), the law's keys, optional ``prony_g``, ``prony_tau_s``
-    (lists of equal length, absent = elastic), ``moduli`` (``"long_term"`` default or
+    (lists of equal length, absent = elastic), optional ``prony_k`` (bulk coefficients, as long
+    as ``prony_g``; default :func:`default_prony_k`), ``moduli`` (``"long_term"`` default or
     ``"instantaneous"``), ``name``, ``source``.  Unknown keys are rejected.
     """
     if not isinstance(table, Mapping):
@@ -103,9 +221,12 @@ def material_from_table(table: Mapping[str, Any], field: str = "material") -> Ma
     v.known_keys(table, (*law_cls.keys(), *_MATERIAL_KEYS), field)
     law = law_cls.from_params({k: table[k] for k in law_cls.keys() if k in table}, field)
     g, tau = Prony.check(table.get("prony_g", ()), table.get("prony_tau_s", ()), f"{field}.")
+    k = Prony.check_k(table["prony_k"], g, f"{field}.") if "prony_k" in table else None
+    prony = Prony(g, tau, k)
+    _check_prony_k(law, prony, f"{field}.")
     moduli = table.get("moduli", "long_term")
     if moduli not in MODULI:
         raise DesignError(f"{field}.moduli", f"must be one of {', '.join(MODULI)}, got {moduli!r}")
     name = _text(table["name"], f"{field}.name") if "name" in table else None
     source = _text(table["source"], f"{field}.source") if "source" in table else None
-    return Material(law=law, prony=Prony(g, tau), moduli=moduli, name=name, source=source)
+    return Material(law=law, prony=prony, moduli=moduli, name=name, source=source)

@@ -11,6 +11,16 @@ recursively (Simo 1987; Abaqus):
 
 exact when ``S0`` is piecewise linear in time (so exact for a step and for a linear ramp).
 The consistent tangent is ``(g_inf + sum g_i gamma_i) D0``.
+
+**Shear and bulk apart** (Abaqus: ``g_i`` for shear, ``k_i`` for bulk, sharing ``tau_i``).  For a
+law with a decoupled energy ``S0 = S0_iso + S0_vol`` (:mod:`sim.materials._law`) each part has
+its own history, ``H_i = [H_i^iso, H_i^vol]`` updated by the same recursion, and (the
+reference-configuration split of Simo 1987; Holzapfel, *Nonlinear Solid Mechanics*, 2000)
+
+    S = g_inf S0_iso + sum_i g_i H_i^iso + k_inf S0_vol + sum_i k_i H_i^vol,   k_inf = 1 - sum k_i,
+
+with the consistent tangent ``(g_inf + sum g_i gamma_i) D0_iso + (k_inf + sum k_i gamma_i)
+D0_vol`` (:func:`prony_update_split`).  ``k_i = g_i`` is the whole-stress series above.
 """
 
 from __future__ import annotations
@@ -65,20 +75,81 @@ def prony_update(
     return S, H_new, g_inf + float(g_arr @ gamma)
 
 
+def prony_update_split(
+    S0_new: Array,
+    S0_old: Array,
+    H_old: Array,
+    dt_s: float,
+    g: Sequence[float],
+    k: Sequence[float],
+    tau_s: Sequence[float],
+) -> tuple[Array, Array, Array]:
+    """One step of the recursion with separate shear (``g``) and bulk (``k``) coefficients.
+
+    ``S0_new``, ``S0_old``: the instantaneous stress split as ``[iso, vol]`` (MPa), shape
+    ``(2, 3, *batch)`` (any shape ``(2, ...)`` works); ``H_old``: history, shape
+    ``(N_G, 2, 3, *batch)`` (MPa; the term axis first, as in :func:`prony_update`); ``dt_s``,
+    ``tau_s`` as there; ``g``, ``k``: shear and bulk coefficients (same length as ``tau_s``).
+
+    Returns ``(S, H_new, factors)``: the viscoelastic stress (MPa, shape ``S0_new.shape[1:]``),
+    the new history and ``factors = [g_inf + sum g_i gamma_i, k_inf + sum k_i gamma_i]`` that
+    multiply ``D0_iso`` and ``D0_vol`` in the consistent tangent.
+    """
+    if not dt_s >= 0.0:
+        raise ValueError(f"dt_s must be >= 0, got {dt_s}")
+    g_arr = np.asarray(g, dtype=float)
+    k_arr = np.asarray(k, dtype=float)
+    g_inf = 1.0 - float(g_arr.sum())
+    k_inf = 1.0 - float(k_arr.sum())
+    if g_arr.size == 0:
+        return S0_new[0] + S0_new[1], np.asarray(H_old), np.ones(2)
+    z = dt_s / np.asarray(tau_s, dtype=float)
+    decay = np.exp(-z)
+    gamma = exprel(-z)  # (1 - exp(-z)) / z, 1 at z = 0
+    expand = (slice(None),) + (None,) * np.ndim(S0_new)
+    H_new = decay[expand] * H_old + gamma[expand] * (S0_new - S0_old)
+    S = prony_stress_split(S0_new, H_new, g_arr, k_arr)[0]
+    return S, H_new, np.array([g_inf + float(g_arr @ gamma), k_inf + float(k_arr @ gamma)])
+
+
+def prony_stress_split(
+    S0: Array, H: Array, g: Sequence[float], k: Sequence[float]
+) -> tuple[Array, Array]:
+    """``(S, factors)`` for the split state ``S0`` (``(2, ...)``) and history ``H``
+    (``(N_G, 2, ...)``) held as they are: ``S = g_inf S0_iso + sum g_i H_i^iso + k_inf S0_vol +
+    sum k_i H_i^vol``, ``factors = [g_inf, k_inf]`` (the tangent with the history held fixed)."""
+    g_arr = np.asarray(g, dtype=float)
+    k_arr = np.asarray(k, dtype=float)
+    g_inf = 1.0 - float(g_arr.sum())
+    k_inf = 1.0 - float(k_arr.sum())
+    S = g_inf * S0[0] + k_inf * S0[1]
+    if g_arr.size:
+        S = S + np.tensordot(g_arr, H[:, 0], axes=1) + np.tensordot(k_arr, H[:, 1], axes=1)
+    return S, np.array([g_inf, k_inf])
+
+
 @dataclasses.dataclass(frozen=True)
 class Prony:
-    """Prony series: ``g`` (dimensionless, each >= 0, sum < 1) and ``tau_s`` (s, > 0).
+    """Prony series: ``g`` (dimensionless, each >= 0, sum < 1), ``tau_s`` (s, > 0) and the
+    optional bulk coefficients ``k`` (same length as ``g``, each >= 0, sum < 1).
 
+    ``k = None`` means "not given": a :class:`~sim.materials.Material` resolves it to its law's
+    default (``Material.prony_k``; shear-only for the invariant laws, ``k = g`` for the hyperfoam)
+    and keeps ``None`` whenever ``k`` equals that default.  The methods here act on one stress
+    with ``g`` (whole-stress relaxation); the split update is :func:`prony_update_split`.
     ``Prony()`` (no terms) is elastic.
     """
 
     g: tuple[float, ...] = ()
     tau_s: tuple[float, ...] = ()
+    k: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         g, tau = self.check(self.g, self.tau_s, "")
         object.__setattr__(self, "g", g)
         object.__setattr__(self, "tau_s", tau)
+        if self.k is not None:
+            object.__setattr__(self, "k", self.check_k(self.k, g, ""))
 
     @staticmethod
     def check(g: Any, tau_s: Any, prefix: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -102,6 +173,25 @@ class Prony:
             raise DesignError(f"{prefix}prony_g", f"sum must be < 1, got {sum(g):g}")
         return g, tau
 
+    @staticmethod
+    def check_k(k: Any, g: tuple[float, ...], prefix: str) -> tuple[float, ...]:
+        """Validate ``prony_k`` against the validated ``g``; errors name ``f"{prefix}prony_k"``.
+
+        Bounds as for ``g`` and for the same reasons: each term is a spring of positive
+        stiffness (``k_i >= 0``) and the long-term bulk modulus stays positive
+        (``k_inf = 1 - sum k_i > 0``).
+        """
+        field = f"{prefix}prony_k"
+        k = v.number_list(k, field, 0, MAX_PRONY_TERMS)
+        if len(k) != len(g):
+            raise DesignError(field, f"must have as many terms as prony_g ({len(g)}), got {len(k)}")
+        for i, ki in enumerate(k):
+            if not ki >= 0.0:
+                raise DesignError(field, f"prony_k[{i}] must be >= 0, got {ki:g}")
+        if not sum(k) < 1.0:
+            raise DesignError(field, f"sum must be < 1, got {sum(k):g}")
+        return k
+
     @property
     def n_terms(self) -> int:
         """Number of terms ``N_G``."""
@@ -114,14 +204,18 @@ class Prony:
 
     @property
     def is_elastic(self) -> bool:
-        """True when there is no relaxation (no terms or all ``g_i = 0``)."""
-        return not any(self.g)
+        """True when there is no relaxation (no terms, or all ``g_i`` and ``k_i`` zero)."""
+        return not any(self.g) and not any(self.k or ())
 
-    def relaxation(self, t_s: Any) -> Array:
-        """``g(t) = 1 - sum g_i (1 - exp(-t / tau_i))`` for ``t_s`` (s, any shape)."""
+    def relaxation(self, t_s: Any, coefficients: Sequence[float] | None = None) -> Array:
+        """``g(t) = 1 - sum g_i (1 - exp(-t / tau_i))`` for ``t_s`` (s, any shape).
+
+        With ``coefficients`` (e.g. the bulk ``k_i``) the same function of those instead.
+        """
+        coefs = self.g if coefficients is None else tuple(coefficients)
         t = np.asarray(t_s, dtype=float)
         out = np.ones_like(t)
-        for gi, ti in zip(self.g, self.tau_s, strict=True):
+        for gi, ti in zip(coefs, self.tau_s, strict=True):
             out -= gi * -np.expm1(-t / ti)
         return out
 
@@ -132,11 +226,15 @@ class Prony:
     def update(
         self, S0_new: Array, S0_old: Array, H_old: Array, dt_s: float
     ) -> tuple[Array, Array, float]:
-        """One recursive step; see :func:`prony_update` (shapes, units, return values)."""
+        """One recursive step of the whole stress with ``g``; see :func:`prony_update`."""
         return prony_update(S0_new, S0_old, H_old, dt_s, self.g, self.tau_s)
 
     def to_dict(self) -> dict[str, list[float]]:
-        """Design-file keys ``prony_g``, ``prony_tau_s`` (empty dict when there are no terms)."""
+        """Design-file keys ``prony_g``, ``prony_tau_s`` and, when given, ``prony_k`` (empty dict
+        when there are no terms)."""
         if not self.g:
             return {}
-        return {"prony_g": list(self.g), "prony_tau_s": list(self.tau_s)}
+        out = {"prony_g": list(self.g), "prony_tau_s": list(self.tau_s)}
+        if self.k is not None:
+            out["prony_k"] = list(self.k)
+        return out
