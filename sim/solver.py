@@ -99,6 +99,9 @@ class Body:
         self.kappa_nodes = self.kappa * surface_weights(disc.X[s])
         factor = indenter_penalty_per_mm or options.penalty_per_mm
         self.kappa_indenter = self.kappa_nodes * (factor / options.penalty_per_mm)
+        # round-off floor of the indenter force (N/mm): penetrations are differences of
+        # coordinates of size ~size, each good to ~eps size, times the summed penalty
+        self.force_floor = 64.0 * np.finfo(float).eps * float(np.sum(self.kappa_indenter)) * size
         dof_x = disc.gmap[2 * s]
         dof_y = disc.gmap[2 * s + 1]
         self._sdof = (dof_x, dof_y)
@@ -263,7 +266,9 @@ class Body:
             norm0 = self._norm(r, rd)
             if _log.isEnabledFor(logging.DEBUG):
                 _log.debug("it %d |r| %.3e rd %.3e d %.5f", it, float(np.abs(r).max()), rd, d)
-            force_ok = control.kind != "force" or abs(rd) <= 1e-6 * abs(control.value) + 1e-15
+            force_ok = control.kind != "force" or abs(rd) <= max(
+                1e-6 * abs(control.value), self.force_floor
+            )
             if norm0 <= self.atol and force_ok:  # the load is matched relative to itself too
                 self._commit(u, states, t_new, d, control, force)
                 self.newton_iterations += it - 1
