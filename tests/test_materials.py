@@ -26,6 +26,7 @@ from sim.materials import (
     material_from_spec,
     prony_update,
 )
+from sim.materials._prony import prony_update_split
 
 SILICONE = CATALOGUE["silicone_gls40"].law
 POLYURETHANE = CATALOGUE["polyurethane_74_45"].law
@@ -160,6 +161,92 @@ def test_batch_shapes(name: str) -> None:
     assert np.ndim(W1) == 0 and S1.shape == (3,) and D1.shape == (3, 3)
     np.testing.assert_allclose(S1, S[:, 1, 2], rtol=1e-14, atol=0)
     np.testing.assert_allclose(D1, D[:, :, 1, 2], rtol=1e-14, atol=0)
+
+
+# --------------------------------------------------------------------------------------------
+# Isochoric / volumetric split of the decoupled (invariant) laws
+
+SPLIT_IDS = [n for n in LAW_IDS if LAW_CASES[n][0].decoupled]
+
+
+def test_only_the_invariant_laws_are_decoupled() -> None:
+    assert SPLIT_IDS == ["neo_hookean", "mooney_rivlin", "yeoh"]
+    foam = LAW_CASES["silicone"][0]
+    for method in (foam.evaluate_split, foam.stress_split, foam.stress_tangent_split):
+        with pytest.raises(NotImplementedError, match="isochoric and volumetric"):
+            method(np.array([1.0, 1.0, 0.0]))
+
+
+@pytest.mark.parametrize("name", SPLIT_IDS)
+def test_split_parts_match_finite_differences_of_their_own_energies(name: str) -> None:
+    """S_part = dW_part/dE and D_part = dS_part/dE for each part, and the parts sum to the
+    whole law's W, S, D (to rounding: the sums are formed in another order)."""
+    law, ln_j = LAW_CASES[name]
+    C = probe_states(ln_j)
+    W, S, D = law.evaluate_split(C)
+    n = C.shape[1]
+    assert W.shape == (2, n) and S.shape == (2, 3, n) and D.shape == (2, 3, 3, n)
+    h = 1e-5
+    mu0 = law.initial_shear_modulus_MPa
+    for part in (0, 1):
+        S_fd = np.moveaxis(fd_strain(lambda c, p=part: law.evaluate_split(c)[0][p], C, h), -1, 0)
+        D_fd = np.moveaxis(fd_strain(lambda c, p=part: law.stress_split(c)[p], C, h), -1, 1)
+        for k in range(n):
+            s_scale = max(np.abs(S[part, :, k]).max(), mu0)
+            d_scale = max(np.abs(D[part, :, :, k]).max(), mu0)
+            assert np.abs(S_fd[:, k] - S[part, :, k]).max() <= 1e-7 * s_scale, (part, k)
+            assert np.abs(D_fd[:, :, k] - D[part, :, :, k]).max() <= 1e-7 * d_scale, (part, k)
+        np.testing.assert_array_equal(D[part], np.swapaxes(D[part], 0, 1))
+    W0, S0, D0 = law.evaluate(C)
+    np.testing.assert_allclose(W.sum(axis=0), W0, rtol=0, atol=1e-15 * mu0)
+    np.testing.assert_allclose(S.sum(axis=0), S0, rtol=0, atol=4e-16 * np.abs(S0).max())
+    np.testing.assert_allclose(D.sum(axis=0), D0, rtol=0, atol=4e-16 * np.abs(D0).max())
+    np.testing.assert_allclose(law.S33_split(C).sum(axis=0), law.S33(C), rtol=0, atol=1e-15)
+    S2, D2 = law.stress_tangent_split(C)  # the Newton path: the same arrays
+    np.testing.assert_array_equal(S2, S)
+    np.testing.assert_array_equal(D2, D)
+    np.testing.assert_array_equal(law.stress_split(C), S)
+
+
+@pytest.mark.parametrize("name", SPLIT_IDS)
+def test_isochoric_stress_is_deviatoric_and_volumetric_stress_is_the_pressure(name: str) -> None:
+    """3D, with C33 = 1: C : S_iso = 0 (the isochoric Kirchhoff stress is traceless) and
+    S_vol = J U'(J) C^-1 with U'(J) = K (J - 1) (a pure pressure)."""
+    law, ln_j = LAW_CASES[name]
+    C = C_of(deformations(ln_j, 10, seed=13))
+    S = law.stress_split(C)
+    S33 = law.S33_split(C)
+    trace = C[0] * S[0, 0] + C[1] * S[0, 1] + 2.0 * C[2] * S[0, 2] + S33[0]
+    assert np.abs(trace).max() <= 1e-14 * np.abs(S[0]).max()
+    det = C[0] * C[1] - C[2] ** 2
+    J = np.sqrt(det)
+    pJ = law.bulk_modulus_MPa * (J - 1.0) * J  # J U'(J)
+    C_inv = np.array([C[1], C[0], -C[2]]) / det
+    np.testing.assert_allclose(S[1], pJ * C_inv, rtol=1e-13, atol=1e-16)
+    np.testing.assert_allclose(S33[1], pJ, rtol=1e-13, atol=1e-16)
+
+
+@pytest.mark.parametrize("name", SPLIT_IDS)
+def test_scaled_moduli_scales_shear_and_bulk_apart(name: str) -> None:
+    law, ln_j = LAW_CASES[name]
+    C = C_of(deformations(ln_j, 4, seed=6))
+    stiff = law.scaled_moduli(shear=2.0, bulk=1.0)  # a larger mu, the same K: a smaller nu
+    assert math.isclose(stiff.initial_shear_modulus_MPa, 2.0 * law.initial_shear_modulus_MPa)
+    assert math.isclose(stiff.bulk_modulus_MPa, law.bulk_modulus_MPa, rel_tol=1e-13)
+    assert stiff.nu < law.nu
+    S, S2 = law.stress_split(C), stiff.stress_split(C)
+    np.testing.assert_allclose(S2[0], 2.0 * S[0], rtol=1e-13, atol=1e-16)
+    np.testing.assert_allclose(S2[1], S[1], rtol=1e-12, atol=1e-16)
+    assert law.scaled_moduli(1.7, 1.7) == law.scaled(1.7)  # equal factors: nu kept exactly
+    with pytest.raises(ValueError, match="> 0"):
+        law.scaled_moduli(0.0, 1.0)
+
+
+def test_hyperfoam_scales_shear_and_bulk_together_only() -> None:
+    foam = LAW_CASES["polyurethane"][0]
+    assert foam.scaled_moduli(2.0, 2.0) == foam.scaled(2.0)
+    with pytest.raises(ValueError, match="couples shear and bulk"):
+        foam.scaled_moduli(2.0, 1.0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -390,6 +477,209 @@ def test_long_term_convention(name: str) -> None:
 
 
 # --------------------------------------------------------------------------------------------
+# Shear and bulk relaxation apart (g_i, k_i)
+
+G2, TAU2 = (0.3, 0.38), (0.1, 1.0)  # relaxes by 68 %, as the problem statement's example
+
+
+def shear_only(law) -> Material:
+    """``law`` relaxing its shear by 68 %, bulk elastic (the default for invariant laws)."""
+    return Material(law, Prony(G2, TAU2))
+
+
+def relax_held(mat: Material, C: np.ndarray, times: np.ndarray):
+    """Step to ``C`` at t = 0 and hold it: yields ``(t, S (3, ...), S33 (...))``.
+
+    S33 rides along the same recursion as a fourth stress component (the in-plane ``S`` is
+    checked against ``Material.relax`` itself)."""
+    S0 = mat.instantaneous.stress_split(C)
+    S0_4 = np.concatenate([S0, mat.instantaneous.S33_split(C)[:, None]], axis=1)
+    zero = np.zeros_like(S0_4)
+    H = np.zeros((len(mat.prony.g), *S0_4.shape))
+    S0_in = mat.instantaneous_stress(C)  # split or not, as the material keeps it
+    old_in, H_in = mat.initial_state(C.shape[1:])
+    t_prev, old = 0.0, zero
+    for t in times:
+        dt = float(t - t_prev)
+        S4, H, _ = prony_update_split(S0_4, old, H, dt, mat.prony.g, mat.prony_k, mat.prony.tau_s)
+        S_in, H_in, _ = mat.relax(S0_in, old_in, H_in, dt)
+        np.testing.assert_allclose(S_in, S4[:3], rtol=1e-14, atol=1e-17)
+        old, old_in, t_prev = S0_4, S0_in, t
+        yield float(t), S4[:3], S4[3]
+
+
+def cauchy3(C: np.ndarray, F: np.ndarray, S: np.ndarray, S33: float) -> np.ndarray:
+    """3x3 Cauchy stress from in-plane F (2x2), S (Voigt) and S33 (F33 = 1)."""
+    J = np.linalg.det(F)
+    sig = np.zeros((3, 3))
+    sig[:2, :2] = F @ to_mat(S) @ F.T / J
+    sig[2, 2] = S33 / J
+    return sig
+
+
+TIMES = np.array([0.0, 0.02, 0.1, 0.3, 1.0, 3.0, 30.0])
+
+
+@pytest.mark.parametrize("name", SPLIT_IDS)
+def test_shear_only_relaxation_keeps_the_pressure_and_relaxes_the_shear(name: str) -> None:
+    """(a) A held dilatation (in-plane C = l^2 I, C33 = 1) and a held simple shear, k_i = 0:
+    the pressure -tr(sigma)/3 stays at the elastic -K (J - 1) while the shear stress of the
+    shear step follows g(t); with k_i = g_i the pressure relaxes as g(t) too."""
+    law, _ = LAW_CASES[name]
+    mat = shear_only(law)
+    assert mat.prony.k is None and mat.prony_k == (0.0, 0.0) and mat.split_relaxation
+    K = mat.instantaneous.bulk_modulus_MPa
+    assert math.isclose(K, law.bulk_modulus_MPa, rel_tol=1e-13)  # the bulk does not relax
+
+    lam = 0.93  # 14 % volume loss in plane strain: not purely volumetric (C33 = 1) ...
+    F = np.diag([lam, lam])
+    C = C_of(F[None])[:, 0]
+    J = lam * lam
+    pressures, deviators = [], []
+    for _, S, S33 in relax_held(mat, C, TIMES):
+        sig = cauchy3(C, F, S, S33)
+        pressures.append(-np.trace(sig) / 3.0)
+        deviators.append(sig[0, 0] - sig[2, 2])
+    # ... but its pressure is the volumetric part alone, and that part does not relax
+    np.testing.assert_allclose(pressures, -K * (J - 1.0), rtol=1e-12)
+    g_t = mat.prony.relaxation(TIMES)
+    np.testing.assert_allclose(np.array(deviators) / deviators[0], g_t, rtol=1e-12)
+    assert abs(deviators[0]) > 1e-3 * abs(pressures[0])  # there is a deviator to relax
+
+    gamma = 0.2  # simple shear, J = 1: no pressure at all
+    F = np.array([[1.0, gamma], [0.0, 1.0]])
+    C = C_of(F[None])[:, 0]
+    tau0 = None
+    for t, S, S33 in relax_held(mat, C, TIMES):
+        sig = cauchy3(C, F, S, S33)
+        tau0 = sig[0, 1] if tau0 is None else tau0
+        assert math.isclose(sig[0, 1] / tau0, float(mat.prony.relaxation(t)), rel_tol=1e-12)
+        assert abs(np.trace(sig)) <= 1e-12 * abs(tau0)
+
+    # whole-stress relaxation of the same law (k = g): the pressure relaxes by 68 % too
+    whole = Material(law, Prony(G2, TAU2, k=G2))
+    assert not whole.split_relaxation and whole.prony.k == G2  # not the default: kept
+    F = np.diag([lam, lam])
+    C = C_of(F[None])[:, 0]
+    p = [-np.trace(cauchy3(C, F, S, S33)) / 3.0 for _, S, S33 in relax_held(whole, C, TIMES)]
+    np.testing.assert_allclose(np.array(p) / p[0], g_t, rtol=1e-12)
+
+
+@pytest.mark.parametrize("name", SPLIT_IDS)
+def test_split_update_with_k_equal_g_is_whole_stress_relaxation(name: str) -> None:
+    """(b) k_i = g_i through the split recursion = today's whole-stress recursion of S0_iso +
+    S0_vol, step by step over a random strain history (stress, history and tangent)."""
+    law, ln_j = LAW_CASES[name]
+    mat = Material(law, Prony(G2, TAU2, k=G2), moduli="instantaneous")
+    Cs = C_of(deformations(ln_j, 8, seed=21)).T.reshape(8, 3, 1)
+    rng = np.random.default_rng(2)
+    dts = np.concatenate([[0.0], rng.uniform(0.0, 2.0, 7)])
+    S0_old_s, H_s = np.zeros((2, 3, 1)), np.zeros((2, 2, 3, 1))
+    S0_old_w, H_w = np.zeros((3, 1)), np.zeros((2, 3, 1))
+    for C, dt in zip(Cs, dts, strict=True):
+        (S0s, D0s), (S0w, D0w) = law.stress_tangent_split(C), law.stress_tangent(C)
+        S_s, H_s, f_s = prony_update_split(S0s, S0_old_s, H_s, dt, G2, G2, TAU2)
+        S_w, H_w, f_w = mat.relax(S0w, S0_old_w, H_w, dt)
+        scale = np.abs(S_w).max()
+        np.testing.assert_allclose(S_s, S_w, rtol=0, atol=1e-14 * scale)
+        np.testing.assert_allclose(H_s.sum(axis=1), H_w, rtol=0, atol=1e-14 * scale)
+        assert f_s[0] == f_s[1] == pytest.approx(f_w, rel=1e-15)
+        D_s = f_s[0] * D0s[0] + f_s[1] * D0s[1]
+        np.testing.assert_allclose(D_s, mat.tangent(D0w, f_w), rtol=0, atol=1e-14 * abs(D_s).max())
+        S0_old_s, S0_old_w = S0s, S0w
+
+
+@pytest.mark.parametrize("name", SPLIT_IDS)
+@pytest.mark.parametrize("k", [None, (0.1, 0.05)])
+def test_viscoelastic_tangent_matches_finite_differences(name: str, k) -> None:
+    """(c) dS/dE of the whole update (instantaneous law + split recursion, history from a
+    previous state) equals Material.tangent(D0, factor), for steps from 0 to >> tau."""
+    law, ln_j = LAW_CASES[name]
+    mat = Material(law, Prony(G2, TAU2, k=k))
+    assert mat.split_relaxation
+    C_all = C_of(deformations(ln_j, 6, seed=8))
+    C_old, C_new = C_all[:, :3], C_all[:, 3:]
+    rng = np.random.default_rng(5)
+    S0_old = mat.instantaneous_stress(C_old)
+    H = rng.normal(scale=0.01, size=(2, *S0_old.shape))
+    for dt in (0.0, 0.03, 0.4, 50.0):
+        S0, D0 = mat.instantaneous_stress_tangent(C_new)
+        _, _, factor = mat.relax(S0, S0_old, H, dt)
+        D = mat.tangent(D0, factor)
+
+        def stress(c, dt=dt):
+            return mat.relax(mat.instantaneous_stress(c), S0_old, H, dt)[0]
+
+        D_fd = np.moveaxis(fd_strain(stress, C_new, 1e-5), -1, 1)
+        np.testing.assert_allclose(D_fd, D, rtol=0, atol=1e-8 * np.abs(D).max())
+    # history held (frozen): the factor is (g_inf, k_inf)
+    _, factor = mat.history_stress(S0, H)
+    np.testing.assert_allclose(factor, [mat.prony.g_inf, mat.k_inf], rtol=1e-15)
+    D_fd = np.moveaxis(
+        fd_strain(lambda c: mat.history_stress(mat.instantaneous_stress(c), H)[0], C_new, 1e-5),
+        -1,
+        1,
+    )
+    np.testing.assert_allclose(D_fd, mat.tangent(D0, factor), rtol=0, atol=1e-8 * np.abs(D).max())
+
+
+@pytest.mark.parametrize("name", SPLIT_IDS)
+def test_long_term_convention_with_shear_only_relaxation(name: str) -> None:
+    """moduli = long_term: the instantaneous law has mu / g_inf but the same K (a smaller nu),
+    and a held strain relaxes to the given (long-term) law; moduli = instantaneous: the
+    long-term law has g_inf mu and k_inf K."""
+    law, ln_j = LAW_CASES[name]
+    mat = shear_only(law)
+    inst = mat.instantaneous
+    g_inf = mat.prony.g_inf
+    assert math.isclose(inst.initial_shear_modulus_MPa, law.initial_shear_modulus_MPa / g_inf)
+    assert math.isclose(inst.bulk_modulus_MPa, law.bulk_modulus_MPa, rel_tol=1e-13)
+    assert inst.nu < law.nu and mat.k_inf == 1.0
+    C = C_of(deformations(ln_j, 3, seed=9))
+    S0 = mat.instantaneous_stress(C)
+    S, H, _ = mat.relax(S0, np.zeros_like(S0), mat.initial_state(C.shape[1:])[1], 0.0)
+    np.testing.assert_allclose(S, inst.stress(C), rtol=1e-13, atol=1e-16)  # t = 0+
+    S, H, _ = mat.relax(S0, S0, H, 2000.0 * max(TAU2))
+    np.testing.assert_allclose(S, law.stress(C), rtol=1e-12, atol=1e-16)  # t -> inf
+    assert mat.long_term == law
+
+    both = Material(law, Prony(G2, TAU2, k=(0.1, 0.2)), moduli="instantaneous")
+    lt = both.long_term
+    assert math.isclose(lt.initial_shear_modulus_MPa, g_inf * law.initial_shear_modulus_MPa)
+    assert math.isclose(lt.bulk_modulus_MPa, 0.7 * law.bulk_modulus_MPa, rel_tol=1e-13)
+    np.testing.assert_allclose(both.bulk_relaxation([0.0, 1e9]), [1.0, 0.7], rtol=1e-15)
+
+
+def test_default_bulk_coefficients_and_canonical_form() -> None:
+    """Left out, k is the law's default; given equal to it, it is stored as left out."""
+    nh = NeoHookean(mu_MPa=0.1, nu=0.45)
+    foam = LAW_CASES["polyurethane"][0]
+    assert Material(nh, Prony(G2, TAU2, k=(0.0, 0.0))) == Material(nh, Prony(G2, TAU2))
+    assert Material(foam, Prony(G2, TAU2, k=G2)) == Material(foam, Prony(G2, TAU2))
+    assert Material(foam, Prony(G2, TAU2)).prony_k == G2  # hyperfoam: the whole stress
+    assert not Material(foam, Prony(G2, TAU2)).split_relaxation
+    assert Material(nh, Prony(G2, TAU2, k=G2)).prony.k == G2  # not nh's default: kept
+    bulk_only = Material(nh, Prony((0.0,), (1.0,), k=(0.2,)))
+    assert not bulk_only.is_elastic and bulk_only.split_relaxation
+    assert Material(nh, Prony((0.0,), (1.0,))).is_elastic
+    assert Material(nh).is_elastic and not Material(nh).split_relaxation
+
+
+def test_hyperfoam_refuses_separate_bulk_relaxation() -> None:
+    """(e) The hyperfoam's shear and bulk are coupled (Abaqus: same relaxation data)."""
+    foam = LAW_CASES["polyurethane"][0]
+    with pytest.raises(DesignError) as err:
+        Material(foam, Prony(G2, TAU2, k=(0.0, 0.0)))
+    assert err.value.field == "prony_k"
+    assert "\n" not in str(err.value)
+    spec = {**GOOD, "prony_g": [0.2], "prony_tau_s": [1.0], "prony_k": [0.1]}
+    with pytest.raises(DesignError) as err:
+        material_from_spec(spec, field="layers[0].material")
+    assert err.value.field == "layers[0].material.prony_k"
+    assert "hyperfoam" in err.value.message and "prony_g" in err.value.message
+
+
+# --------------------------------------------------------------------------------------------
 # Catalogue, design-file form and validation
 
 
@@ -412,6 +702,10 @@ INLINE = [
      "prony_tau_s": [0.5], "moduli": "instantaneous"},
     {"model": "yeoh", "c10_MPa": 0.05, "c20_MPa": 0.002, "nu": 0.45},
     {"model": "hyperfoam", "mu_MPa": [0.1, 0.02, -0.01], "alpha": [2, 8, -1e-3], "nu": 0.3},
+    {"model": "neo_hookean", "mu_MPa": 0.1, "nu": 0.45, "prony_g": [0.3, 0.38],
+     "prony_tau_s": [0.1, 1.0], "prony_k": [0.05, 0.0]},
+    {"model": "yeoh", "c10_MPa": 0.05, "nu": 0.45, "prony_g": [0.3], "prony_tau_s": [0.1],
+     "prony_k": [0.3], "moduli": "instantaneous"},
 ]  # fmt: skip
 
 
@@ -423,6 +717,61 @@ def test_round_trip_through_design_form(spec) -> None:
     if isinstance(spec, dict):
         assert mat.is_elastic == ("prony_g" not in spec)
         assert mat.moduli == spec.get("moduli", "long_term")
+        assert mat.to_dict().get("prony_k") == spec.get("prony_k")  # only when not the default
+
+
+PRONY_K_TOML = """\
+[shear_only]
+model = "mooney_rivlin"
+c10_MPa = 0.05
+c01_MPa = 0.01
+nu = 0.45
+prony_g = [0.3, 0.38]
+prony_tau_s = [0.1, 1.0]
+
+[default_written_out]
+model = "mooney_rivlin"
+c10_MPa = 0.05
+c01_MPa = 0.01
+nu = 0.45
+prony_g = [0.3, 0.38]
+prony_tau_s = [0.1, 1.0]
+prony_k = [0.0, 0.0]
+
+[bulk_too]
+model = "neo_hookean"
+mu_MPa = 0.1
+nu = 0.45
+prony_g = [0.3, 0.38]
+prony_tau_s = [0.1, 1.0]
+prony_k = [0.1, 0.02]
+
+[foam]
+model = "hyperfoam"
+mu_MPa = [0.1]
+alpha = [4.0]
+nu = 0.45
+prony_g = [0.3, 0.38]
+prony_tau_s = [0.1, 1.0]
+prony_k = [0.3, 0.38]
+"""
+
+
+def test_round_trip_of_the_prony_k_key() -> None:
+    """(f) prony_k from TOML: given, defaulted or written out as the default; to_dict writes
+    it only when it differs from the default, and the table reads back to the same material."""
+    import tomllib
+
+    tables = tomllib.loads(PRONY_K_TOML)
+    mats = {name: material_from_spec(t, field=name) for name, t in tables.items()}
+    assert mats["shear_only"] == mats["default_written_out"]
+    assert mats["shear_only"].prony_k == (0.0, 0.0)
+    assert mats["bulk_too"].prony_k == (0.1, 0.02) and mats["bulk_too"].k_inf == pytest.approx(0.88)
+    assert mats["foam"].prony_k == mats["foam"].prony.g and mats["foam"].prony.k is None
+    for name, mat in mats.items():
+        data = mat.to_dict()
+        assert ("prony_k" in data) == (name == "bulk_too"), name
+        assert material_from_spec(data) == mat
 
 
 GOOD = {"model": "hyperfoam", "mu_MPa": [0.1, 0.05], "alpha": [2.0, 8.0], "nu": 0.45}
@@ -456,6 +805,17 @@ BAD = [
     (with_(prony_g=[0.1, 0.2], prony_tau_s=[1.0]), "material.prony_tau_s", "as many"),
     (with_(prony_g=[0.1]), "material.prony_tau_s", "as many"),
     (with_(prony_g=[0.01] * 7, prony_tau_s=[1.0] * 7), "material.prony_g", "0 to 6"),
+    (with_(prony_g=[0.1], prony_tau_s=[1.0], prony_k=[0.0]), "material.prony_k", "coupled"),
+    ({"model": "neo_hookean", "mu_MPa": 0.1, "nu": 0.45, "prony_g": [0.1], "prony_tau_s": [1.0],
+      "prony_k": [-0.1]}, "material.prony_k", ">= 0"),
+    ({"model": "neo_hookean", "mu_MPa": 0.1, "nu": 0.45, "prony_g": [0.1, 0.1],
+      "prony_tau_s": [1.0, 2.0], "prony_k": [0.5, 0.5]}, "material.prony_k", "sum must be < 1"),
+    ({"model": "neo_hookean", "mu_MPa": 0.1, "nu": 0.45, "prony_g": [0.1], "prony_tau_s": [1.0],
+      "prony_k": [0.1, 0.1]}, "material.prony_k", "as many terms as prony_g"),
+    ({"model": "neo_hookean", "mu_MPa": 0.1, "nu": 0.45, "prony_k": [0.1]},
+     "material.prony_k", "as many terms as prony_g"),
+    ({"model": "neo_hookean", "mu_MPa": 0.1, "nu": 0.45, "prony_g": [0.1], "prony_tau_s": [1.0],
+      "prony_k": 0.1}, "material.prony_k", "list"),
     (with_(moduli="relaxed"), "material.moduli", "long_term"),
     (with_(model="ogden"), "material.model", "hyperfoam"),
     (with_(model=None), "material.model", "required"),
