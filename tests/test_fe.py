@@ -338,3 +338,126 @@ def test_rigid_base_contact_supports_the_body():
     assert y_surf[away].min() > -1e-3 * 0.15
     err = _fd_check(body, Control.free(), np.inf, 0.0)
     assert err < 1e-5
+
+
+# ----------------------------------------------------------------------------- shear vs bulk
+HOLD_TIMES = (0.0, 0.02, 0.1, 0.3, 1.0, 3.0, 10.0, 100.0, 1000.0)  # the last: fully relaxed
+
+
+def _shear_only_nh(k=None) -> Material:
+    """neo-Hookean, nu = 0.45 (long-term), relaxing its shear by 68 % (tau 0.1 s, 1 s); bulk
+    elastic by default (k_i = 0, the invariant laws' default)."""
+    from sim.materials import Prony
+
+    law = LAWS["neo_hookean"].from_params({"mu_MPa": 0.1, "nu": 0.45}, "m")
+    return Material(law, Prony((0.3, 0.38), (0.1, 1.0), k=k))
+
+
+def _material_point_compression(mat: Material, ly: float, times) -> list[tuple[float, float]]:
+    """The homogeneous answer of the plane-strain compression patch, one material point: at
+    each time the lateral stretch lx that makes S11 = 0 under the same Prony recursion.
+    Returns (lx, sigma_yy) per time."""
+    S0_old, H = mat.initial_state(())
+    out, t_prev = [], 0.0
+    for t in times:
+        dt = t - t_prev
+
+        def s11(lx, S0_old=S0_old, H=H, dt=dt):
+            S0 = mat.instantaneous_stress([lx * lx, ly * ly, 0.0])
+            return mat.relax(S0, S0_old, H, dt)[0][0]
+
+        lx = brentq(s11, 0.8, 1.6, xtol=1e-15, rtol=1e-15)
+        S0 = mat.instantaneous_stress([lx * lx, ly * ly, 0.0])
+        S, H, _ = mat.relax(S0, S0_old, H, dt)
+        out.append((lx, ly * ly * S[1] / (lx * ly)))
+        S0_old, t_prev = S0, t
+    return out
+
+
+def test_shear_only_relaxation_patch_keeps_the_bulk_response_elastic():
+    """(d) Held plane-strain compression of the distorted patch, shear relaxing, bulk not.
+
+    The FE field stays affine and equals the material-point answer at every time; the
+    axial stress relaxes from the instantaneous to the long-term elastic value; the volume
+    goes from the instantaneous law's elastic J to the long-term law's (the same bulk modulus:
+    only the shear, hence nu, changed), and at every time the volumetric stress is the elastic
+    K (J - 1) J C^-1 of the current J. (J is not constant: with the lateral face free, the
+    lateral expansion follows nu, which rises as the shear relaxes; it is whole-stress
+    relaxation, all moduli scaled by g(t), that keeps the deformation fixed.)"""
+    mat = _shear_only_nh()
+    assert mat.split_relaxation
+    ly = 0.8
+    body = uniaxial_body(mat)
+    compress(body, ly, 0.0)
+    ref = _material_point_compression(mat, ly, HOLD_TIMES)
+    X = body.disc.X
+    right = np.abs(X[:, 0] - 1.0) < 1e-12
+    K = mat.law.bulk_modulus_MPa
+    sig_yy, J_t = [], []
+    for t, (lx, s_yy) in zip(HOLD_TIMES, ref, strict=True):
+        if t > 0.0:
+            assert body.advance(t, Control.free()).converged
+        np.testing.assert_allclose(body.u[:, 0], (lx - 1.0) * X[:, 0], atol=1e-12)
+        np.testing.assert_allclose(body.u[:, 1], (ly - 1.0) * X[:, 1], atol=1e-12)
+        sig = cauchy(body)
+        np.testing.assert_allclose(sig[1, 1], s_yy, rtol=1e-10)
+        np.testing.assert_allclose(sig[0, 0], 0.0, atol=1e-11 * abs(s_yy))
+        lx = 1.0 + body.u[right, 0].mean()  # the FE lateral stretch (= the reference's)
+        J = lx * ly
+        # the stored volumetric stress: K (J - 1) J C^-1, C^-1 = diag(1/lx^2, 1/ly^2)
+        S_vol = body.states[0].S0[1]
+        np.testing.assert_allclose(S_vol[0], K * (J - 1) * J / lx**2, rtol=1e-11)
+        np.testing.assert_allclose(S_vol[1], K * (J - 1) * J / ly**2, rtol=1e-11)
+        sig_yy.append(float(np.mean(sig[1, 1])))
+        J_t.append(J)
+
+    def elastic_lx(law):
+        return brentq(lambda s: analytic_cauchy(law, s, ly)[0], 0.5, 2.0, xtol=1e-15, rtol=1e-15)
+
+    lx0, lx_inf = elastic_lx(mat.instantaneous), elastic_lx(mat.long_term)
+    assert mat.instantaneous.bulk_modulus_MPa == pytest.approx(mat.long_term.bulk_modulus_MPa)
+    np.testing.assert_allclose(J_t[0], lx0 * ly, rtol=1e-12)  # t = 0+: instantaneous, elastic
+    np.testing.assert_allclose(J_t[-1], lx_inf * ly, rtol=1e-10)  # t >> tau: long-term
+    sig0 = analytic_cauchy(mat.instantaneous, lx0, ly)[1]
+    sig_inf = analytic_cauchy(mat.long_term, lx_inf, ly)[1]
+    np.testing.assert_allclose(sig_yy[0], sig0, rtol=1e-10)
+    np.testing.assert_allclose(sig_yy[-1], sig_inf, rtol=1e-9)
+    assert np.all(np.diff(np.abs(sig_yy)) < 0)  # the axial stress relaxes monotonically
+    assert np.all(np.diff(J_t) > -1e-12)  # as nu rises, the volume recovers (0.89 -> 0.955)
+    assert abs(sig_yy[-1]) < 0.5 * abs(sig_yy[0])
+
+
+def test_split_path_with_k_close_to_g_matches_whole_stress_relaxation():
+    """(b) In the assembly: k = g (the whole-stress path) and k = g (1 - 1e-12) (the split
+    path, S0 and H kept as isochoric + volumetric parts) give the same patch history."""
+    whole = _shear_only_nh(k=(0.3, 0.38))
+    split = _shear_only_nh(k=(0.3 * (1 - 1e-12), 0.38 * (1 - 1e-12)))
+    assert not whole.split_relaxation and split.split_relaxation
+    bodies = [uniaxial_body(m) for m in (whole, split)]
+    for b in bodies:
+        compress(b, 0.8, 0.0)
+    for t in HOLD_TIMES[1:5]:
+        for b in bodies:
+            assert b.advance(t, Control.free()).converged
+        np.testing.assert_allclose(bodies[1].u, bodies[0].u, rtol=0, atol=1e-10)
+        s0, s1 = cauchy(bodies[0]), cauchy(bodies[1])
+        np.testing.assert_allclose(s1, s0, rtol=0, atol=1e-9 * np.abs(s0).max())
+    assert bodies[1].states[0].H.shape[:3] == (2, 2, 3)  # terms first, then [iso, vol]
+
+
+def test_split_relaxation_tangent_and_frozen_history_in_the_assembly():
+    """(c) The assembled tangent of a split (shear and bulk apart) material matches finite
+    differences mid-relaxation, and re-equilibrating with the history held at the committed
+    state leaves it where it is."""
+    body = uniaxial_body(_shear_only_nh(k=(0.1, 0.05)))
+    compress(body, 0.85, 0.0)
+    for t in (0.05, 0.2):
+        assert body.advance(t, Control.free()).converged
+    committed = body.u.copy()
+    rng = np.random.default_rng(1)
+    body.u.reshape(-1)[body.disc.free] += 1e-3 * rng.standard_normal(body.disc.n_free)
+    for dt in (0.0, 0.1, 5.0):
+        assert _fd_check(body, Control.free(), np.inf, dt) < 1e-6
+    # from the perturbed field, Newton with the history held returns to the committed state
+    assert body.advance(body.t, Control.free(), frozen_history=True).converged
+    np.testing.assert_allclose(body.u, committed, rtol=0, atol=1e-11)
