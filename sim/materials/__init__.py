@@ -12,10 +12,20 @@ vectorised over a batch of points (e.g. ``(n_elements, n_quadrature_points)``):
   Cauchy ``sigma33 = S33 / J``).
 
 Laws (``LAWS``, keyed by the design-file ``model``): ``hyperfoam`` (Abaqus hyperfoam, the law of
-Cabibihan et al. Eq. 2), ``neo_hookean``, ``mooney_rivlin``, ``yeoh``.  A ``Material`` couples a
-law with a ``Prony`` series; by default (``moduli = "long_term"``) the law's moduli are the
-relaxed ones and ``Material.instantaneous`` is the law to evaluate for ``S0``/``D0``, which
-``Prony.update`` turns into the viscoelastic stress and the tangent factor.
+Cabibihan et al. Eq. 2), ``neo_hookean``, ``mooney_rivlin``, ``yeoh``.  The invariant laws are
+decoupled (``law.decoupled``): ``law.evaluate_split(C)`` etc. give the isochoric and volumetric
+parts apart (a leading axis of length 2, ``[iso, vol]``).
+
+A ``Material`` couples a law with a ``Prony`` series: shear coefficients ``prony_g``, relaxation
+times ``prony_tau_s`` and optional bulk coefficients ``prony_k`` (Abaqus' ``g_i``, ``k_i``,
+sharing ``tau_i``).  Without ``prony_k`` an invariant law relaxes its shear only (``k_i = 0``:
+the bulk response of a nearly incompressible solid stays elastic) and the hyperfoam relaxes its
+whole stress (``k_i = g_i``, the paper's convention; a hyperfoam with ``k != g`` is refused, as in
+Abaqus, its shear and bulk being coupled).  By default (``moduli = "long_term"``) the law's moduli
+are the relaxed ones: ``Material.instantaneous`` (shear moduli / ``g_inf``, bulk modulus /
+``k_inf``) is the law to evaluate for ``S0``/``D0``, and ``Material.relax`` turns them into the
+viscoelastic stress and the tangent factor (``Material.tangent``); the assembly goes through those
+``Material`` methods, which keep ``S0`` and the history split when ``k != g``.
 """
 
 from sim.materials._catalogue import (
@@ -28,8 +38,14 @@ from sim.materials._catalogue import (
 from sim.materials._hyperfoam import Hyperfoam
 from sim.materials._invariant import MooneyRivlin, NeoHookean, Yeoh
 from sim.materials._law import Law
-from sim.materials._material import LAWS, MODULI, Material
-from sim.materials._prony import MAX_PRONY_TERMS, Prony, prony_update
+from sim.materials._material import LAWS, MODULI, Material, default_prony_k
+from sim.materials._prony import (
+    MAX_PRONY_TERMS,
+    Prony,
+    prony_stress_split,
+    prony_update,
+    prony_update_split,
+)
 
 __all__ = [
     "CATALOGUE",
@@ -45,7 +61,10 @@ __all__ = [
     "Prony",
     "Yeoh",
     "catalogue_material",
+    "default_prony_k",
     "load_catalogue",
     "material_from_spec",
+    "prony_stress_split",
     "prony_update",
+    "prony_update_split",
 ]
