@@ -55,6 +55,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             else:
                 text = f"{value:.4f} {unit}"
             print(f"{name:28s} {text}")
+        for protocol, summary in result.validity_summaries().items():
+            print(_validity_line(protocol, summary))
         print(f"({result.n_dofs} dofs, {result.wall_time_s:.2f} s)")
         if args.out is not None:
             print(f"written to {args.out}")
@@ -63,7 +65,29 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             f"fingertip: simulation failed: {f.protocol} at t = {f.time_s:.4g} s: {f.reason}",
             file=sys.stderr,
         )
+    for protocol, violation in result.violations():  # a warning: the exit code is unchanged
+        print(f"warning: {protocol}: {violation.warning()}", file=sys.stderr)
     return 0 if result.ok else 1
+
+
+def _validity_line(protocol: str, summary: dict) -> str:
+    """How far the protocol deformed the design, in one line (limits: README, --set validity.*)."""
+    width = summary["contact_width_at_peak_mm"]
+    flags = [
+        text
+        for text, on in (
+            ("reached the base", summary["reached_base"]),
+            ("folded", summary["folded"]),
+        )
+        if on
+    ]
+    return (
+        f"validity ({protocol}): compressive log strain {summary['max_compressive_log_strain']:.2f}"
+        f", min J {summary['min_J']:.2f}"
+        + (f", contact width {width:.2f} mm" if width is not None else "")
+        + f", nominal compression {100 * summary['nominal_compression']:.0f} %"
+        + "".join(f", {f}" for f in flags)
+    )
 
 
 def _add_simulate(sub) -> None:

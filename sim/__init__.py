@@ -1,7 +1,8 @@
 """Finite-element model of a visco-hyperelastic fingertip skin under the paper's protocols.
 
 Public API: designs (``Design``, ``Layer``, ``load_design``, ``homogeneous_design``), the geometry,
-``simulate`` with its options and result, and the error types. ``sim`` never imports torch.
+``simulate`` with its options and result (with the validity of the result, ``ValidityOptions``),
+and the error types. ``sim`` never imports torch.
 """
 
 from .design import Design, Layer, design_from_dict, homogeneous_design, load_design
@@ -10,6 +11,7 @@ from .geometry import REFERENCE_GEOMETRY, Geometry
 from .mesh import DEFAULT_MESH, MeshOptions
 from .protocols import PlateOptions, TappingOptions, WedgeOptions
 from .simulate import METRICS, PROTOCOLS, SOLVER_VERSION, SimOptions, SimResult, simulate
+from .validity import ValidityOptions
 
 __all__ = [
     "DEFAULT_MESH",
@@ -27,6 +29,7 @@ __all__ = [
     "SimResult",
     "SimulationError",
     "TappingOptions",
+    "ValidityOptions",
     "WedgeOptions",
     "design_from_dict",
     "homogeneous_design",

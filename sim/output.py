@@ -10,6 +10,7 @@ import numpy as np
 
 from .provenance import provenance, run_folder, write_json
 from .simulate import SimOptions, SimResult
+from .validity import compressive_log_strain, volume_ratio
 
 __all__ = ["curve_plot_data", "write_result"]
 
@@ -78,7 +79,9 @@ def _render(figs: dict[str, dict[str, Any]], folder: Path) -> None:
 
 
 def write_vtu(result: SimResult, folder: Path) -> list[Path]:
-    """The deformed P2 mesh at the end of each protocol (triangle6 cells) for ParaView."""
+    """The deformed P2 mesh at the end of each protocol (triangle6 cells) for ParaView, with
+    each cell's layer and, over its quadrature points, its largest compressive log strain and
+    smallest J (the quantities ``sim.validity`` limits, in that final state)."""
     import meshio
 
     disc = result.discretization
@@ -92,11 +95,18 @@ def write_vtu(result: SimResult, folder: Path) -> list[Path]:
     for name, u in result.fields.items():
         pts = np.column_stack([disc.X + u, np.zeros(disc.n_nodes)])
         disp = np.column_stack([u, np.zeros(disc.n_nodes)])
+        F = disc.deformation_gradient(u)
+        strain = compressive_log_strain(F).max(axis=1)
+        J = volume_ratio(F).min(axis=1)
         mesh = meshio.Mesh(
             pts,
             [("triangle6", cells)],
             point_data={"displacement_mm": disp},
-            cell_data={"layer": [layer]},
+            cell_data={
+                "layer": [layer],
+                "compressive_log_strain": [strain],
+                "J": [J],
+            },
         )
         path = folder / f"deformed_{name}.vtu"
         meshio.write(path, mesh)

@@ -24,8 +24,17 @@ from .protocols import (
     run_wedge,
 )
 from .solver import Body, NewtonOptions
+from .validity import ValidityOptions, Violation, check
 
-__all__ = ["METRICS", "PROTOCOLS", "SOLVER_VERSION", "SimOptions", "SimResult", "simulate"]
+__all__ = [
+    "DIAGNOSTIC_KEYS",
+    "METRICS",
+    "PROTOCOLS",
+    "SOLVER_VERSION",
+    "SimOptions",
+    "SimResult",
+    "simulate",
+]
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
 SOLVER_VERSION = "1.3"  # 1.3: profile summary = area to 2 mm (was half-width)
@@ -78,6 +87,7 @@ class SimOptions:
     tapping: TappingOptions = TappingOptions()
     plate: PlateOptions = PlateOptions()
     wedge: WedgeOptions = WedgeOptions()
+    validity: ValidityOptions = ValidityOptions()
 
     def with_steps_scaled(self, factor: float) -> SimOptions:
         """Every step count multiplied by ``factor`` (time-step convergence studies)."""
@@ -121,12 +131,53 @@ class SimResult:
     failures: tuple[ProtocolFailure, ...] = ()
     n_dofs: int = 0
     wall_time_s: float = 0.0
+    validity_options: ValidityOptions = ValidityOptions()
     fields: dict[str, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
     discretization: Any = field(default=None, repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
         return not self.failures
+
+    def validity_summaries(self) -> dict[str, dict[str, Any]]:
+        """Each completed protocol's deformation summary (``sim.validity.DeformationTracker``)."""
+        return {name: fig["validity"] for name, fig in self.protocols.items() if "validity" in fig}
+
+    def violations(self) -> list[tuple[str, Violation]]:
+        """(protocol, violated limit) for every validity limit a completed protocol broke."""
+        return [
+            (name, v)
+            for name, summary in self.validity_summaries().items()
+            for v in check(summary, self.validity_options)
+        ]
+
+    @property
+    def validity(self) -> dict[str, Any]:
+        """``{"valid", "violations", "protocols"}``: the overall verdict, the violated limits as
+        ``"<limit> (<protocol>)"`` and per protocol its summary plus its own ``violations`` and
+        ``valid``. Failed protocols have no summary: ``valid`` speaks of the completed ones only
+        (see ``ok``)."""
+        protocols = {}
+        for name, summary in self.validity_summaries().items():
+            own = [str(v) for v in check(summary, self.validity_options)]
+            protocols[name] = {**summary, "violations": own, "valid": not own}
+        violations = [f"{v} ({name})" for name, v in self.violations()]
+        return {"valid": not violations, "violations": violations, "protocols": protocols}
+
+    def diagnostics(self) -> dict[str, Any]:
+        """Flat, JSON/CSV-ready validity figures: ``valid``, ``violations`` (joined by "; ") and
+        per protocol run ``<protocol>_<key>`` for the keys of ``DIAGNOSTIC_KEYS`` (None where the
+        protocol failed)."""
+        validity = self.validity
+        out: dict[str, Any] = {
+            "valid": validity["valid"],
+            "violations": "; ".join(validity["violations"]),
+        }
+        for name in self.protocols:
+            summary = validity["protocols"].get(name, {})
+            for key, source in DIAGNOSTIC_KEYS.items():
+                out[f"{name}_{key}"] = summary.get(source)
+        return out
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict: metric names at the top level, then curves and diagnostics."""
@@ -140,7 +191,19 @@ class SimResult:
             "wall_time_s": self.wall_time_s,
             "solver_version": SOLVER_VERSION,
             "design": self.design.to_dict(),
+            "validity": self.validity,
         }
+
+
+#: diagnostics() key suffix -> key of the protocol's validity summary.
+DIAGNOSTIC_KEYS = {
+    "max_compressive_log_strain": "max_compressive_log_strain",
+    "min_J": "min_J",
+    "contact_width_mm": "contact_width_at_peak_mm",
+    "reached_base": "reached_base",
+    "folded": "folded",
+    "nominal_compression": "nominal_compression",
+}
 
 
 def _finite(v: float | None) -> float | None:
@@ -214,6 +277,7 @@ def simulate(
         failures=tuple(failures),
         n_dofs=disc.n_free,
         wall_time_s=time.perf_counter() - t0,
+        validity_options=options.validity,
         fields=fields,
         discretization=disc,
     )

@@ -119,12 +119,15 @@ def evaluate_point(point: dict[str, Any], options_dict: dict[str, Any]) -> dict[
 
 
 def options_from_dict(d: dict[str, Any]) -> SimOptions:
-    """SimOptions from their ``dataclasses.asdict`` form (as a sweep's config.json holds)."""
+    """SimOptions from their ``dataclasses.asdict`` form (as a sweep's config.json holds).
+
+    A section missing from ``d`` (a config written before the section existed, e.g. the shipped
+    sweep's before ``validity``) keeps its defaults."""
     base = SimOptions()
     return dataclasses.replace(
         base,
         **{
-            f.name: dataclasses.replace(getattr(base, f.name), **d[f.name])
+            f.name: dataclasses.replace(getattr(base, f.name), **d.get(f.name, {}))
             for f in dataclasses.fields(base)
         },
     )

@@ -1,0 +1,330 @@
+"""Validity of an FE result: how far a design was deformed, against the range the model covers.
+
+The materials of the paper were characterised in uniaxial compression to 45 % nominal strain
+(§2.2.2), and the model was validated at nominal strains of about 20 % of the skin thickness
+(§5.2). A design can be squashed far beyond that and the solver still converges: the result is
+then an extrapolation of the fitted laws, or of the mesh. ``DeformationTracker`` records, at every
+committed step a protocol records, the extremes that say how far the model was taken:
+
+- the largest compressive principal logarithmic strain at the quadrature points, -ln(lambda_min),
+  from the in-plane principal stretches of F and the plane-strain F33 = 1 (so it is >= 0);
+- the smallest volume ratio J = det F at the quadrature points;
+- whether the free outer surface touched the rigid base beside the bone;
+- whether the outer surface folded (``surface_folded``);
+
+and, once at the protocol's peak load, the width of the contact with the indenter. ``check``
+compares a summary with the thresholds of ``ValidityOptions``; ``assess`` words the violations.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from .fe import Discretization
+    from .solver import Body
+
+__all__ = [
+    "DeformationTracker",
+    "ValidityOptions",
+    "Violation",
+    "assess",
+    "check",
+    "compressive_log_strain",
+    "contact_half_width_mm",
+    "surface_folded",
+    "volume_ratio",
+]
+
+
+@dataclass(frozen=True)
+class ValidityOptions:
+    """Limits of the range in which the model's results are trusted (``--set validity.x=...``)."""
+
+    # The paper's materials were characterised in uniaxial compression up to 45 % nominal strain
+    # (§2.2.2: 10 mm samples to 5.5 mm), i.e. a stretch of 0.55 and a log strain of
+    # ln(1 / 0.55) = 0.598: beyond 0.60 the hyperelastic fit is extrapolated. The limit is on the
+    # LOCAL strain at the quadrature points, which is what a material test covers, not on the
+    # overall compression of the pulp: a human fingertip compresses ~50 % of its pulp at 4 N,
+    # so a human-like design must exceed the paper's recommendation of 20 % nominal strain
+    # (§5.2, ln(1 / 0.8) = 0.22) overall. That figure is reported as ``nominal_compression``
+    # (indenter travel / body height), for information only.
+    max_compressive_log_strain: float = 0.60
+    # The smallest volume ratio J. The paper identified its laws as incompressible (J = 1) and
+    # assumed nu; no test measured a volume change. Applying the strain limit to the volume,
+    # ln J >= -0.60 gives J >= 0.55: the volume ratio of a uniaxial compression to 45 % of a
+    # material that does not expand sideways at all (nu = 0), the most any 45 % test could have
+    # exercised. The materials in the design spaces (nu >= 0.45) lose at most 6 % of their
+    # volume in that test (J = 0.55^(1 - 2 nu)), so J < 0.55 is a volumetric compression no test
+    # covers, or an element close to collapse (J -> 0) where the mesh, not the law, decides.
+    min_J: float = 0.55
+    # The free surface resting on the base beside the bone: the pulp's side was squashed down to
+    # the bone's plane. The paper's model (§3.1) and the human finger have no such contact (the
+    # base stands for the bone, the nail and the tissue between them), so it is out of range.
+    allow_base_contact: bool = False
+    # A folded surface (see ``surface_folded``) has no meaning for a skin: self-contact is not
+    # modelled, so a fold passes through itself. Never valid by default.
+    allow_folding: bool = False
+
+
+# ---------------------------------------------------------------------------- kinematics
+def _smallest_stretch_sq(F: np.ndarray, J: np.ndarray) -> np.ndarray:
+    """Smallest eigenvalue of C = F^T F (the in-plane principal stretch squared), given J."""
+    c00 = F[0, 0] ** 2 + F[1, 0] ** 2
+    c11 = F[0, 1] ** 2 + F[1, 1] ** 2
+    c01 = F[0, 0] * F[0, 1] + F[1, 0] * F[1, 1]
+    largest = 0.5 * (c00 + c11) + np.hypot(0.5 * (c00 - c11), c01)
+    return J * J / largest  # det C / largest: no cancellation when the two are far apart
+
+
+def compressive_log_strain(F: np.ndarray) -> np.ndarray:
+    """-ln(smallest principal stretch) of plane-strain deformation gradients F (2, 2, ...).
+
+    The in-plane principal stretches are the square roots of the eigenvalues of C = F^T F; the
+    out-of-plane stretch is 1, so the result is clipped at 0 (no compressive strain).
+    """
+    return np.maximum(-0.5 * np.log(_smallest_stretch_sq(F, volume_ratio(F))), 0.0)
+
+
+def volume_ratio(F: np.ndarray) -> np.ndarray:
+    """J = det F of plane-strain deformation gradients F (2, 2, ...) (F33 = 1)."""
+    return F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
+
+
+# ---------------------------------------------------------------------------- surface
+@functools.lru_cache(maxsize=8)
+def _segment_pairs(n_segments: int) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs (i, j), j >= i + 2, of the non-adjacent segments of an open polyline."""
+    i, j = np.triu_indices(n_segments, k=2)
+    return i, j
+
+
+def _orient(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """Twice the signed area of the triangles (a, b, c), row by row."""
+    return (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+
+
+def polyline_self_intersects(xy: np.ndarray) -> bool:
+    """True if two non-adjacent segments of the open polyline ``xy`` (n, 2) cross properly.
+
+    A proper crossing has each segment's end points strictly on both sides of the other's line
+    (touching or collinear overlap is not counted). Pairs whose bounding boxes are apart are
+    skipped before the orientation tests.
+    """
+    n_seg = len(xy) - 1
+    if n_seg < 3:
+        return False
+    i, j = _segment_pairs(n_seg)
+    lo = np.minimum(xy[:-1], xy[1:])
+    hi = np.maximum(xy[:-1], xy[1:])
+    near = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
+    if not near.any():
+        return False
+    i, j = i[near], j[near]
+    p1, p2, q1, q2 = xy[i], xy[i + 1], xy[j], xy[j + 1]
+    crosses_q = _orient(p1, p2, q1) * _orient(p1, p2, q2) < 0.0
+    crosses_p = _orient(q1, q2, p1) * _orient(q1, q2, p2) < 0.0
+    return bool(np.any(crosses_q & crosses_p))
+
+
+def surface_folded(xy: np.ndarray, axis_tol_mm: float = 1e-6) -> bool:
+    """Whether the deformed outer surface ``xy`` (nodes in order from the apex) has folded.
+
+    The surface polyline (through the P2 vertex and midside nodes) is folded when
+
+    1. it turns back on itself at a node: two consecutive segments point in opposite directions
+       (t_k . t_k+1 < 0, a turn of more than 90 degrees at one node, i.e. the outward normal
+       flips between them: a crease the quadratic elements cannot represent as a smooth skin);
+    2. it crosses itself: two non-adjacent segments intersect (``polyline_self_intersects``);
+       self-contact is not modelled, so a surface that folds over passes through itself; or
+    3. it crosses the symmetry axis (a node at x < -axis_tol_mm): the half model's surface then
+       intersects its mirror image.
+
+    The apex is not checked against the mirror image's first segment: a surface wrapping the
+    wedge's 60 degree tip turns by more than 90 degrees there without folding.
+    """
+    xy = np.asarray(xy, dtype=float)
+    t = np.diff(xy, axis=0)
+    dot = t[:-1, 0] * t[1:, 0] + t[:-1, 1] * t[1:, 1]
+    if np.any(dot < 0.0):
+        return True
+    if np.any(xy[:, 0] < -axis_tol_mm):
+        return True
+    # A polyline whose turns add up to at most pi in absolute value cannot cross itself (the
+    # loop between two crossing segments would be a closed polygon turning by less than 2 pi,
+    # against Fenchel's theorem): the pairwise test is only needed beyond that.
+    cross = t[:-1, 0] * t[1:, 1] - t[:-1, 1] * t[1:, 0]
+    if np.abs(np.arctan2(cross, dot)).sum() <= np.pi:
+        return False
+    return polyline_self_intersects(xy)
+
+
+def contact_half_width_mm(x_mm: np.ndarray, penetration_mm: np.ndarray) -> float:
+    """Half-width of the contact patch from the ordered surface nodes (from the apex).
+
+    The patch ends between the last node with positive penetration and the next one (free, gap
+    -penetration >= 0); the edge is where the linear interpolation of the penetration between
+    them is zero, at its deformed x. 0 without contact; the last node's x if every node touches.
+    """
+    touching = np.flatnonzero(penetration_mm > 0.0)
+    if touching.size == 0:
+        return 0.0
+    k = int(touching[-1])
+    if k == len(x_mm) - 1:
+        return float(x_mm[k])
+    p0, p1 = float(penetration_mm[k]), float(penetration_mm[k + 1])
+    s = p0 / (p0 - p1)  # p0 > 0 >= p1
+    return float(x_mm[k] + s * (x_mm[k + 1] - x_mm[k]))
+
+
+# ---------------------------------------------------------------------------- tracker
+class DeformationTracker:
+    """Extremes of the deformation over the committed steps of one protocol.
+
+    ``observe(body)`` at every recorded step, ``observe_peak(body)`` once at the protocol's peak
+    load (a later call replaces an earlier one), then ``summary()``.
+    """
+
+    def __init__(self, disc: Discretization) -> None:
+        self.disc = disc
+        self._surface = disc.surface_nodes
+        self._X_surface = disc.X[self._surface]
+        self.height_mm = float(self._X_surface[:, 1].max())
+        self._qp_xy = np.array(disc.basis.global_coordinates())  # (2, n_el, n_q), reference, mm
+        self._strain_at_mm: list[float] | None = None
+        n_layers = len(disc.slices)
+        self._layer_strain = np.zeros(n_layers)
+        self._layer_J = np.ones(n_layers)
+        self._base_nodes = 0
+        self._folded = False
+        self._travel_mm = 0.0
+        self._width_mm: float | None = None
+        self.observed = 0
+
+    def observe(self, body: Body) -> None:
+        """Update the extremes from the body's committed state (u, indenter position)."""
+        # contiguous components: the arithmetic on F's strided views costs 3x more
+        F = np.ascontiguousarray(self.disc.deformation_gradient(body.u))
+        J = volume_ratio(F)
+        lam_sq = _smallest_stretch_sq(F, J)  # the log is taken of the extremes only
+        worst = int(np.argmin(lam_sq))
+        strain = max(-0.5 * float(np.log(lam_sq.flat[worst])), 0.0)
+        if strain > self._layer_strain.max():
+            self._strain_at_mm = self._qp_xy.reshape(2, -1)[:, worst].tolist()
+        for k, sl in enumerate(self.disc.slices):
+            if sl.stop > sl.start:
+                layer = max(-0.5 * float(np.log(lam_sq[sl].min())), 0.0)
+                self._layer_strain[k] = max(self._layer_strain[k], layer)
+                self._layer_J[k] = min(self._layer_J[k], float(J[sl].min()))
+        self._base_nodes = max(self._base_nodes, body.base_contact_nodes())
+        if not self._folded:
+            self._folded = surface_folded(self._X_surface + body.u[self._surface])
+        if np.isfinite(body.indenter_position):
+            self._travel_mm = max(self._travel_mm, self.height_mm - body.indenter_position)
+        self.observed += 1
+
+    def observe_peak(self, body: Body) -> None:
+        """Record the full contact width with the indenter (2 x the half model's), in mm."""
+        if body.indenter is None or not np.isfinite(body.indenter_position):
+            self._width_mm = 0.0
+            return
+        xy = self._X_surface + body.u[self._surface]
+        p = body.indenter.penetration(xy, body.indenter_position)[0]
+        self._width_mm = 2.0 * contact_half_width_mm(xy[:, 0], p)
+
+    def summary(self) -> dict[str, Any]:
+        """The extremes over the observed steps, JSON-ready:
+
+        - ``max_compressive_log_strain``: largest -ln(lambda_min) at a quadrature point;
+        - ``min_J``: smallest volume ratio at a quadrature point;
+        - ``contact_width_at_peak_mm``: full contact width with the indenter at the peak load
+          (None if ``observe_peak`` was never called);
+        - ``reached_base``: a surface node rested on the base beside the bone;
+        - ``folded``: the outer surface folded (``surface_folded``);
+        - ``nominal_compression``: largest indenter travel below the undeformed top / body
+          height (information, no limit), with ``indenter_travel_mm``;
+        - ``max_base_contact_nodes``: most surface nodes on the base at once;
+        - ``max_compressive_log_strain_at_mm``: reference (x, y) of the quadrature point with the
+          largest strain (None if nothing was compressed);
+        - ``max_compressive_log_strain_by_layer``, ``min_J_by_layer``: per layer, outermost first.
+        """
+        return {
+            "max_compressive_log_strain": float(self._layer_strain.max()),
+            "min_J": float(self._layer_J.min()),
+            "contact_width_at_peak_mm": self._width_mm,
+            "reached_base": self._base_nodes > 0,
+            "folded": self._folded,
+            "nominal_compression": self._travel_mm / self.height_mm,
+            "indenter_travel_mm": self._travel_mm,
+            "max_base_contact_nodes": self._base_nodes,
+            "max_compressive_log_strain_at_mm": self._strain_at_mm,
+            "max_compressive_log_strain_by_layer": self._layer_strain.tolist(),
+            "min_J_by_layer": self._layer_J.tolist(),
+        }
+
+
+# ---------------------------------------------------------------------------- verdict
+@dataclass(frozen=True)
+class Violation:
+    """One violated limit: the option that sets it, the quantity, its value and the limit."""
+
+    option: str  # the ValidityOptions field (--set validity.<option>=...)
+    quantity: str
+    value: float | None = None  # None for the yes/no limits
+    limit: float | None = None
+    relation: str = ">"  # value <relation> limit is the violation
+
+    def _numbers(self) -> tuple[str, str]:
+        for digits in (2, 3, 4):
+            v, lim = f"{self.value:.{digits}f}", f"{self.limit:.{digits}f}"
+            if v != lim:
+                break
+        return v, lim
+
+    def __str__(self) -> str:
+        if self.value is None:
+            return self.quantity
+        v, lim = self._numbers()
+        return f"{self.quantity} {v} {self.relation} {lim}"
+
+    def warning(self) -> str:
+        """The sentence of the command line's warning, with the option that moves the limit."""
+        if self.value is None:
+            return (
+                f"{self.quantity}, outside the validity range (--set validity.{self.option}=true)"
+            )
+        v, lim = self._numbers()
+        side = "beyond" if self.relation == ">" else "below"
+        hint = f"--set validity.{self.option}=..."
+        return f"{self.quantity} {v} {side} the validity limit {lim} ({hint})"
+
+
+def check(summary: dict[str, Any], options: ValidityOptions) -> list[Violation]:
+    """The limits of ``options`` that the protocol ``summary`` violates."""
+    out = []
+    strain, J = summary["max_compressive_log_strain"], summary["min_J"]
+    if strain > options.max_compressive_log_strain:
+        out.append(
+            Violation(
+                "max_compressive_log_strain",
+                "compressive log strain",
+                strain,
+                options.max_compressive_log_strain,
+            )
+        )
+    if J < options.min_J:
+        out.append(Violation("min_J", "volume ratio J", J, options.min_J, "<"))
+    if summary["reached_base"] and not options.allow_base_contact:
+        out.append(Violation("allow_base_contact", "surface reached the base beside the bone"))
+    if summary["folded"] and not options.allow_folding:
+        out.append(Violation("allow_folding", "surface folded"))
+    return out
+
+
+def assess(summary: dict[str, Any], options: ValidityOptions) -> list[str]:
+    """The violated limits as short sentences, e.g. ``"compressive log strain 0.81 > 0.60"``."""
+    return [str(v) for v in check(summary, options)]

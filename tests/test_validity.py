@@ -1,0 +1,309 @@
+"""Validity of an FE result (sim.validity): strain and J, folding, contact width, the verdict.
+
+The physics checks use the plate protocol (well under a second each); the command line runs as a
+real subprocess for the warning on stderr and the JSON block, as tests/test_cli.py does.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from fe_helpers import compress, uniaxial_body
+
+import explore.cli
+from explore.cli import main
+from sim import Geometry, SimOptions, ValidityOptions, homogeneous_design, simulate
+from sim.contact import Plate
+from sim.materials import LAWS, Material
+from sim.options import apply_overrides
+from sim.simulate import DIAGNOSTIC_KEYS
+from sim.validity import (
+    DeformationTracker,
+    assess,
+    check,
+    compressive_log_strain,
+    contact_half_width_mm,
+    polyline_self_intersects,
+    surface_folded,
+    volume_ratio,
+)
+
+REPO = Path(explore.cli.__file__).resolve().parents[1]
+SUMMARY_KEYS = {
+    "max_compressive_log_strain",
+    "min_J",
+    "contact_width_at_peak_mm",
+    "reached_base",
+    "folded",
+    "nominal_compression",
+}
+# A low, wide Ecoflex 00-10 pulp: the default 1 mm plate compresses it by 40 % of its height and
+# its side bulges down onto the base beside the bone (the plate run takes ~0.3 s).
+SQUAT_SOFT_TOML = """\
+[geometry]
+half_width_mm = 5.0
+height_mm = 2.5
+exponent = 2.0
+[[layers]]
+material = "ecoflex_0010_dawood"
+"""
+
+
+def _neo_hookean(mu: float = 0.1, nu: float = 0.45) -> Material:
+    return Material(LAWS["neo_hookean"].from_params({"mu_MPa": mu, "nu": nu}, "m"))
+
+
+def _plate_options(**plate) -> SimOptions:
+    o = SimOptions()
+    return dataclasses.replace(o, plate=dataclasses.replace(o.plate, **plate))
+
+
+# ----------------------------------------------------------------------------- kinematics
+def test_log_strain_and_J_of_a_rotated_stretch() -> None:
+    """F = R(30 deg) diag(0.7, 1.2): -ln 0.7 and J = 0.84 whatever the rotation."""
+    c, s = np.cos(np.pi / 6), np.sin(np.pi / 6)
+    F = np.array([[c, -s], [s, c]]) @ np.diag([0.7, 1.2])
+    F = np.broadcast_to(F[:, :, None, None], (2, 2, 3, 4))
+    np.testing.assert_allclose(compressive_log_strain(F), -np.log(0.7), rtol=1e-13)
+    np.testing.assert_allclose(volume_ratio(F), 0.84, rtol=1e-13)
+    stretched = np.broadcast_to(np.diag([1.3, 1.1])[:, :, None], (2, 2, 5))
+    np.testing.assert_array_equal(compressive_log_strain(stretched), 0.0)  # F33 = 1 is the least
+
+
+def test_uniaxial_patch_against_closed_form() -> None:
+    """Plane-strain compression of the patch to 0.7: the tracker sees -ln 0.7 at every point
+    and J = 0.7 lambda_x, lambda_x read from the free side's displacement."""
+    body = uniaxial_body(_neo_hookean(), n=3)
+    compress(body, 0.7, 1.0)
+    tracker = DeformationTracker(body.disc)
+    tracker.observe(body)
+    out = tracker.summary()
+    lam_x = 1.0 + body.u[np.argmax(body.disc.X[:, 0]), 0]
+    assert lam_x > 1.0  # the free side bulges out
+    assert out["max_compressive_log_strain"] == pytest.approx(np.log(1 / 0.7), rel=1e-10)
+    assert out["min_J"] == pytest.approx(0.7 * lam_x, rel=1e-10)
+    assert out["max_compressive_log_strain_by_layer"] == [out["max_compressive_log_strain"]]
+    assert not out["reached_base"] and not out["folded"]
+    assert out["contact_width_at_peak_mm"] is None  # observe_peak was not called
+    assert out["nominal_compression"] == 0.0  # no indenter
+
+
+# ----------------------------------------------------------------------------- folding
+def _arc(turn_deg: float, n: int = 60, x0_mm: float = 0.0) -> np.ndarray:
+    """An arc of radius 3 mm from (x0, 5) heading right (an apex), turning clockwise."""
+    th = np.radians(np.linspace(0.0, turn_deg, n))
+    return np.column_stack([x0_mm + 3.0 * np.sin(th), 2.0 + 3.0 * np.cos(th)])
+
+
+def test_smooth_surfaces_are_not_folded() -> None:
+    assert not surface_folded(_arc(90.0))  # the undeformed outline turns by 90 degrees
+    # the side bulged and rolled onto the base: the tangent turns by 180 degrees, smoothly
+    rolled = _arc(180.0)
+    assert not surface_folded(rolled)
+    assert not polyline_self_intersects(rolled)
+    # a nearly closed curve turns by almost 360 degrees: the pairwise test runs, finds nothing
+    assert not surface_folded(_arc(340.0, n=120, x0_mm=4.0))
+
+
+def test_a_crease_is_a_fold() -> None:
+    """The surface turns back on itself at a node (consecutive segments > 90 degrees apart)."""
+    z = np.array([[0.0, 5.0], [1.0, 5.0], [2.0, 4.9], [1.2, 4.5], [2.5, 4.0], [3.0, 0.0]])
+    t = np.diff(z, axis=0)
+    assert np.any(np.einsum("ij,ij->i", t[:-1], t[1:]) < 0)
+    assert surface_folded(z)
+
+
+def test_a_surface_passing_through_itself_is_a_fold() -> None:
+    """A loop with gentle turns at every node (< 20 degrees) that crosses itself."""
+    loop = _arc(400.0, n=100, x0_mm=4.0)  # clear of the symmetry axis
+    t = np.diff(loop, axis=0)
+    turns = np.degrees(
+        np.arccos(
+            np.einsum("ij,ij->i", t[:-1], t[1:])
+            / (np.linalg.norm(t[:-1], axis=1) * np.linalg.norm(t[1:], axis=1))
+        )
+    )
+    assert turns.max() < 20.0
+    assert polyline_self_intersects(loop)
+    assert surface_folded(loop)
+
+
+def test_crossing_the_symmetry_axis_is_a_fold() -> None:
+    """A node at x < 0 puts the half model's surface through its mirror image."""
+    surface = _arc(90.0)
+    surface[5, 0] = -0.01
+    assert surface_folded(surface)
+
+
+# ----------------------------------------------------------------------------- contact width
+def test_contact_width_interpolates_the_edge() -> None:
+    x = np.array([0.0, 0.5, 1.0, 1.5, 2.0])
+    assert contact_half_width_mm(x, np.array([0.03, 0.02, 0.01, -0.01, -0.1])) == 1.25
+    assert contact_half_width_mm(x, -np.ones(5)) == 0.0
+    assert contact_half_width_mm(x, np.ones(5)) == 2.0
+
+
+def test_plate_contact_width_against_hertz() -> None:
+    """A plate on a half-disc (R = 5 mm) at small load: the full width 2a with
+    a = sqrt(4 P R / (pi E*)), P the force per unit length, E* = E / (1 - nu^2)."""
+    R, mu, nu = 5.0, 0.1, 0.45
+    design = homogeneous_design(_neo_hookean(mu, nu), Geometry(R, R, 2.0))
+    opts = _plate_options(depth_mm=0.02, steps=2)
+    res = simulate(design, ["plate"], opts)
+    assert res.ok
+    summary = res.validity["protocols"]["plate"]
+    P = res.curves["plate"]["force_N"][-1] / opts.plate.length_mm
+    E_star = 2.0 * mu * (1.0 + nu) / (1.0 - nu**2)
+    hertz = 2.0 * np.sqrt(4.0 * P * R / (np.pi * E_star))
+    width = summary["contact_width_at_peak_mm"]
+    assert width == pytest.approx(hertz, rel=0.1)
+    # between twice the last contacting node and twice the first free one
+    disc, u = res.discretization, res.fields["plate"]
+    xy = disc.X[disc.surface_nodes] + u[disc.surface_nodes]
+    top = max(res.curves["plate"]["displacement_mm"])
+    p = Plate().penetration(xy, R - top)[0]
+    last = int(np.flatnonzero(p > 0)[-1])
+    assert 2 * xy[last, 0] <= width <= 2 * xy[last + 1, 0]
+    assert summary["nominal_compression"] == pytest.approx(0.02 / R)
+
+
+# ----------------------------------------------------------------------------- verdict
+def test_assess_words_the_violations() -> None:
+    summary = {
+        "max_compressive_log_strain": 0.81,
+        "min_J": 0.41,
+        "reached_base": True,
+        "folded": True,
+    }
+    assert assess(summary, ValidityOptions()) == [
+        "compressive log strain 0.81 > 0.60",
+        "volume ratio J 0.41 < 0.55",
+        "surface reached the base beside the bone",
+        "surface folded",
+    ]
+    lenient = ValidityOptions(1.0, 0.4, allow_base_contact=True, allow_folding=True)
+    assert assess(summary, lenient) == []
+    close = {**summary, "max_compressive_log_strain": 0.6012}  # more digits when needed
+    assert str(check(close, ValidityOptions())[0]) == "compressive log strain 0.601 > 0.600"
+
+
+def test_validity_options_are_overridable() -> None:
+    o = apply_overrides(SimOptions(), {"validity.min_J": "0.3", "validity.allow_folding": "true"})
+    assert o.validity == ValidityOptions(min_J=0.3, allow_folding=True)
+    with pytest.raises(ValueError, match=r"validity\.max_compressive_log_strain"):
+        apply_overrides(SimOptions(), {"validity.max_compressive_log_strain": "0"})
+
+
+def test_stiff_paper_material_is_valid() -> None:
+    """Silicone GLS 40 under the 1 mm plate: strains well inside the characterised range."""
+    res = simulate(homogeneous_design("silicone_gls40"), ["plate"])
+    assert res.ok
+    v = res.validity
+    assert v["valid"] is True and v["violations"] == []
+    s = v["protocols"]["plate"]
+    assert SUMMARY_KEYS <= set(s)
+    assert (
+        0.1 < s["max_compressive_log_strain"] < 0.6 * ValidityOptions().max_compressive_log_strain
+    )
+    assert 0.95 < s["min_J"] <= 1.0
+    assert not s["reached_base"] and not s["folded"]
+    assert 0.0 < s["contact_width_at_peak_mm"] < 2 * 5.84
+    assert s["nominal_compression"] == pytest.approx(1.0 / 5.48)
+    diag = res.diagnostics()
+    assert set(diag) == {"valid", "violations"} | {f"plate_{k}" for k in DIAGNOSTIC_KEYS}
+    assert diag["valid"] is True and diag["violations"] == ""
+    assert diag["plate_contact_width_mm"] == s["contact_width_at_peak_mm"]
+    assert json.loads(json.dumps(res.to_json(), allow_nan=False))["validity"] == v
+
+
+def test_wedge_records_its_validity() -> None:
+    """The wedge's summary: contact at the end of the ramp a fraction of a mm wide."""
+    o = SimOptions()
+    o = dataclasses.replace(o, wedge=dataclasses.replace(o.wedge, hold_s=1.0, hold_steps=2))
+    res = simulate(homogeneous_design("silicone_gls40"), ["wedge"], o)
+    assert res.ok
+    s = res.validity["protocols"]["wedge"]
+    assert 0.05 < s["contact_width_at_peak_mm"] < 1.0
+    assert s["nominal_compression"] == pytest.approx(1.0 / 5.48)
+    # the strain peaks under the wedge's tip, on the axis just below the apex
+    x, y = s["max_compressive_log_strain_at_mm"]
+    assert x < 0.2 and y > 5.48 - 0.3
+
+
+# ----------------------------------------------------------------------------- command line
+def _run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
+    cmd = [sys.executable, "-m", "explore.cli", *args]
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    return subprocess.run(cmd, cwd=cwd, capture_output=True, text=True, timeout=300, env=env)
+
+
+def test_soft_design_reaching_the_base_warns(tmp_path: Path) -> None:
+    (tmp_path / "squat.toml").write_text(SQUAT_SOFT_TOML)
+    res = _run_cli("simulate", "squat.toml", "--protocol", "plate", "--json", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr  # a warning, not an error
+    assert "Traceback" not in res.stderr
+    out = json.loads(res.stdout)
+    block = out["validity"]
+    assert set(block) == {"valid", "violations", "protocols"}
+    assert block["valid"] is False
+    plate = block["protocols"]["plate"]
+    assert plate["reached_base"] is True
+    assert plate["max_base_contact_nodes"] >= 1
+    assert "surface reached the base beside the bone (plate)" in block["violations"]
+    assert plate["violations"] == [v.removesuffix(" (plate)") for v in block["violations"]]
+    warnings = [line for line in res.stderr.splitlines() if line.startswith("warning: ")]
+    assert len(warnings) == len(block["violations"])
+    assert (
+        "warning: plate: surface reached the base beside the bone, outside the validity range "
+        "(--set validity.allow_base_contact=true)" in warnings
+    )
+    strain = plate["max_compressive_log_strain"]
+    assert strain > 0.6
+    assert (
+        f"warning: plate: compressive log strain {strain:.2f} beyond the validity limit 0.60 "
+        "(--set validity.max_compressive_log_strain=...)" in warnings
+    )
+
+
+def test_overriding_the_limits_changes_the_verdict(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = tmp_path / "squat.toml"
+    path.write_text(SQUAT_SOFT_TOML)
+    args = ["simulate", str(path), "--protocol", "plate"]
+    lenient = [
+        "--set",
+        "validity.allow_base_contact=true",
+        "--set",
+        "validity.max_compressive_log_strain=2",
+        "--set",
+        "validity.min_J=0.1",
+    ]
+    assert main([*args, *lenient]) == 0
+    out, err = capsys.readouterr()
+    assert "warning" not in err
+    assert "validity (plate): compressive log strain" in out
+    assert "reached the base" in out  # still reported, no longer a violation
+    strict = ["--set", "validity.max_compressive_log_strain=0.05", "--set", "validity.min_J=0.99"]
+    (tmp_path / "stiff.toml").write_text('[[layers]]\nmaterial = "silicone_gls40"\n')
+    assert main(["simulate", str(tmp_path / "stiff.toml"), "--protocol", "plate", *strict]) == 0
+    err = capsys.readouterr().err
+    assert "warning: plate: compressive log strain" in err
+    assert "warning: plate: volume ratio J" in err
+
+
+def test_options_of_a_sweep_made_before_the_validity_section_load() -> None:
+    """The shipped surrogate's sweep config has no ``validity`` section: it gets the defaults
+    (``fingertip run`` reads it to confirm designs with the training sweep's options)."""
+    from sim.sweep import options_from_dict
+
+    config = json.loads((REPO / "surrogate/pretrained/default/config.json").read_text())
+    assert "validity" not in config["options"]
+    assert options_from_dict(config["options"]).validity == ValidityOptions()
