@@ -201,7 +201,7 @@ def test_validity_options_are_overridable() -> None:
         apply_overrides(SimOptions(), {"validity.max_compressive_log_strain": "0"})
 
 
-def test_stiff_paper_material_is_valid() -> None:
+def test_stiff_paper_material_is_valid(tmp_path: Path) -> None:
     """Silicone GLS 40 under the 1 mm plate: strains well inside the characterised range."""
     res = simulate(homogeneous_design("silicone_gls40"), ["plate"])
     assert res.ok
@@ -221,6 +221,15 @@ def test_stiff_paper_material_is_valid() -> None:
     assert diag["valid"] is True and diag["violations"] == ""
     assert diag["plate_contact_width_mm"] == s["contact_width_at_peak_mm"]
     assert json.loads(json.dumps(res.to_json(), allow_nan=False))["validity"] == v
+    # the deformed mesh shows where: the plate's last step is its deepest
+    meshio = pytest.importorskip("meshio")
+    from sim.output import write_vtu
+
+    cells = meshio.read(write_vtu(res, tmp_path)[0]).cell_data
+    assert max(cells["compressive_log_strain"][0]) == pytest.approx(
+        s["max_compressive_log_strain"], rel=1e-12
+    )
+    assert min(cells["J"][0]) == pytest.approx(s["min_J"], rel=1e-12)
 
 
 def test_wedge_records_its_validity() -> None:
