@@ -97,10 +97,9 @@ def volume_ratio(F: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- surface
 @functools.lru_cache(maxsize=8)
-def _segment_pairs(n_segments: int) -> tuple[np.ndarray, np.ndarray]:
-    """Index pairs (i, j), j >= i + 2, of the non-adjacent segments of an open polyline."""
-    i, j = np.triu_indices(n_segments, k=2)
-    return i, j
+def _non_adjacent(n_segments: int) -> np.ndarray:
+    """(n, n) mask of the segment pairs (i, j), j >= i + 2, of an open polyline."""
+    return np.triu(np.ones((n_segments, n_segments), dtype=bool), k=2)
 
 
 def _orient(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
@@ -118,13 +117,15 @@ def polyline_self_intersects(xy: np.ndarray) -> bool:
     n_seg = len(xy) - 1
     if n_seg < 3:
         return False
-    i, j = _segment_pairs(n_seg)
     lo = np.minimum(xy[:-1], xy[1:])
     hi = np.maximum(xy[:-1], xy[1:])
-    near = np.all((lo[i] <= hi[j]) & (lo[j] <= hi[i]), axis=1)
-    if not near.any():
+    near = _non_adjacent(n_seg).copy()
+    for c in (0, 1):  # overlapping bounding boxes, as (n, n) masks: cheaper than index pairs
+        near &= lo[:, None, c] <= hi[None, :, c]
+        near &= lo[None, :, c] <= hi[:, None, c]
+    i, j = np.nonzero(near)
+    if not i.size:
         return False
-    i, j = i[near], j[near]
     p1, p2, q1, q2 = xy[i], xy[i + 1], xy[j], xy[j + 1]
     crosses_q = _orient(p1, p2, q1) * _orient(p1, p2, q2) < 0.0
     crosses_p = _orient(q1, q2, p1) * _orient(q1, q2, p2) < 0.0
