@@ -2,7 +2,7 @@
 
 The materials of the paper were characterised in uniaxial compression to 45 % nominal strain
 (§2.2.2), and the model was validated at nominal strains of about 20 % of the skin thickness
-(§5.2). A design can be squashed far beyond that and the solver still converges: the result is
+(§5.1). A design can be squashed far beyond that and the solver still converges: the result is
 then an extrapolation of the fitted laws, or of the mesh. ``DeformationTracker`` records, at every
 committed step a protocol records, the extremes that say how far the model was taken:
 
@@ -36,6 +36,7 @@ __all__ = [
     "check",
     "compressive_log_strain",
     "contact_half_width_mm",
+    "polyline_self_intersects",
     "surface_folded",
     "volume_ratio",
 ]
@@ -51,7 +52,7 @@ class ValidityOptions:
     # LOCAL strain at the quadrature points, which is what a material test covers, not on the
     # overall compression of the pulp: a human fingertip compresses ~50 % of its pulp at 4 N,
     # so a human-like design must exceed the paper's recommendation of 20 % nominal strain
-    # (§5.2, ln(1 / 0.8) = 0.22) overall. That figure is reported as ``nominal_compression``
+    # (§5.1, ln(1 / 0.8) = 0.22) overall. That figure is reported as ``nominal_compression``
     # (indenter travel / body height), for information only.
     max_compressive_log_strain: float = 0.60
     # The smallest volume ratio J. The paper identified its laws as incompressible (J = 1) and
