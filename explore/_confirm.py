@@ -153,4 +153,5 @@ def compare(candidate: Candidate, key: str, record: dict, targets: Targets) -> C
         fe_score=score,
         rel_error=rel,
         inside_90=inside,
+        diagnostics=dict(record.get("diagnostics", {})),
     )

@@ -486,6 +486,7 @@ def _answer(c: Confirmation | None, targets: Targets, tol: float, space) -> dict
         "fe_score": c.fe_score,
         "errors_vs_targets": errors,
         "within_tolerance": {m: abs(e) <= tol for m, e in errors.items()},
+        "diagnostics": c.diagnostics,
         "fe_record": f"fe/records/{c.key}.json",
     }
 
@@ -498,7 +499,8 @@ def summarise(
     rows: list[TrialRow],
     space,
 ) -> Summary:
-    ok = [c for c in confirmations if c.status == "ok" and math.isfinite(c.fe_score)]
+    # an unsettled or invalid FE result is never an answer
+    ok = [c for c in confirmations if c.trusted and math.isfinite(c.fe_score)]
     best = min(ok, key=lambda c: c.fe_score, default=None)
     buildable = min(
         (c for c in ok if c.candidate.search == "buildable"),

@@ -119,6 +119,15 @@ class Confirmation:
     fe_score: float
     rel_error: dict[str, float | None] = field(default_factory=dict)
     inside_90: dict[str, bool | None] = field(default_factory=dict)
+    diagnostics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def trusted(self) -> bool:
+        """The FE result can be an answer: it ran, its taps reached the periodic state and its
+        deformation stayed within the validity limits (``sim.SimResult.diagnostics``). A record
+        from before these were stored is taken as it is."""
+        d = self.diagnostics
+        return self.status == "ok" and d.get("settled") is not False and d.get("valid") is not False
 
     def to_json(self) -> dict[str, Any]:
         return {
@@ -130,6 +139,8 @@ class Confirmation:
             "fe_score": _num(self.fe_score),
             "rel_error": {k: _num(v) for k, v in self.rel_error.items()},
             "inside_90": self.inside_90,
+            "diagnostics": self.diagnostics,
+            "trusted": self.trusted,
         }
 
     @classmethod
@@ -143,6 +154,7 @@ class Confirmation:
             fe_score=math.inf if d["fe_score"] is None else float(d["fe_score"]),
             rel_error=d.get("rel_error", {}),
             inside_90=d.get("inside_90", {}),
+            diagnostics=d.get("diagnostics", {}),
         )
 
 

@@ -81,14 +81,17 @@ class PeriodicState:
         self.depth = depth
         mats = body.disc.materials
         self._decay = [np.exp(-period_s / np.asarray(m.prony.tau_s, dtype=float)) for m in mats]
-        # weights of the norm: g_i per term times the quadrature weights of the layer's elements
-        self._weights = [
-            np.sqrt(
-                np.asarray(m.prony.g, dtype=float).reshape(-1, *([1] * 3)) ** 2
-                * body.disc.w[sl][None, None]
-            )
-            for m, sl in zip(mats, body.disc.slices, strict=True)
-        ]
+        # weights of the norm: per term, g_i (k_i on the volumetric part of a split state)
+        # times the quadrature weights of the layer's elements
+        self._weights = []
+        for m, sl in zip(mats, body.disc.slices, strict=True):
+            g = np.asarray(m.prony.g, dtype=float)
+            if getattr(m, "split_relaxation", False):  # H: (N_G, 2 = iso/vol, 3, n_el, n_q)
+                coef = np.stack([g, np.asarray(m.prony_k, dtype=float)], axis=1)[:, :, None]
+            else:  # H: (N_G, 3, n_el, n_q)
+                coef = g[:, None]
+            w = body.disc.w[sl]
+            self._weights.append(np.sqrt(coef[..., None, None] ** 2 * w))
         self.xs: list[np.ndarray] = []
         self.gs: list[np.ndarray] = []
         self.ms: list[np.ndarray] = []
@@ -98,11 +101,9 @@ class PeriodicState:
         return np.concatenate([h.ravel() for h in Hs]) if Hs else np.zeros(0)
 
     def _weight_vector(self, Hs: list[np.ndarray]) -> np.ndarray:
-        parts = []
-        for h, w in zip(Hs, self._weights, strict=True):
-            # w: (N_G, 1, n_el, n_q); H has the term axis first and (n_el, n_q) last
-            shape = (w.shape[0], *([1] * (h.ndim - 3)), *w.shape[-2:])
-            parts.append(np.broadcast_to(w.reshape(shape), h.shape).ravel())
+        parts = [
+            np.broadcast_to(w, h.shape).ravel() for h, w in zip(Hs, self._weights, strict=True)
+        ]
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def _jump(self, H_start: list[np.ndarray], H_end: list[np.ndarray]) -> list[np.ndarray]:

@@ -44,17 +44,24 @@ class TappingOptions:
     frequency_Hz: float = 0.5  # of the half-sine: loaded for 1 / (2 f) seconds
     rest_s: float = 1.0
     length_mm: float = 10.0
-    steps_loaded: int = 32  # steps while the plate is in contact, for the measured tap
-    steps_settle: int = 32  # the same for the settling taps (if different, one more tap follows)
+    # Steps while the plate is in contact (denser near touch and lift-off, see _tap_times), for
+    # the measured tap and for the settling taps (if different, one more tap follows). 48: with
+    # 32 the loop area of the soft, fast-relaxing corner designs moves by 0.6-1.0 % when every
+    # step is quartered; with 48 by <= 0.45 % (docs/validation.md, time-step convergence).
+    steps_loaded: int = 48
+    steps_settle: int = 48
     # Rest (plate lifted): geometric steps from rest_first_step_tau x the shortest relaxation
     # time, each at most rest_growth x the one before, and at least steps_rest of them. The body
     # recovers freely with time constants no shorter than its shortest tau (retardation times
-    # are longer than relaxation times), so the first step resolves the fastest recovery and
-    # later ones the slower. The defaults pass the x4 study of docs/validation.md (every tapping
-    # metric within 0.5 % at the corners of the default space).
+    # are longer than relaxation times); a geometric sequence resolves every time constant from
+    # the first step to the rest's length with the same relative step (rest_growth - 1). The
+    # sag left at the next touch is a small difference of large displacements, so it needs
+    # fine steps: with a growth of 1.6 (1.25) the sag of the soft, fast corner design was off
+    # by 80 % (17 %) against quartered steps, moving the displacements from touch by 2 %; with
+    # 1.12 and a first step of tau / 4, by <= 1 % of the sag and 0.3 % of those displacements.
     steps_rest: int = 4
-    rest_first_step_tau: float = 0.5
-    rest_growth: float = 1.6
+    rest_first_step_tau: float = 0.25
+    rest_growth: float = 1.12
     max_taps: int = 25
     min_taps: int = 3
     # The periodic state (sim.periodic): taps stop when the relative residual of the Prony
@@ -122,6 +129,7 @@ def _march(
     on_step: Callable[[float], None] | None = None,
     max_cuts: int = 12,
     max_attempts: int = 2000,
+    replay: _Replay | None = None,
 ) -> int:
     """Advance through the schedule ``times`` with adaptive sub-steps.
 
@@ -129,11 +137,12 @@ def _march(
     an easy step, at most to the schedule's own spacing). Gives up with ``SimulationError`` when a
     step has been halved ``max_cuts`` times in a row, when the sub-step falls below
     2^-max_cuts of the schedule spacing, or after ``max_attempts`` attempts in all.
+    ``replay`` starts each whole schedule step from the previous tap's increment (``_Replay``).
     """
     steps = 0
     attempts = 0
     scale = 1.0  # current sub-step as a fraction of the schedule spacing
-    for t_target in times:
+    for j, t_target in enumerate(times):
         t_begin = body.t
         span = t_target - t_begin
         cuts = 0
@@ -144,10 +153,14 @@ def _march(
             t_next = min(t_target, body.t + scale * span) if span > 0 else t_target
             if t_target - t_next < 0.05 * scale * span:  # avoid a sliver step at the end
                 t_next = t_target
-            res = body.advance(t_next, control(t_next))
+            whole = replay is not None and t_next == t_target and body.t == t_begin and not cuts
+            guess = replay.guess(j, body) if whole else None
+            res = body.advance(t_next, control(t_next), guess=guess)
             if res.converged:
                 steps += 1
                 cuts = 0
+                if replay is not None and t_next == t_target:
+                    replay.store(j, body)
                 if on_step is not None:
                     on_step(t_next)
                 if res.iterations <= 5:
@@ -160,6 +173,41 @@ def _march(
                 raise SimulationError(protocol, body.t, res.reason + " after step cutting")
             scale *= 0.5
     return steps
+
+
+class _Replay:
+    """Newton's starting point from the previous tap at the same phase.
+
+    Taps repeat one schedule, and near the periodic state each tap repeats the last: the
+    displacement increment of schedule step ``j`` in the previous tap predicts this tap's far
+    better than extrapolating this tap's last step (which knows nothing of first touch or of
+    the free recovery after lift-off). One ``_Replay`` serves one phase (loaded or rest) of
+    every tap; :meth:`start` is called at the phase's start."""
+
+    def __init__(self) -> None:
+        self.prev: dict[int, tuple[np.ndarray, float, float]] = {}
+        self.cur: dict[int, tuple[np.ndarray, float, float]] = {}
+
+    def start(self, body: Body, schedule: object = None) -> None:
+        """A new tap's phase begins; ``schedule`` tells taps with other step times apart."""
+        same = schedule == getattr(self, "_schedule", schedule)
+        self.prev, self.cur = (self.cur if same else {}), {}
+        self._schedule = schedule
+        self.store(-1, body)
+
+    def store(self, j: int, body: Body) -> None:
+        """The committed state at the end of schedule step ``j`` (``-1``: the phase's start)."""
+        self.cur[j] = (body.u, body.indenter_position, body.top_height())
+
+    def guess(self, j: int, body: Body) -> tuple[np.ndarray, float] | None:
+        before, after = self.prev.get(j - 1), self.prev.get(j)
+        if before is None or after is None or (j - 1) not in self.cur:
+            return None
+        u = body.u + (after[0] - before[0])
+        d_before = before[1] if np.isfinite(before[1]) else before[2]  # free: at the top
+        d_now = body.indenter_position if np.isfinite(body.indenter_position) else body.top_height()
+        d = d_now + (after[1] - d_before) if np.isfinite(after[1]) else np.inf
+        return u, d
 
 
 def _result(protocol, body, t0, it0, steps, metrics, curves, info=None) -> ProtocolResult:
@@ -240,7 +288,10 @@ def _rest_times(opts: TappingOptions, tau_min_s: float) -> np.ndarray:
 def _shortest_relaxation_time(body: Body) -> float:
     """The shortest relaxation time (s) of any term that relaxes; ``inf`` for an elastic body."""
     taus = [
-        t for m in body.disc.materials for g, t in zip(m.prony.g, m.prony.tau_s, strict=True) if g
+        t
+        for m in body.disc.materials
+        for g, k, t in zip(m.prony.g, m.prony_k, m.prony.tau_s, strict=True)
+        if g or k
     ]
     return min(taus, default=float("inf"))
 
@@ -280,6 +331,8 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
     pen = [0.0]
     base = [0]
     steps = [0]
+    replay_load, replay_rest = _Replay(), _Replay()
+    tracker = DeformationTracker(body.disc)
 
     def tap(n_loaded: int) -> tuple[np.ndarray, dict, list[np.ndarray]]:
         """One tap (contact then rest) from the current state: its metrics (``TAP_METRICS``),
@@ -297,18 +350,23 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
             rec_f.append(body.force / scale)
             pen[0] = max(pen[0], body.max_penetration())
             base[0] = max(base[0], body.base_contact_nodes())
+            tracker.observe(body)
             if body.force > peak["force"]:  # committed states are new arrays: no copy needed
                 peak["force"], peak["H"] = body.force, [s.H for s in body.states]
+                tracker.observe_peak(body)  # the last tap's peak is the one reported
 
         def force_at(t: float) -> Control:
             return Control.force(opts.peak_force_N * np.sin(omega * (t - t_start)) * scale)
 
-        steps[0] += _march(body, t_start + s_load, force_at, "tapping", record)
+        replay_load.start(body, n_loaded)
+        steps[0] += _march(body, t_start + s_load, force_at, "tapping", record, replay=replay_load)
         rec_t.append(t_load)
         rec_d.append(rec_d[-1])
         rec_f.append(0.0)
         body.indenter_position = np.inf
-        steps[0] += _march(body, t_start + s_rest, lambda t: Control.free(), "tapping")
+        replay_rest.start(body)
+        free = lambda t: Control.free()  # noqa: E731
+        steps[0] += _march(body, t_start + s_rest, free, "tapping", replay=replay_rest)
         d1, d4, hyst = _tap_metrics(rec_t, rec_d, rec_f, t_load, opts.peak_force_N, omega)
         metrics = np.array([d1, d4, d1 - touch, d4 - touch, hyst])
         return metrics, {"t": rec_t, "disp": rec_d, "force": rec_f, "touch": touch}, peak["H"]
@@ -318,14 +376,17 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
         metrics_k, last, _ = tap(opts.steps_loaded)
         history.append(metrics_k)
         settled, residual, rel_error = True, 0.0, np.zeros(len(TAP_METRICS))
+        residuals = [0.0]
     else:
         periodic = PeriodicState(body, period)
         settled = False
+        residuals = []
         for k in range(opts.max_taps):
             H_start = [s.H for s in body.states]
             metrics_k, last, H_peak = tap(opts.steps_settle)
             history.append(metrics_k)
             status = periodic.after_tap(H_start, H_peak, metrics_k)
+            residuals.append(status.residual)
             if len(history) >= opts.min_taps and status.converged(
                 metrics_k, opts.residual_tol, opts.settle_tol
             ):
@@ -356,8 +417,10 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
         "touch_mm": last["touch"],
         "rest_steps": len(s_rest),
         "history": [[_json_float(v) for v in h] for h in history],
+        "residual_history": [_json_float(r) for r in residuals],
         "max_penetration_mm": pen[0],
         "max_base_contact_nodes": base[0],
+        "validity": tracker.summary(),
     }
     return _result("tapping", body, t0, it0, steps[0], metrics, curves, info)
 

@@ -30,14 +30,20 @@ __all__ = [
     "DIAGNOSTIC_KEYS",
     "METRICS",
     "PROTOCOLS",
+    "SETTLE_KEYS",
     "SOLVER_VERSION",
     "SimOptions",
     "SimResult",
+    "diagnostic_names",
     "simulate",
 ]
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
-SOLVER_VERSION = "1.3"  # 1.3: profile summary = area to 2 mm (was half-width)
+SOLVER_VERSION = "2.0"
+# 2.0: tapping to the periodic state on a residual (sim.periodic), rest steps from the shortest
+#      relaxation time, 48 loaded steps, Newton started from the previous tap's increment,
+#      separate shear/bulk relaxation, validity and settling recorded
+# 1.3: profile summary = area to 2 mm (was half-width)
 
 PROTOCOLS = ("tapping", "plate", "wedge")
 
@@ -94,12 +100,7 @@ class SimOptions:
         tap, plate, wedge = self.tapping, self.plate, self.wedge
         return dataclasses.replace(
             self,
-            tapping=dataclasses.replace(
-                tap,
-                steps_loaded=2 * round(tap.steps_loaded * factor / 2),
-                steps_settle=2 * round(tap.steps_settle * factor / 2),
-                steps_rest=max(2, round(tap.steps_rest * factor)),
-            ),
+            tapping=tap.with_steps_scaled(factor),
             plate=dataclasses.replace(plate, steps=max(2, round(plate.steps * factor))),
             wedge=dataclasses.replace(
                 wedge,
@@ -148,7 +149,7 @@ class SimResult:
         return [
             (name, v)
             for name, summary in self.validity_summaries().items()
-            for v in check(summary, self.validity_options)
+            for v in check(summary, self.validity_options, name)
         ]
 
     @property
@@ -159,7 +160,7 @@ class SimResult:
         (see ``ok``)."""
         protocols = {}
         for name, summary in self.validity_summaries().items():
-            own = [str(v) for v in check(summary, self.validity_options)]
+            own = [str(v) for v in check(summary, self.validity_options, name)]
             protocols[name] = {**summary, "violations": own, "valid": not own}
         violations = [f"{v} ({name})" for name, v in self.violations()]
         return {"valid": not violations, "violations": violations, "protocols": protocols}
@@ -177,6 +178,11 @@ class SimResult:
             summary = validity["protocols"].get(name, {})
             for key, source in DIAGNOSTIC_KEYS.items():
                 out[f"{name}_{key}"] = summary.get(source)
+        if "tapping" in self.protocols:  # the periodic state (sim.periodic)
+            tap = self.protocols["tapping"]
+            for key in SETTLE_KEYS:
+                out[f"tapping_{key}"] = tap.get(key)
+            out["settled"] = tap.get("settled")
         return out
 
     def to_json(self) -> dict[str, Any]:
@@ -195,6 +201,9 @@ class SimResult:
         }
 
 
+#: The tapping protocol's periodic-state figures in diagnostics() (as ``tapping_<key>``).
+SETTLE_KEYS = ("settled", "taps", "residual", "max_estimated_error", "touch_mm")
+
 #: diagnostics() key suffix -> key of the protocol's validity summary.
 DIAGNOSTIC_KEYS = {
     "max_compressive_log_strain": "max_compressive_log_strain",
@@ -204,6 +213,16 @@ DIAGNOSTIC_KEYS = {
     "folded": "folded",
     "nominal_compression": "nominal_compression",
 }
+
+
+def diagnostic_names(protocols: tuple[str, ...] | list[str] = PROTOCOLS) -> list[str]:
+    """The keys of ``SimResult.diagnostics()`` for a run of ``protocols``, in a fixed order (the
+    diagnostic columns of a sweep's table.csv)."""
+    names = ["settled", "valid"] if "tapping" in protocols else ["valid"]
+    if "tapping" in protocols:
+        names += [f"tapping_{k}" for k in SETTLE_KEYS if k != "settled"]
+    names += [f"{p}_{k}" for p in protocols for k in DIAGNOSTIC_KEYS]
+    return [*names, "violations"]
 
 
 def _finite(v: float | None) -> float | None:

@@ -238,8 +238,18 @@ class Body:
         return float(np.max(self.disc.X[s, 1] + u[s, 1]))
 
     # ------------------------------------------------------------------ stepping
-    def advance(self, t_new: float, control: Control, frozen_history: bool = False) -> StepResult:
-        """Solve the step to ``t_new``; commit the state only if Newton converges."""
+    def advance(
+        self,
+        t_new: float,
+        control: Control,
+        frozen_history: bool = False,
+        guess: tuple[np.ndarray, float] | None = None,
+    ) -> StepResult:
+        """Solve the step to ``t_new``; commit the state only if Newton converges.
+
+        ``guess``: a starting displacement and indenter position for Newton (for example the
+        previous tap's increment at the same phase); by default the last increment is
+        extrapolated (``_predict``). A position control keeps its prescribed position."""
         disc = self.disc
         opts = self.options
         dt = t_new - self.t
@@ -247,7 +257,12 @@ class Body:
         d = control.value if control.kind == "position" else self.indenter_position
         if control.kind == "force" and not np.isfinite(d):
             d = self.top_height()
-        u, d = self._predict(u, d, control)
+        if guess is not None:
+            u = guess[0].copy()
+            if control.kind == "force" and np.isfinite(guess[1]):
+                d = guess[1]
+        else:
+            u, d = self._predict(u, d, control)
         free = disc.free
         ev = self._evaluate(u, control, d, dt, True, frozen_history)
         if ev is None:

@@ -36,12 +36,13 @@ from .errors import DesignError, SimulationError
 from .options import apply_overrides
 from .protocols import profile_summary
 from .provenance import provenance, write_json
-from .simulate import METRICS, SOLVER_VERSION, SimOptions, simulate
+from .simulate import METRICS, SOLVER_VERSION, SimOptions, diagnostic_names, simulate
 from .space import DesignSpace, point_to_design, space_from_dict
 
 __all__ = [
     "SweepSummary",
     "evaluate_point",
+    "json_safe",
     "options_from_dict",
     "record_key",
     "run_sweep",
@@ -111,6 +112,7 @@ def evaluate_point(point: dict[str, Any], options_dict: dict[str, Any]) -> dict[
                 k: (None if v is None or not math.isfinite(v) else v)
                 for k, v in res.metrics.items()
             },
+            diagnostics=json_safe(res.diagnostics()),
             curves=res.curves,
             n_dofs=res.n_dofs,
         )
@@ -131,6 +133,13 @@ def options_from_dict(d: dict[str, Any]) -> SimOptions:
             for f in dataclasses.fields(base)
         },
     )
+
+
+def json_safe(values: dict[str, Any]) -> dict[str, Any]:
+    """A flat dict with every non-finite float (NaN, inf) as None: strict JSON."""
+    return {
+        k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in values.items()
+    }
 
 
 def _jsonable(point: dict[str, Any]) -> dict[str, Any]:
@@ -168,12 +177,22 @@ class SweepStore:
         """Rebuild table.csv and curves.jsonl for ``keys`` (the sweep's designs, in order)."""
         records = self.load()
         metric_names = list(METRICS)
+        diag_names = diagnostic_names()
         tmp_table = self.folder / ".table.csv.tmp"
         tmp_curves = self.folder / ".curves.jsonl.tmp"
         with tmp_table.open("w", newline="") as fh, tmp_curves.open("w") as fc:
             writer = csv.writer(fh)
             writer.writerow(
-                ["index", "key", "status", *names, *metric_names, "wall_time_s", "reason"]
+                [
+                    "index",
+                    "key",
+                    "status",
+                    *names,
+                    *metric_names,
+                    *diag_names,
+                    "wall_time_s",
+                    "reason",
+                ]
             )
             for i, key in enumerate(keys):
                 rec = records.get(key)
@@ -194,6 +213,7 @@ class SweepStore:
                         rec["status"],
                         *["" if params.get(n) is None else params.get(n) for n in names],
                         *["" if metrics.get(m) is None else metrics[m] for m in metric_names],
+                        *_cells(rec.get("diagnostics", {}), diag_names),
                         f"{rec.get('wall_time_s', 0.0):.3f}",
                         rec.get("reason", ""),
                     ]
@@ -204,6 +224,11 @@ class SweepStore:
                     )
         os.replace(tmp_table, self.folder / "table.csv")
         os.replace(tmp_curves, self.folder / "curves.jsonl")
+
+
+def _cells(values: dict[str, Any], names: list[str]) -> list[Any]:
+    """Table cells: "" for a value not recorded (records before diagnostics existed)."""
+    return ["" if values.get(n) is None else values[n] for n in names]
 
 
 def _config(space: DesignSpace, n: int, seed: int, sampler: str, options: SimOptions) -> dict:

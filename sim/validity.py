@@ -70,6 +70,14 @@ class ValidityOptions:
     # A folded surface (see ``surface_folded``) has no meaning for a skin: self-contact is not
     # modelled, so a fold passes through itself. Never valid by default.
     allow_folding: bool = False
+    # The protocols the strain limit applies to (comma-separated). Tapping and the plate compress
+    # the pulp as a whole, the use the laws were fitted for. The wedge's 0.05 mm tip concentrates
+    # strain under itself (0.57-1.2 for the catalogue materials, growing slowly with mesh
+    # refinement: the tip is nearly a singularity) over a few hundredths of a mm^2, and that very
+    # test is the one the paper validated against experiments (§3.3, Figs. 5a and 6: forces and
+    # surface profiles within 10 %). So the wedge's local strain is reported, not held against
+    # the design; its J, base contact and folding still are.
+    strain_limit_protocols: str = "tapping,plate"
 
 
 # ---------------------------------------------------------------------------- kinematics
@@ -305,11 +313,16 @@ class Violation:
         return f"{self.quantity} {v} {side} the validity limit {lim} ({hint})"
 
 
-def check(summary: dict[str, Any], options: ValidityOptions) -> list[Violation]:
-    """The limits of ``options`` that the protocol ``summary`` violates."""
+def check(
+    summary: dict[str, Any], options: ValidityOptions, protocol: str | None = None
+) -> list[Violation]:
+    """The limits of ``options`` that the ``protocol``'s ``summary`` violates (the strain limit
+    only for the protocols of ``options.strain_limit_protocols``, or always if ``protocol`` is
+    None)."""
     out = []
     strain, J = summary["max_compressive_log_strain"], summary["min_J"]
-    if strain > options.max_compressive_log_strain:
+    limited = {p.strip() for p in options.strain_limit_protocols.split(",")}
+    if (protocol is None or protocol in limited) and strain > options.max_compressive_log_strain:
         out.append(
             Violation(
                 "max_compressive_log_strain",
@@ -327,6 +340,8 @@ def check(summary: dict[str, Any], options: ValidityOptions) -> list[Violation]:
     return out
 
 
-def assess(summary: dict[str, Any], options: ValidityOptions) -> list[str]:
+def assess(
+    summary: dict[str, Any], options: ValidityOptions, protocol: str | None = None
+) -> list[str]:
     """The violated limits as short sentences, e.g. ``"compressive log strain 0.81 > 0.60"``."""
-    return [str(v) for v in check(summary, options)]
+    return [str(v) for v in check(summary, options, protocol)]

@@ -278,6 +278,24 @@ def _fmt(x: float, spec: str) -> str:
     return "–" if not math.isfinite(x) else format(x, spec)
 
 
+def _excluded_line(info: dict[str, Any]) -> str:
+    """Which designs of the sweep the surrogate did not learn from, and why."""
+    excluded = info.get("excluded") or {}
+    parts = [f"{n} {why}" for why, n in sorted(excluded.items())]
+    text = (
+        f"Left out (FE results not trusted): {', '.join(parts)}."
+        if parts
+        else "Left out: none (every design with FE results reached its periodic state and "
+        "stayed within the validity limits)."
+    )
+    if info.get("unchecked"):
+        text += (
+            f" {info['unchecked']} designs come from a sweep that did not record these flags "
+            "and were used unchecked."
+        )
+    return text
+
+
 def write_report(report: Report, folder: Path, info: dict[str, Any]) -> None:
     """report.json, report.md and figures/parity_<metric>.png in ``folder``."""
     figures = folder / "figures"
@@ -295,6 +313,8 @@ def write_report(report: Report, folder: Path, info: dict[str, Any]) -> None:
         f"Ensemble of {info.get('members', '?')} members, seed {info.get('seed', '?')}, "
         f"trained on {info.get('n_train', '?')} designs "
         f"(validation {info.get('n_val', '?')}), {info.get('epochs', '?')} epochs.",
+        "",
+        _excluded_line(info),
         "",
         "| metric | unit | n | R² | n rel. | median rel. error | 95th pct rel. error "
         "| n rule | in 90 % interval |",

@@ -7,20 +7,28 @@ import hashlib
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sim.errors import DesignError, read_toml
-from sim.simulate import METRICS
+from sim.simulate import METRICS, diagnostic_names
 from sim.space import DesignSpace, space_from_dict
 
 __all__ = ["SweepData", "check_point", "read_points", "read_sweep", "sha256_file"]
 
 #: the columns of a sweep's table.csv that are not design parameters
-TABLE_COLUMNS = ("index", "key", "status", "wall_time_s", "reason", *METRICS)
+TABLE_COLUMNS = (
+    "index",
+    "key",
+    "status",
+    "wall_time_s",
+    "reason",
+    *METRICS,
+    *diagnostic_names(),
+)
 
 
 def sha256_file(path: Path) -> str:
@@ -167,10 +175,35 @@ class SweepData:
     metric_names: tuple[str, ...]
     table_sha256: str
     n_rows: int
+    #: designs with FE results left out, by reason ("unsettled", "invalid"), and the designs
+    #: whose table does not say (a sweep made before the flags were recorded: kept)
+    excluded: dict[str, int] = field(default_factory=dict)
+    unchecked: int = 0
 
 
-def read_sweep(folder: str | Path) -> SweepData:
-    """Designs with at least one finite metric (failed protocols leave NaN, masked in training)."""
+def _flag(text: str | None) -> bool | None:
+    """A table's boolean cell: True/False (also 1/0), None when empty or absent."""
+    if text is None or not text.strip():
+        return None
+    return text.strip().lower() in ("true", "1")
+
+
+def _untrusted(row: dict[str, str]) -> str | None:
+    """Why a design's FE result is not trusted ("unsettled", "invalid"), or None."""
+    if _flag(row.get("settled")) is False:
+        return "unsettled"
+    if _flag(row.get("valid")) is False:
+        return "invalid"
+    return None
+
+
+def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
+    """Designs with at least one finite metric (failed protocols leave NaN, masked in training).
+
+    ``trusted_only``: leave out the designs whose tapping did not reach its periodic state
+    (``settled`` false) or whose deformation went beyond the validity limits (``valid`` false);
+    they are counted in ``excluded``. A table without these columns (a sweep made before they
+    were recorded) is used whole, its designs counted in ``unchecked``."""
     folder = Path(folder)
     config_path, table_path = folder / "config.json", folder / "table.csv"
     if not folder.is_dir():
@@ -186,7 +219,8 @@ def read_sweep(folder: str | Path) -> SweepData:
         raise DesignError("SWEEP", f"unreadable {config_path}: {exc}") from None
     metric_names = tuple(METRICS)
     points, targets, index = [], [], []
-    n_rows = 0
+    n_rows, unchecked = 0, 0
+    excluded: dict[str, int] = {}
     with table_path.open(newline="") as fh:
         reader = csv.DictReader(fh)
         missing = [c for c in (*space.names, *metric_names) if c not in (reader.fieldnames or [])]
@@ -197,6 +231,11 @@ def read_sweep(folder: str | Path) -> SweepData:
             y = [float(row[m]) if row[m].strip() else math.nan for m in metric_names]
             if not any(math.isfinite(v) for v in y):
                 continue
+            why = _untrusted(row)
+            if why is not None and trusted_only:
+                excluded[why] = excluded.get(why, 0) + 1
+                continue
+            unchecked += _flag(row.get("valid")) is None
             where = f"table.csv row {n_rows}"
             points.append({n: _cell(space, n, row[n], where) for n in space.names})
             targets.append(y)
@@ -211,4 +250,6 @@ def read_sweep(folder: str | Path) -> SweepData:
         metric_names=metric_names,
         table_sha256=sha256_file(table_path),
         n_rows=n_rows,
+        excluded=excluded,
+        unchecked=unchecked,
     )

@@ -96,6 +96,9 @@ def train_surrogate(
             "n_val": len(split.val),
             "table_sha256": data.table_sha256,
             "validation": result.surrogate.header.get("validation"),
+            # designs with FE results left out of training and testing, by reason
+            "excluded": dict(data.excluded),
+            "unchecked": data.unchecked,
         }
         write_report(report, tmp, json.loads(json.dumps(info)))
     return out / CHECKPOINT_NAME
