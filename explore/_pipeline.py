@@ -441,9 +441,9 @@ def _target_errors(c: Confirmation, targets: Targets) -> dict[str, float]:
 
 
 def _target_met(confirmations: list[Confirmation], targets: Targets, tol: float) -> bool:
-    """Whether some FE-confirmed design is within ``tol`` of every tapping target."""
+    """Whether some trusted FE-confirmed design is within ``tol`` of every tapping target."""
     return any(
-        c.status == "ok" and all(abs(e) <= tol for e in _target_errors(c, targets).values())
+        c.trusted and all(abs(e) <= tol for e in _target_errors(c, targets).values())
         for c in confirmations
     )
 

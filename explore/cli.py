@@ -44,6 +44,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         from sim.output import write_result
 
         write_result(result, args.out, options)
+    tap = result.protocols.get("tapping", {})
     if args.json:
         json.dump(result.to_json(), sys.stdout, allow_nan=False)
         sys.stdout.write("\n")
@@ -55,6 +56,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             else:
                 text = f"{value:.4f} {unit}"
             print(f"{name:28s} {text}")
+        if "settled" in tap:
+            print(_settle_line(tap))
         for protocol, summary in result.validity_summaries().items():
             print(_validity_line(protocol, summary))
         print(f"({result.n_dofs} dofs, {result.wall_time_s:.2f} s)")
@@ -67,7 +70,25 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         )
     for protocol, violation in result.violations():  # a warning: the exit code is unchanged
         print(f"warning: {protocol}: {violation.warning()}", file=sys.stderr)
+    if tap.get("settled") is False:
+        print(
+            f"warning: tapping: no periodic state within {tap['taps']} taps (residual "
+            f"{tap['residual']:.1e}): the tapping metrics are not converged in time "
+            "(--set tapping.max_taps=...)",
+            file=sys.stderr,
+        )
     return 0 if result.ok else 1
+
+
+def _settle_line(tap: dict) -> str:
+    """Whether the taps reached their periodic state, with the residual and error estimate."""
+    state = "periodic state reached" if tap["settled"] else "NOT settled"
+    err = tap.get("max_estimated_error")
+    err_text = "n/a" if err is None or not math.isfinite(err) else f"{100 * err:.2g} %"
+    return (
+        f"tapping: {state} after {tap['taps']} taps (residual {tap['residual']:.1e}, "
+        f"estimated error of the metrics <= {err_text})"
+    )
 
 
 def _validity_line(protocol: str, summary: dict) -> str:

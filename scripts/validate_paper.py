@@ -265,10 +265,8 @@ def time_steps(lines: list[str]) -> None:
     for label, design in _designs().items():
         runs = {}
         for factor in (1, 4):
-            t0 = time.perf_counter()
-            res = simulate(design, options=SimOptions().with_steps_scaled(factor))
-            runs[factor] = (res, time.perf_counter() - t0)
-        a, b = runs[1][0].metrics, runs[4][0].metrics
+            runs[factor] = simulate(design, options=SimOptions().with_steps_scaled(factor))
+        a, b = runs[1].metrics, runs[4].metrics
         for key in a:
             if a[key] is None or b[key] is None:
                 continue
@@ -277,21 +275,21 @@ def time_steps(lines: list[str]) -> None:
                 f"| {label} | {name} | {a[key]:.4f} | {b[key]:.4f} | "
                 f"{100 * abs(a[key] - b[key]) / abs(b[key]):.2f} % |"
             )
-        for factor, (res, wall) in runs.items():
+        for factor, res in runs.items():
             tap = res.protocols.get("tapping", {})
             settle.append(
                 f"| {label} | x{factor} | {tap.get('taps')} | {tap.get('settled')} | "
                 f"{tap.get('residual', float('nan')):.1e} | "
                 f"{100 * tap.get('max_estimated_error', float('nan')):.3f} % | "
-                f"{tap.get('rest_steps')} | {wall:.0f} s |"
+                f"{tap.get('rest_steps')} | {tap.get('newton_iterations')} |"
             )
     lines += [
         "",
         "The periodic state reached by each run (`sim.periodic`: residual of the Prony state and "
-        "the largest estimated relative error of a tapping metric at the last tap) and the run "
-        "time (all protocols, one core):",
+        "the largest estimated relative error of a tapping metric at the last tap) and the "
+        "tapping's Newton iterations (run times: `benchmarks/bench_sweep.py`):",
         "",
-        "| design | steps | taps | settled | residual | est. error | rest steps | time |",
+        "| design | steps | taps | settled | residual | est. error | rest steps | Newton its |",
         "|---|---|---|---|---|---|---|---|",
         *settle,
         "",

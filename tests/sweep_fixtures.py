@@ -18,5 +18,12 @@ nu = { value = 0.47 }
 g_total = { low = 0.1, high = 0.4 }
 tau_s = { low = 0.1, high = 1.0, log = true }
 """
-#: sweep options that keep a design at a few seconds (3 taps, a 5 s wedge hold)
-FAST = ["--set", "tapping.max_taps=3", "--set", "wedge.hold_s=5"]
+#: sweep options that keep a design at a few seconds: 3 taps whose periodic state is accepted
+#: at a loose 10 % residual and error estimate (so the designs count as settled and are used for
+#: training), a 5 s wedge hold
+FAST = [
+    "--set", "tapping.max_taps=3",
+    "--set", "tapping.residual_tol=0.1",
+    "--set", "tapping.settle_tol=0.1",
+    "--set", "wedge.hold_s=5",
+]  # fmt: skip

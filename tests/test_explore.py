@@ -4,6 +4,7 @@ bookkeeping, resume after kill -9, and a tiny end-to-end pipeline (sweep -> trai
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -204,6 +205,33 @@ def test_rounds_stop_only_when_an_fe_design_meets_every_tapping_target():
     assert _target_met([far, near], targets, 0.05)
     assert not _target_met([far], targets, 0.05)
     assert not _target_met([conf({}, status="failed")], targets, 0.05)
+    # an FE result whose taps did not reach the periodic state, or that went beyond the
+    # validity limits, never meets a target, however close its numbers
+    for flag in ("settled", "valid"):
+        untrusted = dataclasses.replace(near, diagnostics={flag: False})
+        assert not untrusted.trusted and not _target_met([untrusted], targets, 0.05)
+
+
+def test_an_untrusted_fe_result_is_never_an_answer():
+    from explore._pipeline import summarise
+
+    targets = load_targets()
+    space = load_space()
+    point = space.point(np.full(len(space.sampled), 0.5))
+    human = {targets.metric(m): targets.values[m] for m in TAPPING}
+
+    def conf(key: str, score: float, **diagnostics) -> Confirmation:
+        cand = Candidate(point, "best", 0, 7, "continuous", score, {}, True, score)
+        return Confirmation(cand, key, "ok", "", dict(human), score, diagnostics=diagnostics)
+
+    perfect_but_unsettled = conf("a", 0.0, settled=False, valid=True)
+    perfect_but_invalid = conf("b", 0.0, settled=True, valid=False)
+    good = conf("c", 0.2, settled=True, valid=True)
+    summary = summarise(
+        [perfect_but_unsettled, perfect_but_invalid, good], targets, 0.05, [], [], space
+    )
+    assert summary.answers["best"]["fe_record"] == "fe/records/c.json"
+    assert summary.answers["best"]["diagnostics"] == {"settled": True, "valid": True}
 
 
 def test_confirm_reuses_existing_fe_records(tmp_path, monkeypatch):

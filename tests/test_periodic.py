@@ -198,3 +198,34 @@ def test_force_controlled_creep_follows_the_creep_compliance():
     assert np.max(np.abs(got - want)) < 2e-3 * want[-1], np.max(np.abs(got - want) / want[-1])
     assert got[-1] == pytest.approx(c * PEAK_N / (1.0 - sum(G)), rel=2e-3)
     assert got[-1] > 2.0 * got[9]  # it really creeps: 1 / g_inf = 2.2 times the elastic step
+
+
+@pytest.mark.parametrize("tau", [0.002, 0.05, 0.9])
+def test_rest_steps_are_geometric_from_the_shortest_relaxation_time(tau):
+    from sim.protocols import _rest_times
+
+    opts = TappingOptions()
+    t = _rest_times(opts, tau)
+    dt = np.diff(np.concatenate([[0.0], t]))
+    assert t[-1] == pytest.approx(opts.rest_s, rel=1e-12) and np.all(dt > 0)
+    assert len(t) >= opts.steps_rest
+    assert dt[0] <= opts.rest_first_step_tau * tau * (1 + 1e-9)  # resolves the fastest term
+    assert np.all(dt[1:] / dt[:-1] <= opts.rest_growth * (1 + 1e-9))
+    # the fewest steps that do it: one step fewer could not reach rest_s at that growth
+    n = len(t)
+    if n > opts.steps_rest:
+        reach = dt[0] * (opts.rest_growth ** (n - 1) - 1) / (opts.rest_growth - 1)
+        assert reach < opts.rest_s
+
+
+def test_quartered_steps_quarter_every_step():
+    from sim.protocols import _rest_times
+
+    opts = TappingOptions()
+    fine = opts.with_steps_scaled(4)
+    assert fine.steps_loaded == 4 * opts.steps_loaded
+    assert fine.rest_first_step_tau == pytest.approx(opts.rest_first_step_tau / 4)
+    assert fine.rest_growth**4 == pytest.approx(opts.rest_growth)
+    coarse, quartered = _rest_times(opts, 0.01), _rest_times(fine, 0.01)
+    assert 3.5 * len(coarse) < len(quartered) < 4.5 * len(coarse)
+    assert len(_rest_times(opts, np.inf)) == opts.steps_rest  # elastic: nothing to resolve

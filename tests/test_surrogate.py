@@ -524,3 +524,36 @@ def test_cli_predict_bad_designs_in_process(ckpt, tmp_path, capsys, text, field)
     assert explore.cli.main(["predict", str(ckpt), str(design)]) == 2
     line = assert_one_line_error(capsys.readouterr().err)
     assert line.startswith(f"{ERROR_PREFIX}{field}")
+
+
+def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
+    """A copy of the sweep whose table marks one design unsettled and one invalid: both are
+    left out by default and counted; ``trusted_only=False`` keeps them; a table without the
+    flags (a sweep made before they were recorded) is used whole and counted as unchecked."""
+    import csv
+    import shutil
+
+    copy = tmp_path / "flagged"
+    shutil.copytree(sweep, copy)
+    with (copy / "table.csv").open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        fields, rows = reader.fieldnames, list(reader)
+    usable = [r for r in rows if r["status"] == "ok"]
+    usable[0]["settled"] = "False"
+    usable[1]["valid"] = "False"
+    with (copy / "table.csv").open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, fields)
+        writer.writeheader()
+        writer.writerows(rows)
+    full = read_sweep(sweep)
+    data = read_sweep(copy)
+    assert len(data.points) == len(full.points) - 2
+    assert data.excluded == {"unsettled": 1, "invalid": 1} and data.unchecked == 0
+    assert len(read_sweep(copy, trusted_only=False).points) == len(full.points)
+    old = [f for f in fields if f not in ("settled", "valid")]
+    with (copy / "table.csv").open("w", newline="") as fh:
+        writer = csv.DictWriter(fh, old, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows)
+    legacy = read_sweep(copy)
+    assert len(legacy.points) == len(full.points) and legacy.unchecked == len(full.points)

@@ -160,6 +160,13 @@ def test_sweep_records_table_and_resume(tiny_space, tmp_path):
     meta = json.loads((out / "meta.json").read_text())
     assert config["n"] == 3 and config["seed"] == 0 and "git_commit" in meta and "packages" in meta
     assert len((out / "curves.jsonl").read_text().splitlines()) == 3
+    # every FE result says whether its taps reached the periodic state and whether it is valid
+    for r in rows:
+        assert r["settled"] in ("True", "False") and r["valid"] in ("True", "False")
+        assert 1 <= int(r["tapping_taps"]) <= 3 and float(r["tapping_residual"]) >= 0
+        assert float(r["tapping_max_compressive_log_strain"]) > 0 and 0 < float(r["plate_min_J"])
+    record = json.loads(next((out / "records").glob("*.json")).read_text())
+    assert {"settled", "valid", "violations", "tapping_residual"} <= set(record["diagnostics"])
     # the same command again computes nothing; a larger n computes only the new designs
     again = _cli("sweep", tiny_space, "--n", 3, "--out", out, "--no-progress", *FAST)
     assert "0 computed now" in again.stdout
