@@ -186,8 +186,12 @@ def _cmd_train(args: argparse.Namespace) -> int:
         members=args.members,
         max_epochs=args.max_epochs,
         progress=not args.no_progress,
+        include_untrusted=args.include_untrusted,
     )
     report = json.loads((ckpt.parent / "report.json").read_text())
+    left_out = ", ".join(f"{n} {why}" for why, n in sorted(report.get("excluded", {}).items()))
+    if left_out:
+        print(f"left out (taps not settled / beyond the validity limits): {left_out}")
 
     def fmt(x, spec: str) -> str:
         return format("-", f">{spec.split('.')[0]}") if x is None else format(x, spec)
@@ -217,6 +221,12 @@ def _add_train(sub) -> None:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--members", type=int, default=5, help="ensemble members (default 5)")
     p.add_argument("--max-epochs", type=int, help="cap on epochs (early stopping decides)")
+    p.add_argument(
+        "--include-untrusted",
+        action="store_true",
+        help="also learn from designs whose taps did not settle or that went beyond the "
+        "validity limits (left out by default)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_train)
 

@@ -40,9 +40,14 @@ def train_surrogate(
     max_epochs: int | None = None,
     progress: bool = True,
     speed_n: int = 65536,
+    include_untrusted: bool = False,
     **hyper,
 ) -> Path:
     """Train an ensemble surrogate on a sweep and write a run folder; returns the checkpoint.
+
+    By default the designs whose taps did not reach their periodic state or whose deformation
+    went beyond the validity limits are left out (and counted in the report);
+    ``include_untrusted`` keeps them.
 
     ``hyper`` overrides other ``TrainConfig`` fields (``hidden``, ``patience``, ``lr``, ...).
     ``out_dir`` defaults to ``<sweep>-surrogate`` beside the sweep and must not exist yet.
@@ -60,7 +65,7 @@ def train_surrogate(
             raise DesignError("--max-epochs", f"must be >= 1, got {max_epochs}")
         hyper["max_epochs"] = max_epochs
     config = TrainConfig(seed=seed, members=members, **hyper)
-    data = read_sweep(sweep_dir)
+    data = read_sweep(sweep_dir, trusted_only=not include_untrusted)
     if len(data.points) < 4:
         raise DesignError(
             "SWEEP", f"{sweep_dir} has {len(data.points)} designs with FE results; need >= 4"
@@ -70,6 +75,7 @@ def train_surrogate(
         "sweep": str(Path(sweep_dir).resolve()),
         "table_sha256": data.table_sha256,
         "solver_version": data.solver_version,
+        "include_untrusted": include_untrusted,
         "train": config.to_dict(),
     }
     split = result.split
