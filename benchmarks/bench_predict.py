@@ -31,7 +31,7 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=65536)
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()
-    model = load_checkpoint(args.checkpoint)
+    model = load_checkpoint(args.checkpoint, allow_solver_mismatch=True)  # speed only
     points = read_points(args.designs, model.space)
     s = inference_speed(model, points, args.n, args.repeats)
     print(f"{args.checkpoint} on {s.machine}, {s.cpu_count} CPUs, load {s.load_average_1min:.2f}")

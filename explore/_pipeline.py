@@ -16,6 +16,7 @@ import csv
 import dataclasses
 import json
 import math
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from sim import SimOptions
+from sim import SOLVER_VERSION, SimOptions
 from sim.errors import DesignError
 from sim.provenance import provenance, write_json
 from sim.space import load_space
@@ -226,7 +227,7 @@ def retrain(surrogate, dataset: Path, confirmed: list[Confirmation], epochs: int
     from surrogate._train import Split, TrainConfig, fit
 
     data = read_sweep(dataset)
-    ok = [c for c in confirmed if c.status == "ok"]
+    ok = [c for c in confirmed if c.trusted]  # an unsettled or invalid result teaches nothing
     names = list(data.metric_names)
     new_points = [c.candidate.point for c in ok for _ in range(CONFIRMED_WEIGHT)]
     new_targets = np.array(
@@ -280,7 +281,17 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
 
     config.check()
     out = Path(out)
-    surrogate = load_checkpoint(config.surrogate)
+    # a surrogate trained on FE results of another solver version still searches (the shipped
+    # one until it is re-made), with a warning: every answer is confirmed by this solver's FE
+    surrogate = load_checkpoint(config.surrogate, allow_solver_mismatch=True)
+    trained_on = surrogate.header.get("solver_version")
+    if trained_on != SOLVER_VERSION:
+        print(
+            f"warning: the surrogate {config.surrogate} was trained on FE results of solver "
+            f"{trained_on}, this is solver {SOLVER_VERSION}: its predictions may be off; the "
+            "answers are confirmed with this solver",
+            file=sys.stderr,
+        )
     space = load_space(config.space) if config.space else surrogate.space
     try:
         check_subspace(space, surrogate.space)
@@ -316,7 +327,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
     for r in range(config.rounds):
         ckpt = out / "surrogates" / f"round-{r}.safetensors"
         if r > 0 and ckpt.exists():
-            surrogate = load_checkpoint(ckpt)
+            surrogate = load_checkpoint(ckpt, allow_solver_mismatch=True)
         settings = SearchSettings(
             trials=config.trials,
             mode=config.mode,

@@ -95,6 +95,9 @@ class PeriodicState:
         self.xs: list[np.ndarray] = []
         self.gs: list[np.ndarray] = []
         self.ms: list[np.ndarray] = []
+        #: how each tap's next iterate was made: Anderson, the plain per-term jump, or neither
+        #: (no accelerated state could be equilibrated: plain tapping)
+        self.used = {"anderson": 0, "jump": 0, "plain": 0}
 
     # -- vectors ------------------------------------------------------------------------------
     def _flat(self, Hs: list[np.ndarray]) -> np.ndarray:
@@ -169,12 +172,14 @@ class PeriodicState:
         if len(self.xs) >= 2:
             w = self._weight_vector([s.H for s in body.states])
             _, dG, _, gamma = self._secant(w)
-            candidates.append(self.gs[-1] - dG @ gamma)
-        candidates.append(self.gs[-1])
-        for cand in candidates:
+            candidates.append(("anderson", self.gs[-1] - dG @ gamma))
+        candidates.append(("jump", self.gs[-1]))
+        for name, cand in candidates:
             if self._set(cand):
+                self.used[name] += 1
                 return
             body.restore(snap)
+        self.used["plain"] += 1
 
     def _set(self, flat: np.ndarray) -> bool:
         offset = 0

@@ -376,7 +376,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
         metrics_k, last, _ = tap(opts.steps_loaded)
         history.append(metrics_k)
         settled, residual, rel_error = True, 0.0, np.zeros(len(TAP_METRICS))
-        residuals = [0.0]
+        residuals, accelerated = [0.0], {}
     else:
         periodic = PeriodicState(body, period)
         settled = False
@@ -395,6 +395,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
             if opts.accelerate and k + 1 < opts.max_taps:
                 periodic.accelerate()
         residual, rel_error = status.residual, status.relative_error(metrics_k)
+        accelerated = dict(periodic.used)
         if opts.steps_settle != opts.steps_loaded:  # a finer tap for the metrics
             metrics_k, last, _ = tap(opts.steps_loaded)
             history.append(metrics_k)
@@ -418,6 +419,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
         "rest_steps": len(s_rest),
         "history": [[_json_float(v) for v in h] for h in history],
         "residual_history": [_json_float(r) for r in residuals],
+        "accelerated": accelerated,
         "max_penetration_mm": pen[0],
         "max_base_contact_nodes": base[0],
         "validity": tracker.summary(),
