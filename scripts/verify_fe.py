@@ -104,10 +104,11 @@ def hertz_section(lines: list[str], quick: bool) -> list[fv.HertzResult]:
         "given fraction a/R. Hertz (Johnson, Contact Mechanics §4.3): a = sqrt(4 P R / "
         "(pi E*)), p0 = 2 P / (pi a), E* = E / (1 - nu^2), with P = 2 x the half model's force "
         "per unit thickness. Mesh: uniform elements of size h = a / (a/h) over the surface "
-        "within 1.5 a of the axis, growing at 0.1 h per mm away from it. Pressures are the "
-        "penalty forces kappa_i x penetration over the nodes' tributary length of the deformed "
-        "surface; a_fit, p0_fit are the least-squares ellipse p^2 = p0^2 (1 - x^2/a^2) through "
-        "all nodes in contact, p_apex the nodal pressure at the apex (the largest).",
+        "within 1.5 a of the axis, growing by 0.1 mm per mm of distance from it (at most "
+        "R/5). Pressures are the penalty forces kappa_i x penetration over the nodes' "
+        "tributary length on the deformed surface; a_fit, p0_fit are the least-squares "
+        "ellipse p^2 = p0^2 (1 - x^2/a^2) through all nodes in contact, p_apex the nodal "
+        "pressure at the apex (the largest).",
         "",
         "| a/R | a/h | elements | P (N/mm) | a Hertz (mm) | a_fit | p0 Hertz (MPa) | p0_fit "
         "| p_apex | discrete edge / a | penetration / (a²/R) |",
@@ -139,10 +140,11 @@ def hertz_section(lines: list[str], quick: bool) -> list[fv.HertzResult]:
         "p0 follow from the surface *slope* inside the contact (the Hertz integral equation), "
         "to which a body of size R adds a smooth term of relative order P / (E* R) = "
         "pi/4 (a/R)^2: 2e-3 at a/R = 0.05, 5e-4 at 0.025, i.e. it would fall fourfold per "
-        f"halving of a/R. The deviation of a_fit at a/h = 50 ({trend}) falls only in "
-        "proportion to a/R: the signature of the finite-strain correction that linear Hertz "
-        "theory omits (strains ~ a/R here). Both vanish as a/R -> 0, where the FE result "
-        "tends to Hertz.",
+        f"halving of a/R. The deviation of a_fit at a/h = 50 ({trend}) roughly halves with "
+        "a/R instead, and hardly moves with the mesh at a fixed a/R: it is physical, the "
+        "finite-strain correction that linear Hertz theory omits (strains ~ a/R here), not "
+        "the finite body and not the discretisation. Both vanish as a/R -> 0, where the FE "
+        "result tends to Hertz.",
         "- **p_apex** is a single nodal value: the lumped nodal pressures of P2 node-to-surface "
         "contact alternate between vertex and midside nodes (about 1 % at a/h = 50), "
         "decreasing with h; the ellipse fit averages that out. Refining the mesh at "
@@ -390,6 +392,8 @@ def main() -> None:
         print(f"{name}: {time.perf_counter() - t:.0f} s", flush=True)
     hertz = summary["hertz"]
     worst_hertz = max(abs(v) for r in hertz for k, v in r.errors.items() if k != "p_apex")
+    apex_fine = max(abs(r.errors["p_apex"]) for r in hertz if r.a_over_h >= 50)
+    apex_coarse = max(abs(r.errors["p_apex"]) for r in hertz)
     command = "python scripts/verify_fe.py" + (" --quick" if args.quick else "")
     versions = ", ".join(
         f"{p} {metadata.version(p)}" for p in ("numpy", "scipy", "scikit-fem", "felupe", "sympy")
@@ -408,8 +412,9 @@ def main() -> None:
         "|---|---|",
         f"| 1. laws vs closed forms (uniaxial, equibiaxial, shear; 7 laws) | largest relative "
         f"error {summary['laws']:.1e} |",
-        f"| 2. plane-strain Hertz, a and p0 (fit) | within {100 * worst_hertz:.1f} % "
-        "(all loads and meshes) |",
+        f"| 2. plane-strain Hertz, a/R = 0.0125-0.05 | a and p0 (ellipse fit) within "
+        f"{100 * worst_hertz:.1f} % on every mesh; apex pressure within {100 * apex_fine:.1f} % "
+        f"for a/h >= 50 ({100 * apex_coarse:.1f} % at a/h = 25) |",
         f"| 3. manufactured solution, fitted rates (finest three meshes) | L2 "
         f"{summary['mms'][0]:.2f}, H1 {summary['mms'][1]:.2f} (P2: 3, 2) |",
         f"| 4. base reaction vs indenter force | imbalance <= {summary['equilibrium']:.0e} |",

@@ -10,12 +10,19 @@ code from ``sim.materials`` other than reading the laws' parameters.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.optimize import brentq
 
 from sim.materials import Hyperfoam, Law, MooneyRivlin, NeoHookean, Yeoh
+
+if TYPE_CHECKING:
+    from sim.fe import Discretization
+    from sim.mesh import FingertipMesh
+    from sim.solver import Body
 
 # ============================================================================================
 # 1. Closed-form stresses in homogeneous modes (plane strain, F33 = 1)
@@ -168,7 +175,7 @@ def _rel(got: np.ndarray, ref: np.ndarray) -> float:
     return float(np.max(np.abs(got - ref) / np.maximum(np.abs(ref), floor)))
 
 
-def _sweep(mode: str, values: np.ndarray, pair) -> ModeError:
+def _sweep(mode: str, values: np.ndarray, pair: Callable) -> ModeError:
     """Worst ``_rel`` over ``values`` of ``pair(v) -> (code, closed form)``."""
     errs = np.array([_rel(*pair(float(v))) for v in values])
     k = int(np.argmax(errs))
@@ -288,7 +295,7 @@ def hertz_line_contact(force: float, radius: float, E: float, nu: float) -> tupl
     return a, 2.0 * force / (math.pi * a)
 
 
-def nodal_contact_pressure(body) -> tuple[np.ndarray, np.ndarray]:
+def nodal_contact_pressure(body: Body) -> tuple[np.ndarray, np.ndarray]:
     """Deformed x of the surface nodes and their plate pressure (MPa).
 
     The penalty force on node i is f_i = kappa_i * penetration_i (``Body._add_contact``), with
@@ -415,7 +422,7 @@ class ManufacturedSolution:
         if isinstance(law, MooneyRivlin):
             return law.c10_MPa * (i1b - 3) + law.c01_MPa * (i2b - 3)
         if isinstance(law, Yeoh):
-            return sum(c * (i1b - 3) ** k for k, c in enumerate(law_coeffs(law), start=1))
+            return sum(c * (i1b - 3) ** k for k, c in enumerate(_yeoh_coeffs(law), start=1))
         raise TypeError(f"no manufactured solution for {type(law).__name__}")
 
     def _bc(self, fn, x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -451,11 +458,11 @@ class ManufacturedSolution:
         return np.array(np.broadcast_arrays(*P, F[0, 0])[:-1]).reshape(2, 2, *F.shape[2:])
 
 
-def law_coeffs(law: Yeoh) -> tuple[float, float, float]:
+def _yeoh_coeffs(law: Yeoh) -> tuple[float, float, float]:
     return law.c10_MPa, law.c20_MPa, law.c30_MPa
 
 
-def _flatten(nested) -> list:
+def _flatten(nested: Any) -> list:
     if isinstance(nested, list | tuple):
         return [v for item in nested for v in _flatten(item)]
     return [nested]
@@ -475,7 +482,7 @@ class MMSResult:
     residual: float  # final max |residual| (N/mm)
 
 
-def boundary_fixed_mask(fmesh):
+def boundary_fixed_mask(fmesh: FingertipMesh) -> Callable[[np.ndarray], np.ndarray]:
     """``fixed(X)`` for ``Discretization``: every P2 node on the mesh boundary (vertices and
     midpoints of the boundary facets), both components."""
     from scipy.spatial import cKDTree
@@ -492,7 +499,9 @@ def boundary_fixed_mask(fmesh):
     return fixed
 
 
-def _newton(disc, u: np.ndarray, load: np.ndarray, tol: float, max_it: int = 25):
+def _newton(
+    disc: Discretization, u: np.ndarray, load: np.ndarray, tol: float, max_it: int = 25
+) -> tuple[int, float]:
     """Newton on r(u) = f_int(u) - load = 0 over the free dofs (u updated in place).
 
     A trial that inverts an element is halved; returns (iterations, final max |r|)."""
@@ -520,7 +529,7 @@ def _newton(disc, u: np.ndarray, load: np.ndarray, tol: float, max_it: int = 25)
     raise RuntimeError(f"no convergence in {max_it} iterations (|r| = {norm:.3e})")
 
 
-def _lift(disc, u: np.ndarray, jump: np.ndarray, load: np.ndarray) -> None:
+def _lift(disc: Discretization, u: np.ndarray, jump: np.ndarray, load: np.ndarray) -> None:
     """Move the constrained dofs by ``jump`` (zero on free dofs) and the free dofs by the
     linearised response, K_ff du = -(r(u) - load + K_fc jump), in place.
 
@@ -602,7 +611,9 @@ class _Scaled:
         return self.m._body_force_from(G, self.s * self.m._hessian(x, y), x)
 
 
-def _mms_errors(disc, u: np.ndarray, msol: ManufacturedSolution) -> tuple[float, float]:
+def _mms_errors(
+    disc: Discretization, u: np.ndarray, msol: ManufacturedSolution
+) -> tuple[float, float]:
     """Relative L2 and H1-seminorm errors, by a 6th-order rule on the same mesh."""
     from skfem import Basis, ElementTriP2
 
@@ -649,7 +660,7 @@ class Balance:
         return abs(self.base_reaction + self.base_contact - self.plate) / abs(self.plate)
 
 
-def balance(body) -> Balance:
+def balance(body: Body) -> Balance:
     """All external forces on ``body`` (support reactions from the element forces, contact
     forces from the penalty law) and their resultant and moment."""
     from sim._reactions import contact_forces, support_reactions
@@ -690,7 +701,7 @@ def _p2_gradient(rs: np.ndarray) -> np.ndarray:
     return d
 
 
-def shape_gradient_error(element) -> float:
+def shape_gradient_error(element: Any) -> float:
     """Largest difference between ``element.gradient`` and central differences of
     ``element.function`` at the three quadrature points and an off-centre point."""
     worst = 0.0
@@ -707,7 +718,7 @@ def shape_gradient_error(element) -> float:
     return worst
 
 
-def felupe_p2_element():
+def felupe_p2_element() -> tuple[Any, bool]:
     """FElupe's ``QuadraticTriangle``, with its shape-function gradient corrected if needed.
 
     FElupe 11.3.0 writes d h5 / ds (h5 = 4 s (1 - r - s), the mid-node of edge 2-0) as
@@ -728,7 +739,12 @@ def felupe_p2_element():
     return QuadraticTriangleFixed(), True
 
 
-def felupe_model(disc, law: NeoHookean, element=None, extra_points: np.ndarray | None = None):
+def felupe_model(
+    disc: Discretization,
+    law: NeoHookean,
+    element: Any = None,
+    extra_points: np.ndarray | None = None,
+) -> tuple[Any, Any, Any]:
     """FElupe's plane-strain model of the discretisation ``disc`` (same P2 nodes and
     triangles, same 3-point rule), with optional ``extra_points`` (no cells) appended after the
     P2 nodes: returns (field container, displacement field, solid).
@@ -757,7 +773,9 @@ def felupe_model(disc, law: NeoHookean, element=None, extra_points: np.ndarray |
     return field, u, solid
 
 
-def felupe_internal_forces(disc, law: NeoHookean, u_nodes: np.ndarray, element=None) -> np.ndarray:
+def felupe_internal_forces(
+    disc: Discretization, law: NeoHookean, u_nodes: np.ndarray, element: Any = None
+) -> np.ndarray:
     """FElupe's internal force vector (n_nodes, 2) at the displacement ``u_nodes``."""
     field, u, solid = felupe_model(disc, law, element)
     u.values[:] = u_nodes
@@ -785,7 +803,7 @@ def felupe_plate_comparison(
     depths_mm: np.ndarray,
     mesh_factor: float = 1.0,
     penalty_factor: float = 1.0,
-    element=None,
+    element: Any = None,
 ) -> FelupeComparison:
     """Push the plate onto the reference fingertip in both codes; compare the forces.
 
