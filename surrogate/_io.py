@@ -181,6 +181,22 @@ class SweepData:
     unchecked: int = 0
 
 
+def _number(text: str, field_name: str, *, integer: bool = False) -> float:
+    """A numeric table cell (empty = NaN, a metric not reached); anything else is refused."""
+    text = text.strip()
+    if not text and not integer:
+        return math.nan
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if integer and not (math.isfinite(value) and value == int(value) and value >= 0):
+        raise DesignError(field_name, f"expected a whole number >= 0, got {text!r}")
+    if math.isnan(value) and text.lower() != "nan":
+        raise DesignError(field_name, f"expected a number or an empty cell, got {text!r}")
+    return value
+
+
 def _flag(text: str | None) -> bool | None:
     """A table's boolean cell: True/False (also 1/0), None when empty or absent."""
     if text is None or not text.strip():
@@ -221,25 +237,38 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
     points, targets, index = [], [], []
     n_rows, unchecked = 0, 0
     excluded: dict[str, int] = {}
-    with table_path.open(newline="") as fh:
-        reader = csv.DictReader(fh)
-        missing = [c for c in (*space.names, *metric_names) if c not in (reader.fieldnames or [])]
-        if missing:
-            raise DesignError("SWEEP", f"{table_path} has no column {missing[0]!r}")
-        for row in reader:
-            n_rows += 1
-            y = [float(row[m]) if row[m].strip() else math.nan for m in metric_names]
-            if not any(math.isfinite(v) for v in y):
-                continue
-            why = _untrusted(row)
-            if why is not None and trusted_only:
-                excluded[why] = excluded.get(why, 0) + 1
-                continue
-            unchecked += _flag(row.get("valid")) is None
-            where = f"table.csv row {n_rows}"
-            points.append({n: _cell(space, n, row[n], where) for n in space.names})
-            targets.append(y)
-            index.append(int(row["index"]))
+    rebuild = "re-run the same `fingertip sweep` command to rebuild it from the records"
+    try:
+        with table_path.open(newline="") as fh:
+            reader = csv.DictReader(fh)
+            header = reader.fieldnames or []
+            missing = [c for c in ("index", *space.names, *metric_names) if c not in header]
+            if missing:
+                raise DesignError("SWEEP", f"{table_path} has no column {missing[0]!r}")
+            for row in reader:
+                n_rows += 1
+                where = f"{table_path} row {n_rows}"
+                if None in row or any(v is None for v in row.values()):
+                    raise DesignError(
+                        "SWEEP",
+                        f"{where} does not have the {len(header)} cells of the header "
+                        f"(a truncated or damaged table); {rebuild}",
+                    )
+                y = [_number(row[m], f"{where}: {m}") for m in metric_names]
+                if not any(math.isfinite(v) for v in y):
+                    continue
+                why = _untrusted(row)
+                if why is not None and trusted_only:
+                    excluded[why] = excluded.get(why, 0) + 1
+                    continue
+                unchecked += _flag(row.get("valid")) is None
+                points.append({n: _cell(space, n, row[n], where) for n in space.names})
+                targets.append(y)
+                index.append(int(_number(row["index"], f"{where}: index", integer=True)))
+    except UnicodeDecodeError:
+        raise DesignError("SWEEP", f"{table_path} is not UTF-8 text; {rebuild}") from None
+    except csv.Error as exc:
+        raise DesignError("SWEEP", f"malformed CSV in {table_path}: {exc}; {rebuild}") from None
     return SweepData(
         folder=folder,
         space=space,

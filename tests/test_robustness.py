@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -122,3 +123,61 @@ def test_human_like_soft_layered_design_solves_at_large_deformation():
     assert res.metrics["hysteresis_Nmm"] > 0.5
     for info in res.protocols.values():
         assert info["max_penetration_mm"] < 0.01
+
+
+# ----------------------------------------------------------------------------- damaged sweeps
+SHIPPED = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained" / "default"
+
+
+def _damaged_sweep(tmp_path: Path, damage: str) -> Path:
+    """The first 40 designs of the shipped training table, damaged as ``damage`` says."""
+    folder = tmp_path / "sweep"
+    folder.mkdir()
+    (folder / "config.json").write_text((SHIPPED / "config.json").read_text())
+    lines = (SHIPPED / "table.csv").read_text().splitlines(keepends=True)[:41]
+    if damage == "truncated":  # a copy cut off mid-line
+        text = "".join(lines)
+        text = text[: len(text) - len(lines[-1]) // 2]
+    elif damage == "non-numeric":
+        header = lines[0].rstrip("\n").split(",")
+        cells = lines[7].rstrip("\n").split(",")
+        cells[header.index("hysteresis_Nmm")] = "abc"
+        lines[7] = ",".join(cells) + "\n"
+        text = "".join(lines)
+    elif damage == "binary":
+        text = None
+        (folder / "table.csv").write_bytes(b"\xff\xfe\x00" * 50)
+    else:
+        raise AssertionError(damage)
+    if text is not None:
+        (folder / "table.csv").write_text(text)
+    return folder
+
+
+@pytest.mark.parametrize(
+    ("damage", "words"),
+    [
+        ("truncated", "row 40 does not have the"),
+        ("non-numeric", "row 7: hysteresis_Nmm: expected a number"),
+        ("binary", "not UTF-8"),
+    ],
+)
+def test_train_on_a_damaged_table_is_one_line(tmp_path, damage, words):
+    folder = _damaged_sweep(tmp_path, damage)
+    p = _cli("train", str(folder), "--out", str(tmp_path / "model"), "--no-progress")
+    assert p.returncode == 2, p.stderr
+    assert "Traceback" not in p.stderr
+    lines = [line for line in p.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and lines[0].startswith("fingertip: error: ") and words in lines[0]
+    assert not (tmp_path / "model").exists()
+
+
+def test_the_undamaged_copy_reads(tmp_path):
+    from surrogate import read_sweep
+
+    folder = tmp_path / "sweep"
+    folder.mkdir()
+    (folder / "config.json").write_text((SHIPPED / "config.json").read_text())
+    lines = (SHIPPED / "table.csv").read_text().splitlines(keepends=True)[:41]
+    (folder / "table.csv").write_text("".join(lines))
+    assert len(read_sweep(folder).points) == 40
