@@ -314,7 +314,7 @@ INVALID: dict[str, tuple[dict[str, Any], str]] = {
     "material_not_a_table": (one_layer(3.0), "layers[0].material"),
     "material_missing": ({"layers": [{}]}, "layers[0].material"),
     "model_missing": (one_layer({"mu_MPa": 0.1, "nu": 0.3}), "layers[0].material.model"),
-    "model_unknown": (one_layer({**NEO_HOOKEAN, "model": "ogden"}), "layers[0].material.model"),
+    "model_unknown": (one_layer({**NEO_HOOKEAN, "model": "gent"}), "layers[0].material.model"),
     "nu_half_neo_hookean": (one_layer({**NEO_HOOKEAN, "nu": 0.5}), "layers[0].material.nu"),
     "nu_above_half_hyperfoam": (
         two_layers(SILICONE, {**HYPERFOAM, "nu": 0.6}),

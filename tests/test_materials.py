@@ -20,6 +20,7 @@ from sim.materials import (
     Material,
     MooneyRivlin,
     NeoHookean,
+    Ogden,
     Prony,
     Yeoh,
     catalogue_material,
@@ -42,6 +43,8 @@ LAW_CASES = {
     "neo_hookean": (NeoHookean(mu_MPa=0.1, nu=0.45), 0.1),
     "mooney_rivlin": (MooneyRivlin(c10_MPa=0.05, c01_MPa=0.02, nu=0.3), 0.3),
     "yeoh": (Yeoh(c10_MPa=0.05, c20_MPa=-0.01, c30_MPa=0.003, nu=0.4), 0.2),
+    "ogden": (Ogden(mu_MPa=[0.03, 0.002, -0.001], alpha=[1.5, 6.0, -2.5], nu=0.4), 0.2),
+    "ogden_neo_hookean": (Ogden(mu_MPa=[0.1], alpha=[2.0], nu=0.45), 0.1),
 }
 LAW_IDS = list(LAW_CASES)
 
@@ -170,7 +173,7 @@ SPLIT_IDS = [n for n in LAW_IDS if LAW_CASES[n][0].decoupled]
 
 
 def test_only_the_invariant_laws_are_decoupled() -> None:
-    assert SPLIT_IDS == ["neo_hookean", "mooney_rivlin", "yeoh"]
+    assert SPLIT_IDS == ["neo_hookean", "mooney_rivlin", "yeoh", "ogden", "ogden_neo_hookean"]
     foam = LAW_CASES["silicone"][0]
     for method in (foam.evaluate_split, foam.stress_split, foam.stress_tangent_split):
         with pytest.raises(NotImplementedError, match="isochoric and volumetric"):
@@ -342,6 +345,38 @@ def test_invariant_cauchy_stress_matches_textbook_formula(name: str) -> None:
         A = (W1 + i1 * W2) * Bb - W2 * Bb @ Bb
         sigma = 2 / J * (A - np.trace(A) / 3 * np.eye(3)) + K * (J - 1) * np.eye(3)
         np.testing.assert_allclose(got[k], sigma, rtol=0, atol=1e-12 * np.abs(sigma).max())
+
+
+@pytest.mark.parametrize("name", ["ogden", "ogden_neo_hookean"])
+def test_ogden_cauchy_stress_matches_principal_formula(name: str) -> None:
+    """sigma_a = (1/J) sum (2 mu_p / alpha_p) [lb_a^alpha_p - (1/3) sum_b lb_b^alpha_p]
+    + K (J - 1), lb = J^(-1/3) lambda (Abaqus' Ogden form)."""
+    law, ln_j = LAW_CASES[name]
+    rng = np.random.default_rng(17)
+    for _ in range(8):
+        l1 = math.exp(rng.uniform(-0.3, 0.3))
+        l2 = math.exp(rng.uniform(-ln_j, ln_j)) / l1
+        theta = rng.uniform(0, math.pi)
+        F = rot(theta) @ np.diag([l1, l2]) @ rot(rng.uniform(0, math.pi)).T
+        J = l1 * l2
+        lb = np.array([l1, l2, 1.0]) * J ** (-1.0 / 3.0)
+        dev = np.zeros(3)
+        for m, a in zip(law.mu_MPa, law.alpha, strict=True):
+            dev += 2 * m / a * (lb**a - np.mean(lb**a))
+        principal = dev / J + law.bulk_modulus_MPa * (J - 1.0)
+        R = np.eye(3)
+        R[:2, :2] = rot(theta)
+        expected = R @ np.diag(principal) @ R.T
+        got = cauchy_from_S(law, F[None])[0]
+        np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def test_one_term_ogden_with_alpha_2_is_neo_hookean() -> None:
+    """alpha = 2: 2 mu / 4 (I1b - 3) = mu/2 (I1b - 3), the neo-Hookean energy."""
+    C = C_of(deformations(0.1, 6, seed=21))
+    og, nh = Ogden(mu_MPa=[0.1], alpha=[2.0], nu=0.45), NeoHookean(mu_MPa=0.1, nu=0.45)
+    for a, b in zip(og.evaluate(C), nh.evaluate(C), strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-15)
 
 
 @pytest.mark.parametrize("name", LAW_IDS)
@@ -693,7 +728,7 @@ def test_catalogue_is_table1() -> None:
         mat = CATALOGUE[name]
         assert mat.name == name and mat.moduli == "long_term" and not mat.is_elastic
         assert "Cabibihan" in mat.source and "Table 1" in mat.source
-    assert set(LAWS) == {"hyperfoam", "neo_hookean", "mooney_rivlin", "yeoh"}
+    assert set(LAWS) == {"hyperfoam", "neo_hookean", "mooney_rivlin", "yeoh", "ogden"}
 
 
 INLINE = [
@@ -817,7 +852,7 @@ BAD = [
     ({"model": "neo_hookean", "mu_MPa": 0.1, "nu": 0.45, "prony_g": [0.1], "prony_tau_s": [1.0],
       "prony_k": 0.1}, "material.prony_k", "list"),
     (with_(moduli="relaxed"), "material.moduli", "long_term"),
-    (with_(model="ogden"), "material.model", "hyperfoam"),
+    (with_(model="arruda_boyce"), "material.model", "hyperfoam"),
     (with_(model=None), "material.model", "required"),
     (with_(nuu=0.3), "material.nuu", "unknown key"),
     (with_(c10_MPa=0.3), "material.c10_MPa", "unknown key"),

@@ -12,7 +12,8 @@ vectorised over a batch of points (e.g. ``(n_elements, n_quadrature_points)``):
   Cauchy ``sigma33 = S33 / J``).
 
 Laws (``LAWS``, keyed by the design-file ``model``): ``hyperfoam`` (Abaqus hyperfoam, the law of
-Cabibihan et al. Eq. 2), ``neo_hookean``, ``mooney_rivlin``, ``yeoh``.  The invariant laws are
+Cabibihan et al. Eq. 2), ``neo_hookean``, ``mooney_rivlin``, ``yeoh``, ``ogden`` (decoupled
+Ogden, :mod:`sim.materials._ogden`).  The invariant laws and the Ogden law are
 decoupled (``law.decoupled``): ``law.evaluate_split(C)`` etc. give the isochoric and volumetric
 parts apart (a leading axis of length 2, ``[iso, vol]``).
 
@@ -39,6 +40,7 @@ from sim.materials._hyperfoam import Hyperfoam
 from sim.materials._invariant import MooneyRivlin, NeoHookean, Yeoh
 from sim.materials._law import Law
 from sim.materials._material import LAWS, MODULI, Material, default_prony_k
+from sim.materials._ogden import Ogden
 from sim.materials._prony import (
     MAX_PRONY_TERMS,
     Prony,
@@ -58,6 +60,7 @@ __all__ = [
     "Material",
     "MooneyRivlin",
     "NeoHookean",
+    "Ogden",
     "Prony",
     "Yeoh",
     "catalogue_material",

@@ -14,12 +14,15 @@ from sim.materials import _validate as v
 from sim.materials._hyperfoam import Hyperfoam
 from sim.materials._invariant import MooneyRivlin, NeoHookean, Yeoh
 from sim.materials._law import Law
+from sim.materials._ogden import Ogden
 from sim.materials._prony import Prony, prony_stress_split, prony_update_split
 
 Array = np.ndarray
 
 #: Registry of the hyperelastic laws, design-file ``model`` name -> class.
-LAWS: dict[str, type[Law]] = {cls.model: cls for cls in (Hyperfoam, NeoHookean, MooneyRivlin, Yeoh)}
+LAWS: dict[str, type[Law]] = {
+    cls.model: cls for cls in (Hyperfoam, NeoHookean, MooneyRivlin, Yeoh, Ogden)
+}
 
 #: Allowed values of ``moduli``: which moduli the law's parameters are.
 MODULI = ("long_term", "instantaneous")
