@@ -71,6 +71,7 @@ def _parse(name: str, raw: Any, default: Any) -> Any:
     if kind in (int, float):
         if not math.isfinite(value):
             raise DesignError(name, f"must be finite, got {raw!r}")
-        if value < 0 or (value == 0 and not name.endswith(("settle_tol", "residual_tol"))):
+        zero_ok = name.endswith(("settle_tol", "residual_tol", "stall_window"))  # 0: off
+        if value < 0 or (value == 0 and not zero_ok):
             raise DesignError(name, f"must be > 0, got {raw!r}")
     return value

@@ -229,3 +229,27 @@ def test_quartered_steps_quarter_every_step():
     coarse, quartered = _rest_times(opts, 0.01), _rest_times(fine, 0.01)
     assert 3.5 * len(coarse) < len(quartered) < 4.5 * len(coarse)
     assert len(_rest_times(opts, np.inf)) == opts.steps_rest  # elastic: nothing to resolve
+
+
+def test_a_design_that_cannot_settle_in_time_is_stopped_early():
+    """Residual histories of FE runs (docs/designs and the default sweep): one that falls
+    steadily is never cut, one that stagnates is cut as soon as it can be judged, one that
+    falls too slowly for the tap limit is cut when that becomes clear."""
+    from sim.protocols import _cannot_settle
+
+    opts = TappingOptions()
+    # settled after 22 taps in the default sweep: never cut on the way
+    steady = [3.3e-1, 2.5e-1, 9.5e-2, 8.0e-2, 7.3e-2, 4.4e-2, 2.2e-2, 1.9e-2, 1.9e-2, 1.5e-2,
+              5.7e-3, 3.1e-3, 2.2e-3, 1.6e-3, 1.2e-3, 7.6e-4, 6.3e-4, 4.6e-4, 4.2e-4, 4.2e-4,
+              4.4e-4, 2.5e-4]  # fmt: skip
+    assert not any(_cannot_settle(steady[:k], opts) for k in range(1, len(steady) + 1))
+    # unsettled after 25 taps: its residual hovers at 0.1-0.2 from the fourth tap on
+    stagnant = [3.8e-1, 1.9e-1, 1.4e-1, 1.2e-1, 1.2e-1, 1.6e-1, 1.7e-1, 1.7e-1, 1.7e-1]
+    first = next(k for k in range(1, 10) if _cannot_settle(stagnant[:k], opts))
+    assert first == opts.stall_window + 2
+    # docs/designs/slow_creep.toml: halves every ~6 taps at 3e-2, 30 more taps needed
+    creep = [3.05e-1, 1.61e-1, 6.82e-2, 5.43e-2, 4.98e-2, 4.30e-2, 4.12e-2, 3.37e-2, 5.72e-2]
+    assert not _cannot_settle(creep[:8], opts) and _cannot_settle(creep, opts)
+    # never while the residual is within its tolerance (the error estimate decides then)
+    assert not _cannot_settle([1e-2] * 8 + [5e-4] * 8, opts)
+    assert not _cannot_settle(stagnant, dataclasses.replace(opts, stall_window=0))
