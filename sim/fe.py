@@ -22,12 +22,12 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
-from skfem import Basis, ElementTriP2
 
 from .mesh import FingertipMesh
 
 if TYPE_CHECKING:
+    import scipy.sparse as sp
+
     from .materials import Material
 
 __all__ = ["Discretization", "LayerState"]
@@ -92,6 +92,8 @@ class Discretization:
         self.fmesh = fmesh
         self.mesh = mesh
         self.materials = materials
+        from skfem import Basis, ElementTriP2  # here: `import sim` stays light
+
         basis = Basis(mesh, ElementTriP2(), intorder=INTORDER)
         self.basis = basis
         self.n_nodes = basis.N
@@ -196,10 +198,14 @@ class Discretization:
 
     def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
         """The free-dof tangent as a CSC matrix (the pattern is symmetric, so CSR = CSC^T)."""
+        import scipy.sparse as sp
+
         return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n_free, self.n_free))
 
     def upper_matrix(self, data: np.ndarray) -> sp.csc_matrix:
         """The upper triangle of the tangent as a CSC matrix (for the LDL^T factorisation)."""
+        import scipy.sparse as sp
+
         return sp.csc_matrix(
             (data[self.upper_data], self.upper_indices, self.upper_indptr),
             shape=(self.n_free, self.n_free),

@@ -10,13 +10,14 @@ sampled nodes.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import triangle
-from scipy.spatial import cKDTree
-from skfem import MeshTri
 
 from .geometry import Geometry, sample_curve, superellipse_points
+
+if TYPE_CHECKING:
+    from skfem import MeshTri
 
 __all__ = ["DEFAULT_MESH", "FingertipMesh", "MeshOptions", "build_mesh"]
 
@@ -39,6 +40,9 @@ class MeshOptions:
 
     def sizer(self, geometry: Geometry):
         """The size function ``points (..., 2) -> h (...)`` for ``geometry``."""
+        from scipy.spatial import cKDTree  # here, as Triangle and scikit-fem below: `import sim`
+        # stays light for the CLI and the surrogate, which never mesh
+
         a, b, n = geometry.half_width_mm, geometry.height_mm, geometry.exponent
         theta = np.linspace(0.0, np.pi / 2, 600)
         curve = superellipse_points(a, b, n, theta)
@@ -94,6 +98,9 @@ def build_mesh(
 
     ``thicknesses_mm`` are the thicknesses of all layers but the last (outermost first).
     """
+    import triangle
+    from skfem import MeshTri
+
     a, b, n = geometry.half_width_mm, geometry.height_mm, geometry.exponent
     size = options.sizer(geometry)
 

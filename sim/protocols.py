@@ -20,7 +20,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from .contact import Plate, Wedge
 from .errors import SimulationError
@@ -244,6 +243,8 @@ def _tap_times(t_load: float, n: int) -> np.ndarray:
 
 def _tap_metrics(t, delta, force, t_load, peak, omega):
     """Displacements at 1 N and 4 N on the loading branch and the loop area (N mm)."""
+    from scipy.interpolate import PchipInterpolator  # here: `import sim` stays light
+
     t = np.asarray(t)
     delta = np.asarray(delta)
     force = np.asarray(force)

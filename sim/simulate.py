@@ -12,8 +12,7 @@ import numpy as np
 from .contact import Plate, Wedge
 from .design import Design
 from .errors import SimulationError
-from .fe import Discretization
-from .mesh import DEFAULT_MESH, MeshOptions, build_mesh
+from .mesh import DEFAULT_MESH, MeshOptions
 from .protocols import (
     PlateOptions,
     ProtocolResult,
@@ -242,6 +241,9 @@ def simulate(
     options: SimOptions = SimOptions(),
 ) -> SimResult:
     """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised."""
+    from .fe import Discretization  # the FE stack (scikit-fem) only when something is simulated
+    from .mesh import build_mesh
+
     t0 = time.perf_counter()
     for p in protocols:
         if p not in _RUNNERS:

@@ -21,7 +21,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-import qdldl
 
 from .contact import Base, surface_weights
 from .fe import Discretization, LayerState
@@ -222,6 +221,8 @@ class Body:
     def _factor(self, data):
         t0 = time.perf_counter()
         if self._solver is None:
+            import qdldl  # here: `import sim` stays light
+
             self._upper = self.disc.upper_matrix(data)
             self._solver = qdldl.Solver(self._upper, upper=True)
         else:  # same pattern: refill the matrix qdldl reads, keep the symbolic analysis

@@ -69,19 +69,20 @@ def test_wedge_surface_profile_is_physical(reference_runs):
 
 
 def test_regression_pins(reference_runs):
-    """Pinned values of the reference runs (change only with a SOLVER_VERSION bump)."""
+    """Pinned values of the reference runs (change only with a SOLVER_VERSION bump; 2.0: the
+    finer tapping steps moved the loop areas by +0.15 % and +0.3 %, docs/validation.md)."""
     pins = {
         "silicone_gls40": {
             "disp_at_1N_mm": 0.3957,
-            "disp_at_4N_mm": 0.8958,
-            "hysteresis_Nmm": 0.1942,
+            "disp_at_4N_mm": 0.8957,
+            "hysteresis_Nmm": 0.1945,
             "plate_force_at_1mm_N": 10.986,
             "wedge_peak_force_N": 2.354,
         },
         "polyurethane_74_45": {
-            "disp_at_1N_mm": 0.2896,
-            "disp_at_4N_mm": 0.6003,
-            "hysteresis_Nmm": 0.2963,
+            "disp_at_1N_mm": 0.2894,
+            "disp_at_4N_mm": 0.6002,
+            "hysteresis_Nmm": 0.2972,
             "plate_force_at_1mm_N": 23.066,
             "wedge_peak_force_N": 5.150,
         },

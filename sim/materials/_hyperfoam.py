@@ -27,8 +27,8 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.special import exprel
 
+from sim._lazy import exprel
 from sim.errors import DesignError
 from sim.materials import _validate as v
 from sim.materials._law import Array, Law, as_C, list_field, td_stress, td_tangent

@@ -30,8 +30,8 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
-from scipy.special import exprel
 
+from sim._lazy import exprel
 from sim.errors import DesignError
 from sim.materials import _validate as v
 
