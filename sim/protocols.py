@@ -317,10 +317,11 @@ def _cannot_settle(residuals: list[float], opts: TappingOptions) -> bool:
     With ``b_k`` the best residual after ``k`` taps and ``w = stall_window``, the residual fell
     by ``rate = (b_k / b_(k-w))^(1/w)`` per tap over the last ``w`` taps; at that rate it needs
     ``log(residual_tol / b_k) / log(rate)`` more taps. Judged from tap ``w + 2`` on (the first
-    taps fall fastest: they settle the fast terms), and never while the residual is within its
-    tolerance (then the error estimate decides)."""
+    taps fall fastest: they settle the fast terms) and after ``min_taps`` (a fixed number of taps
+    asked for is always made), and never while the residual is within its tolerance (then the
+    error estimate decides)."""
     w, k = opts.stall_window, len(residuals)
-    if w <= 0 or k < w + 2:
+    if w <= 0 or k < max(w + 2, opts.min_taps):  # min_taps are always made
         return False
     best = np.minimum.accumulate(np.asarray(residuals, dtype=float))
     if best[-1] <= opts.residual_tol:

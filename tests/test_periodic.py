@@ -253,3 +253,4 @@ def test_a_design_that_cannot_settle_in_time_is_stopped_early():
     # never while the residual is within its tolerance (the error estimate decides then)
     assert not _cannot_settle([1e-2] * 8 + [5e-4] * 8, opts)
     assert not _cannot_settle(stagnant, dataclasses.replace(opts, stall_window=0))
+    assert not _cannot_settle(stagnant, dataclasses.replace(opts, min_taps=64, max_taps=64))
