@@ -118,8 +118,11 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
-def design_from_dict(data: Mapping[str, Any]) -> Design:
-    """Build and validate a design from the parsed TOML table."""
+def design_from_dict(
+    data: Mapping[str, Any], catalogue: Mapping[str, Material] | None = None
+) -> Design:
+    """Build and validate a design from the parsed TOML table; material names from
+    ``catalogue`` (default: the shipped one; ``--catalogue`` files merged into it)."""
     unknown = set(data) - {"geometry", "layers", "name", "description"}
     if unknown:
         raise DesignError(sorted(unknown)[0], "unknown key; allowed: geometry, layers")
@@ -147,17 +150,22 @@ def design_from_dict(data: Mapping[str, Any]) -> Design:
             )
         if "material" not in raw:
             raise DesignError(f"layers[{k}].material", "missing: a catalogue name or a table")
-        mat = material_from_spec(raw["material"], f"layers[{k}].material")
+        mat = material_from_spec(raw["material"], f"layers[{k}].material", catalogue)
         layers.append(Layer(mat, raw.get("thickness_mm")))
     return Design(tuple(layers), geometry)
 
 
-def load_design(path: str | Path) -> Design:
-    """Read and validate a design TOML file."""
+def load_design(path: str | Path, catalogue: Mapping[str, Material] | None = None) -> Design:
+    """Read and validate a design TOML file (material names from ``catalogue``)."""
     data = read_toml(path, "DESIGN")
-    return design_from_dict(data)
+    return design_from_dict(data, catalogue)
 
 
-def homogeneous_design(material: str | Material, geometry: Geometry = REFERENCE_GEOMETRY) -> Design:
-    """A one-layer design of ``material`` (catalogue name or Material) on ``geometry``."""
-    return Design((Layer(material_from_spec(material, "material")),), geometry)
+def homogeneous_design(
+    material: str | Material,
+    geometry: Geometry = REFERENCE_GEOMETRY,
+    catalogue: Mapping[str, Material] | None = None,
+) -> Design:
+    """A one-layer design of ``material`` (a name of ``catalogue`` or a Material) on
+    ``geometry``."""
+    return Design((Layer(material_from_spec(material, "material", catalogue)),), geometry)

@@ -21,7 +21,11 @@ A design-space TOML file gives, for every parameter, bounds (``{low, high}`` and
 
 Layers are named by role: a one-layer design is a core, two layers are skin + core, three are
 skin + middle + core. A layer's material is either a catalogue entry or ``"param"``, the
-continuous family documented in ``param_material``. Parameters that a design does not use are
+continuous family documented in ``param_material``. A catalogue entry is a name of the shipped
+catalogue or of a user's catalogue (``catalogue=`` of :func:`load_space`, from ``--catalogue``);
+a space keeps the user materials it names (``DesignSpace.materials``) and writes them into its
+TOML form as a ``[materials]`` table (name -> material table), so a run folder's space is
+complete without the user's file. Parameters that a design does not use are
 *inactive*: recorded as NaN (numbers) or "" (choices), never as random values.
 """
 
@@ -38,7 +42,15 @@ import numpy as np
 from .design import MIN_CORE_MM, Design, Layer
 from .errors import DesignError, read_toml
 from .geometry import Geometry
-from .materials import CATALOGUE, LAWS, Material, Prony
+from .materials import (
+    CATALOGUE,
+    LAWS,
+    Material,
+    Prony,
+    catalogue_from_tables,
+    catalogue_material,
+    material_tables,
+)
 
 __all__ = [
     "DEFAULT_SPACE_PATH",
@@ -136,9 +148,16 @@ class Parameter:
 
 @dataclass(frozen=True)
 class DesignSpace:
-    """All parameters of a space, in a fixed order (the sampler's dimensions)."""
+    """All parameters of a space, in a fixed order (the sampler's dimensions), and the user
+    catalogue materials its choices name (``materials``, none for shipped entries)."""
 
     parameters: tuple[Parameter, ...]
+    materials: tuple[Material, ...] = ()
+
+    @property
+    def catalogue(self) -> dict[str, Material]:
+        """The shipped catalogue plus this space's user materials."""
+        return {**CATALOGUE, **{str(m.name): m for m in self.materials}}
 
     def __getitem__(self, name: str) -> Parameter:
         for p in self.parameters:
@@ -157,6 +176,8 @@ class DesignSpace:
     def to_dict(self) -> dict[str, Any]:
         """The TOML form (nested tables), round-trips through ``space_from_dict``."""
         out: dict[str, Any] = {"geometry": {}, "layers": {}}
+        if self.materials:
+            out["materials"] = material_tables({str(m.name): m for m in self.materials})
         for p in self.parameters:
             head, key = p.name.split(".", 1)
             if head == "geometry":
@@ -197,12 +218,12 @@ class DesignSpace:
             )
             if not ok:
                 raise DesignError(p.name, f"{v!r} is outside the space ({p.to_dict()})")
-        point_to_design(values)
+        point_to_design(values, self.catalogue)
         return values
 
     def design(self, point: Mapping[str, Any]) -> Design:
         """The design of a point (validated; a DesignError if the point is impossible)."""
-        return point_to_design(point)
+        return point_to_design(point, self.catalogue)
 
 
 def active_roles(count: int) -> tuple[str, ...]:
@@ -229,8 +250,11 @@ def mask_inactive(values: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def point_to_design(point: Mapping[str, Any]) -> Design:
-    """Build the design of a (masked) point."""
+def point_to_design(
+    point: Mapping[str, Any], catalogue: Mapping[str, Material] | None = None
+) -> Design:
+    """Build the design of a (masked) point; material names from ``catalogue`` (default: the
+    shipped one)."""
     geometry = Geometry(*(float(point[f"geometry.{k}"]) for k in _GEOMETRY_KEYS))
     layers = []
     for role in active_roles(point["layers.count"]):
@@ -238,7 +262,7 @@ def point_to_design(point: Mapping[str, Any]) -> Design:
         if name == "param":
             mat = param_material(*(float(point[f"{role}.{k}"]) for k in PARAM_MATERIAL_KEYS))
         else:
-            mat = CATALOGUE[name]
+            mat = catalogue_material(name, f"{role}.material", catalogue)
         thickness = None if role == "core" else float(point[f"{role}.thickness_mm"])
         layers.append(Layer(mat, thickness))
     return Design(tuple(layers), geometry)
@@ -293,12 +317,33 @@ def _values(p: Parameter) -> list[Any]:
     return [p.low, p.high]
 
 
-def space_from_dict(data: Mapping[str, Any]) -> DesignSpace:
-    """Parse and validate a design space (every sampled design must be valid)."""
-    unknown = set(data) - {"geometry", "layers", "description"}
+def space_from_dict(
+    data: Mapping[str, Any], catalogue: Mapping[str, Material] | None = None
+) -> DesignSpace:
+    """Parse and validate a design space (every sampled design must be valid).
+
+    Material choices are names of ``catalogue`` (default: the shipped one; a merged catalogue
+    from ``--catalogue`` files adds the user's) or of the space's own ``[materials]`` table
+    (how a run folder stores the user materials it used); a name defined by both must be the
+    same material.
+    """
+    unknown = set(data) - {"geometry", "layers", "description", "materials"}
     if unknown:
-        raise DesignError(sorted(unknown)[0], "unknown section; allowed: geometry, layers")
+        raise DesignError(
+            sorted(unknown)[0], "unknown section; allowed: geometry, layers, materials"
+        )
+    known = dict(CATALOGUE if catalogue is None else catalogue)
+    if "materials" in data:
+        if not isinstance(data["materials"], Mapping):
+            raise DesignError("materials", "must be a table of material tables")
+        for name, mat in catalogue_from_tables(data["materials"]).items():
+            if name in known and known[name] != mat:
+                raise DesignError(
+                    f"materials.{name}", "differs from the --catalogue entry of that name"
+                )
+            known[name] = mat
     params: list[Parameter] = []
+    used: dict[str, Material] = {}  # the user materials the choices name
     geo = data.get("geometry", {})
     for key in geo:
         if key not in _GEOMETRY_KEYS:
@@ -340,12 +385,15 @@ def space_from_dict(data: Mapping[str, Any]) -> DesignSpace:
         mat = _parameter(f"{role}.material", table["material"])
         names = _values(mat)
         for name in names:
-            if name != "param" and name not in CATALOGUE:
+            if name != "param" and name not in known:
                 raise DesignError(
                     f"{role}.material",
                     f"unknown material {name!r}; use 'param' or one of "
-                    + ", ".join(sorted(CATALOGUE)),
+                    + ", ".join(sorted(known))
+                    + (" (or load its catalogue with --catalogue)"),
                 )
+            if name != "param" and CATALOGUE.get(name) != known[name]:
+                used.setdefault(name, known[name])
         params.append(mat)
         if role != "core":
             if "thickness_mm" not in table:
@@ -361,7 +409,7 @@ def space_from_dict(data: Mapping[str, Any]) -> DesignSpace:
                 p = _parameter(f"{role}.{key}", table[key])
                 _check_param_bounds(p, key)
                 params.append(p)
-    space = DesignSpace(tuple(params))
+    space = DesignSpace(tuple(params), tuple(used[n] for n in sorted(used)))
     _check_thickness(space)
     return space
 
@@ -398,7 +446,10 @@ def _check_thickness(space: DesignSpace) -> None:
         )
 
 
-def load_space(path: str | Path | None = None) -> DesignSpace:
-    """Read a design-space TOML file (the shipped default when ``path`` is None)."""
+def load_space(
+    path: str | Path | None = None, catalogue: Mapping[str, Material] | None = None
+) -> DesignSpace:
+    """Read a design-space TOML file (the shipped default when ``path`` is None); material
+    names from ``catalogue`` (default: the shipped one)."""
     data = read_toml(DEFAULT_SPACE_PATH if path is None else path, "SPACE")
-    return space_from_dict(data)
+    return space_from_dict(data, catalogue)

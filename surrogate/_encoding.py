@@ -323,7 +323,7 @@ class Encoder:
                     unseen = np.asarray([v != "" and v not in seen for v in col], dtype=bool)
                     flag(unseen, f"{p.name}: choice never seen in training")
                 blocks.append(onehot)
-        desc, elastic = material_descriptors(cols, n, self.material_roles)
+        desc, elastic = material_descriptors(cols, n, self.material_roles, self.space.catalogue)
         blocks += [desc, elastic[:, None].astype(float)]
         features = np.concatenate(blocks, axis=1)
         return Encoded(features.astype(np.float32), in_domain, tuple(reasons))
@@ -378,23 +378,35 @@ _DESCRIPTOR_NAMES = (
 )
 
 
-def _catalogue_entry(name: str) -> tuple[float, np.ndarray, np.ndarray]:
-    """Long-term shear modulus (MPa), Prony g and tau_s of a catalogue material."""
+def _catalogue_entry(
+    name: str, catalogue: Mapping[str, Any] | None = None
+) -> tuple[float, np.ndarray, np.ndarray]:
+    """Long-term shear modulus (MPa), Prony g and tau_s of a catalogue material (shipped
+    entries cached; a user material of the space's ``catalogue`` computed)."""
+    m = CATALOGUE.get(name) if catalogue is None else catalogue[name]
+    if m is not CATALOGUE.get(name):
+        return _entry(m)
     if name not in _CATALOGUE_CACHE:
-        m = CATALOGUE[name]
-        _CATALOGUE_CACHE[name] = (
-            m.long_term.initial_shear_modulus_MPa,
-            np.asarray(m.prony.g, dtype=float),
-            np.asarray(m.prony.tau_s, dtype=float),
-        )
+        _CATALOGUE_CACHE[name] = _entry(m)
     return _CATALOGUE_CACHE[name]
+
+
+def _entry(m: Any) -> tuple[float, np.ndarray, np.ndarray]:
+    return (
+        m.long_term.initial_shear_modulus_MPa,
+        np.asarray(m.prony.g, dtype=float),
+        np.asarray(m.prony.tau_s, dtype=float),
+    )
 
 
 _CATALOGUE_CACHE: dict[str, tuple[float, np.ndarray, np.ndarray]] = {}
 
 
 def material_descriptors(
-    cols: Mapping[str, Any], n: int, roles: Sequence[str]
+    cols: Mapping[str, Any],
+    n: int,
+    roles: Sequence[str],
+    catalogue: Mapping[str, Any] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Linear-viscoelastic descriptors of each layer's material, and the elastic-design flag.
 
@@ -405,8 +417,10 @@ def material_descriptors(
     G'(w) = G0 [1 - sum g_i / (1 + (w tau_i)^2)], G''(w) = G0 sum g_i w tau_i / (1 + (w tau_i)^2).
     Returns ``(features (n, 5 len(roles)), elastic (n,) bool)``; a design is elastic when no
     active layer relaxes (a material name outside the catalogue gives zero descriptors and is
-    never taken as elastic).
+    never taken as elastic). Names are looked up in ``catalogue`` (the space's: shipped plus
+    its user materials; default the shipped catalogue).
     """
+    known = CATALOGUE if catalogue is None else catalogue
     blocks = []
     elastic = np.ones(n, dtype=bool)
     k = len(PRONY_TIME_RATIOS)
@@ -418,7 +432,7 @@ def material_descriptors(
         tau = np.ones((n, k))
         param = names == "param"
         # an unknown name (flagged out of domain by ``encode``): no descriptors, and not elastic
-        unknown = on & ~param & ~np.isin(names, list(CATALOGUE))
+        unknown = on & ~param & ~np.isin(names, list(known))
         elastic &= ~unknown
         on &= ~unknown
         if param.any():
@@ -427,7 +441,7 @@ def material_descriptors(
             tau[param] = cols[f"{role}.tau_s"][param, None] * np.asarray(PRONY_TIME_RATIOS)
         for name in set(names[on & ~param]):
             rows = names == name
-            mu_c, g_c, tau_c = _catalogue_entry(name)
+            mu_c, g_c, tau_c = _catalogue_entry(name, known)
             if g_c.size > g.shape[1]:
                 pad = g_c.size - g.shape[1]
                 g = np.pad(g, ((0, 0), (0, pad)))

@@ -32,9 +32,16 @@ viscoelastic stress and the tangent factor (``Material.tangent``); the assembly 
 from sim.materials._catalogue import (
     CATALOGUE,
     CATALOGUE_PATH,
+    UserCatalogue,
+    catalogue_from_tables,
     catalogue_material,
     load_catalogue,
+    load_user_catalogues,
     material_from_spec,
+    material_tables,
+    merge_catalogues,
+    read_user_catalogue,
+    user_materials,
 )
 from sim.materials._hyperfoam import Hyperfoam
 from sim.materials._invariant import MooneyRivlin, NeoHookean, Yeoh
@@ -62,12 +69,19 @@ __all__ = [
     "NeoHookean",
     "Ogden",
     "Prony",
+    "UserCatalogue",
     "Yeoh",
+    "catalogue_from_tables",
     "catalogue_material",
     "default_prony_k",
     "load_catalogue",
+    "load_user_catalogues",
     "material_from_spec",
+    "material_tables",
+    "merge_catalogues",
     "prony_stress_split",
     "prony_update",
     "prony_update_split",
+    "read_user_catalogue",
+    "user_materials",
 ]

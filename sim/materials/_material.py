@@ -28,7 +28,13 @@ LAWS: dict[str, type[Law]] = {
 MODULI = ("long_term", "instantaneous")
 
 # Keys of a material table besides the law's own keys.
-_MATERIAL_KEYS = ("model", "prony_g", "prony_tau_s", "prony_k", "moduli", "name", "source")
+_MATERIAL_KEYS = (
+    "model", "prony_g", "prony_tau_s", "prony_k", "moduli", "name", "source", "provenance",
+)  # fmt: skip
+
+#: A ``provenance`` value: text, a number, a boolean or a flat list of them (a list is kept as a
+#: tuple, so that materials stay hashable).
+ProvenanceValue = str | int | float | bool | tuple[str | int | float | bool, ...]
 
 # Abaqus, "Time domain viscoelasticity" (Abaqus 2017 Materials Guide,
 # abaqus-docs.mit.edu/2017/English/SIMACAEMATRefMap/simamat-c-timevisco.htm): "if the
@@ -75,7 +81,10 @@ class Material:
     ``"long_term"`` (default, as Abaqus: the law's moduli are the ``t -> inf`` moduli, the
     instantaneous law has its shear moduli divided by ``g_inf`` and its bulk modulus by
     ``k_inf``) or ``"instantaneous"`` (the law's moduli are the ``t = 0+`` moduli); ``name``:
-    catalogue name; ``source``: citation of the numbers.
+    catalogue name; ``source``: citation of the numbers; ``provenance``: how the numbers were
+    obtained (e.g. by ``fingertip fit-material``: tests, strain ranges, rate, fit errors), as
+    ``(key, value)`` pairs in the order given (:attr:`provenance_dict`); it does not enter the
+    mechanics.
 
     When ``k != g`` (:attr:`split_relaxation`) the isochoric and volumetric stresses relax
     apart and the state keeps them apart: ``S0`` has shape ``(2, 3, ...)`` (``[iso, vol]``) and
@@ -89,6 +98,7 @@ class Material:
     moduli: str = "long_term"
     name: str | None = None
     source: str | None = None
+    provenance: tuple[tuple[str, ProvenanceValue], ...] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.law, Law):
@@ -100,6 +110,11 @@ class Material:
         _check_prony_k(self.law, self.prony, "")
         if self.prony.k is not None and self.prony.k == default_prony_k(self.law, self.prony.g):
             object.__setattr__(self, "prony", dataclasses.replace(self.prony, k=None))
+
+    @property
+    def provenance_dict(self) -> dict[str, Any]:
+        """``provenance`` as the design-file table (lists for tuples)."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in self.provenance}
 
     # --- relaxation coefficients ------------------------------------------------------------
     @cached_property
@@ -195,6 +210,8 @@ class Material:
             out["name"] = self.name
         if self.source is not None:
             out["source"] = self.source
+        if self.provenance:
+            out["provenance"] = self.provenance_dict
         return out
 
 
@@ -204,13 +221,32 @@ def _text(value: Any, field: str) -> str:
     return value
 
 
+def _provenance(value: Any, field: str) -> tuple[tuple[str, ProvenanceValue], ...]:
+    """Validate a ``provenance`` table: flat, values text, numbers, booleans or lists of them."""
+    if not isinstance(value, Mapping):
+        raise DesignError(field, f"must be a table of key = value, got {value!r}")
+    scalar = (str, int, float, bool)
+    out = []
+    for key, item in value.items():
+        if isinstance(item, list | tuple) and all(isinstance(x, scalar) for x in item):
+            item = tuple(item)
+        elif not isinstance(item, scalar):
+            raise DesignError(
+                f"{field}.{key}",
+                f"must be text, a number, a boolean or a list of them, got {item!r}",
+            )
+        out.append((str(key), item))
+    return tuple(out)
+
+
 def material_from_table(table: Mapping[str, Any], field: str = "material") -> Material:
     """Build a ``Material`` from an inline design-file table (errors name ``f"{field}.key"``).
 
     Keys: ``model`` (one of ``LAWS``), the law's keys, optional ``prony_g``, ``prony_tau_s``
     (lists of equal length, absent = elastic), optional ``prony_k`` (bulk coefficients, as long
     as ``prony_g``; default :func:`default_prony_k`), ``moduli`` (``"long_term"`` default or
-    ``"instantaneous"``), ``name``, ``source``.  Unknown keys are rejected.
+    ``"instantaneous"``), ``name``, ``source``, ``provenance`` (a flat table, kept as it is).
+    Unknown keys are rejected.
     """
     if not isinstance(table, Mapping):
         raise DesignError(field, f"must be a catalogue name or a table, got {table!r}")
@@ -232,4 +268,9 @@ def material_from_table(table: Mapping[str, Any], field: str = "material") -> Ma
         raise DesignError(f"{field}.moduli", f"must be one of {', '.join(MODULI)}, got {moduli!r}")
     name = _text(table["name"], f"{field}.name") if "name" in table else None
     source = _text(table["source"], f"{field}.source") if "source" in table else None
-    return Material(law=law, prony=prony, moduli=moduli, name=name, source=source)
+    provenance = (
+        _provenance(table["provenance"], f"{field}.provenance") if "provenance" in table else ()
+    )
+    return Material(
+        law=law, prony=prony, moduli=moduli, name=name, source=source, provenance=provenance
+    )
