@@ -12,13 +12,14 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
 from sim import SimOptions
 from sim.geometry import REFERENCE_GEOMETRY
+from sim.materials import Material
 from sim.space import LAYER_ROLES, PARAM_MATERIAL_KEYS
 from sim.sweep import evaluate_point, record_key
 from sim.targets import Targets
@@ -68,9 +69,12 @@ def run_fe(
     workers: int = 1,
     progress: bool = True,
     desc: str = "FE confirm",
+    materials: dict[str, dict[str, Any]] | None = None,
 ) -> dict[Path, dict]:
     """Simulate each (record path, point) whose record does not exist yet; returns every
-    record by path. Records are written as they finish (a kill loses only running designs)."""
+    record by path. Records are written as they finish (a kill loses only running designs).
+    ``materials``: the user catalogue materials the points may name, as tables, handed to every
+    worker process explicitly (``sim.sweep.evaluate_point``)."""
     from tqdm import tqdm
 
     out: dict[Path, dict] = {}
@@ -85,12 +89,13 @@ def run_fe(
     try:
         if workers <= 1 or len(todo) <= 1:
             for path, point in todo:
-                out[path] = _keep(path, evaluate_point(point, options_dict))
+                out[path] = _keep(path, evaluate_point(point, options_dict, materials))
                 bar.update(1)
         else:
             with ProcessPoolExecutor(max_workers=min(workers, len(todo))) as pool:
                 futures = {
-                    pool.submit(evaluate_point, point, options_dict): path for path, point in todo
+                    pool.submit(evaluate_point, point, options_dict, materials): path
+                    for path, point in todo
                 }
                 for fut in as_completed(futures):
                     path = futures[fut]
@@ -115,16 +120,21 @@ def confirm(
     *,
     workers: int = 1,
     progress: bool = True,
+    materials: dict[str, dict[str, Any]] | None = None,
+    catalogue: Mapping[str, Material] | None = None,
 ) -> list[Confirmation]:
-    """Run (or reuse) the FE of each candidate and compare it with its prediction."""
+    """Run (or reuse) the FE of each candidate and compare it with its prediction.
+    ``catalogue``: the names the points use (shipped + user materials; default shipped);
+    ``materials``: the user ones as tables, for the worker processes (:func:`run_fe`)."""
     options = options or SimOptions()
     records_dir = Path(run_dir) / "fe" / "records"
-    keyed = [(c, record_key(_full_point(c.point), options)) for c in candidates]
+    keyed = [(c, record_key(_full_point(c.point), options, catalogue)) for c in candidates]
     records = run_fe(
         [(records_dir / f"{k}.json", c.point) for c, k in keyed],
         options,
         workers=workers,
         progress=progress,
+        materials=materials,
     )
     return [compare(c, k, records[records_dir / f"{k}.json"], targets) for c, k in keyed]
 

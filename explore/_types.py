@@ -16,6 +16,10 @@ A run folder ``runs/NAME`` written by ``fingertip optimize`` / ``fingertip run``
   resumed run reuses them); ``surrogates/round-<r>.safetensors``: the retrained surrogate that
   round r searched with (round 0: the given checkpoint).
 - ``confirmations.json``: a list of ``Confirmation.to_json()``.
+- ``rounds/buildable-fe-candidates.json`` and ``buildable_fe.json``: the FE-only screen of
+  catalogue materials the surrogate cannot predict (search "buildable-fe", no prediction;
+  ``explore._buildable``), its candidates and their ``Confirmation.to_json()``; never used to
+  retrain the surrogate.
 - ``summary.json``: ``Summary.to_json()``; ``report.md`` and ``figures/*.png``.
 """
 

@@ -9,6 +9,8 @@ undeformed area), one CSV per test with the header ``nominal_strain,nominal_stre
 * ``biaxial``: equibiaxial tension (the stress in each of the two pulled directions);
 * ``planar``: planar tension ("pure shear": the width held, the thickness free).
 
+Blank lines and lines starting with ``#`` are skipped (a place to note the specimen).
+
 A relaxation CSV (``time_s,g_R``) holds the normalised shear relaxation modulus
 ``g_R(t) = G(t) / G(0)`` (1 at ``t = 0``, in (0, 1]), fitted by ``N`` Prony terms
 ``g_R = 1 - sum g_i (1 - exp(-t / tau_i))``.

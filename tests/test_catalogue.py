@@ -2,17 +2,35 @@
 
 Every catalogue entry must load, cite its source and be physically admissible; entries without
 published relaxation data are elastic-only; the paper's Table 1 entries must stay as published;
-the human targets must carry the published values.  Fast (no simulation).
+the human targets must carry the published values; the entries fitted with fit-material cite
+their data, fit and limits; user catalogues merge, refuse clashes and travel with the spaces
+that name them.  Fast (no simulation).
 """
 
 from __future__ import annotations
 
+import hashlib
+import json
 import tomllib
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from sim.materials import CATALOGUE, CATALOGUE_PATH, Yeoh, load_catalogue, material_from_spec
+from sim import DesignError, SimOptions
+from sim.materials import (
+    CATALOGUE,
+    CATALOGUE_PATH,
+    Ogden,
+    Yeoh,
+    catalogue_from_tables,
+    load_catalogue,
+    load_user_catalogues,
+    material_from_spec,
+    material_tables,
+)
+from sim.space import space_from_dict
+from sim.sweep import record_key
 
 HUMAN_TARGETS_PATH = CATALOGUE_PATH.with_name("human_targets.toml")
 
@@ -129,3 +147,153 @@ def test_human_targets_have_the_published_values() -> None:
     assert conformance["wedge_peak_force_N"] == 0.0
     assert conformance["direction"] == "lower_is_better"
     assert "Srinivasan" in conformance["source"] and conformance["note"].strip()
+
+
+# --------------------------------------------------------------------------------------------
+# Provenance, the fitted entries and user catalogues
+
+FITTED = [n for n in NAMES if n.endswith("_marechal")]
+
+
+@pytest.mark.parametrize("name", [n for n in NAMES if "provenance" in RAW[n]])
+def test_provenance_tables_are_accepted_and_kept(name: str) -> None:
+    mat = CATALOGUE[name]
+    assert mat.provenance_dict == RAW[name]["provenance"]
+    assert material_from_spec(mat.to_dict()) == mat  # the design form keeps it
+
+
+def test_the_fitted_entries_are_there() -> None:
+    assert len(FITTED) == 19
+    assert {"ecoflex_0010_marechal", "ecoflex_0030_marechal", "ecoflex_0050_marechal",
+            "dragon_skin_10_marechal", "dragon_skin_20_marechal", "dragon_skin_30_marechal",
+            "dragon_skin_fx_pro_marechal", "dragon_skin_fx_pro_slacker_marechal",
+            "platsil_gel_10_marechal", "body_double_silk_marechal"} <= set(FITTED)  # fmt: skip
+
+
+@pytest.mark.parametrize("name", FITTED)
+def test_fitted_entries_cite_data_fit_and_limits(name: str) -> None:
+    """Each entry names the paper, the repository and commit, the file, the licence notice, the
+    rate, the fitted range and error, and says it is elastic only with compression extrapolated
+    from tension; its Drucker ranges are those of its constants."""
+    from sim.fit import drucker_stable_ranges
+
+    raw, mat = RAW[name], CATALOGUE[name]
+    source = raw["source"]
+    for text in ("doi:10.1089/soro.2019.0115", "LucMarechal/Soft-Robotics-Materials-Database",
+                 "8ff66c3bdc17bd226eabe83b778e13ea1e2ef8ce", "Tensile-Tests-Data/",
+                 "Open Database License", "ELASTIC-ONLY", "compression extrapolated from tension",
+                 "nominal strain rate"):  # fmt: skip
+        assert text in source, text
+    prov = raw["provenance"]
+    assert prov["tests"] == ["uniaxial"] and prov["relaxation"] == "none: ELASTIC-ONLY"
+    lo, hi = prov["uniaxial_strain_range"]
+    assert 0.0 <= lo < 0.1 and 0.95 <= hi <= 1.0
+    assert prov["uniaxial_r2"] > 0.96 and prov["uniaxial_rms_MPa"] > 0
+    assert 0.2 < prov["rate_per_s"] < 0.26  # 450-500 mm/min over the 33 mm gauge
+    assert mat.is_elastic and isinstance(mat.law, Ogden) and len(mat.law.mu_MPa) == 1
+    ranges = drucker_stable_ranges("ogden", mat.law.to_dict(), mat.law.nu)
+    for mode, (a, b) in ranges.items():
+        assert prov[f"drucker_stable_{mode}"] == [a, b] == [-0.8, 2.0]
+
+
+def _user(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+GEL = """
+[gel]
+source = "our lab"
+model = "neo_hookean"
+mu_MPa = 0.01
+nu = 0.49
+[gel.provenance]
+tests = ["uniaxial"]
+uniaxial_r2 = 0.99
+"""
+
+
+def test_user_catalogues_merge_and_refuse_clashes(tmp_path: Path) -> None:
+    gel = _user(tmp_path, "gel.toml", GEL)
+    user, merged = load_user_catalogues([gel])
+    assert set(merged) == set(CATALOGUE) | {"gel"} and user[0].names == ["gel"]
+    assert merged["gel"].provenance_dict == {"tests": ["uniaxial"], "uniaxial_r2": 0.99}
+    assert user[0].record()["sha256"] == hashlib.sha256(gel.read_bytes()).hexdigest()
+    assert set(CATALOGUE) == set(RAW)  # the module's catalogue stays the shipped one
+    shipped = _user(tmp_path, "s.toml", GEL.replace("gel", "silicone_gls40"))
+    for files, words in (([gel, gel], "gel.toml"), ([shipped], "shipped catalogue")):
+        with pytest.raises(DesignError) as info:
+            load_user_catalogues(files)
+        assert info.value.field == "--catalogue" and words in info.value.message
+        assert "rename" in info.value.message
+
+
+@pytest.mark.parametrize(
+    ("text", "field", "words"),
+    [
+        ("[gel\nmodel = 1", "--catalogue", "malformed TOML"),
+        ("", "--catalogue", "no material"),
+        (GEL.replace('source = "our lab"\n', ""), "gel.toml:gel.source", "required"),
+        (GEL.replace("nu = 0.49", "nu = 0.5"), "gel.toml:gel.nu", "(-1, 0.5)"),
+        (
+            GEL.replace("uniaxial_r2 = 0.99", "fit = { r2 = 1 }"),
+            "gel.toml:gel.provenance.fit",
+            "text, a number",
+        ),
+    ],
+)
+def test_bad_user_catalogue_names_the_field(tmp_path: Path, text: str, field: str, words: str):
+    with pytest.raises(DesignError) as info:
+        load_user_catalogues([_user(tmp_path, "gel.toml", text)])
+    assert info.value.field == field and words in info.value.message
+    with pytest.raises(DesignError) as info:
+        load_user_catalogues([tmp_path / "missing.toml"])
+    assert info.value.field == "--catalogue" and "no such file" in info.value.message
+
+
+SPACE_WITH_GEL = {
+    "geometry": {"half_width_mm": {"value": 5.84}},
+    "layers": {
+        "count": {"choice": [1, 2]},
+        "skin": {
+            "thickness_mm": {"low": 0.3, "high": 1.0},
+            "material": {"choice": ["gel", "silicone_gls40"]},
+        },
+        "core": {"material": {"choice": ["gel", "polyurethane_74_45"]}},
+    },
+}
+
+
+def test_a_space_lists_user_materials_and_keeps_them(tmp_path: Path) -> None:
+    _, merged = load_user_catalogues([_user(tmp_path, "gel.toml", GEL)])
+    with pytest.raises(DesignError) as info:
+        space_from_dict(SPACE_WITH_GEL)  # without the catalogue
+    assert info.value.field == "skin.material" and "--catalogue" in info.value.message
+    space = space_from_dict(SPACE_WITH_GEL, merged)
+    assert [m.name for m in space.materials] == ["gel"]
+    data = space.to_dict()
+    assert set(data["materials"]) == {"gel"} and data["materials"]["gel"]["source"] == "our lab"
+    again = space_from_dict(json.loads(json.dumps(data)))  # from a run folder, no catalogue
+    assert again == space
+    point = space.check({"layers.count": 2, "skin.material": "gel", "skin.thickness_mm": 0.5,
+                         "core.material": "polyurethane_74_45"})  # fmt: skip
+    design = space.design(point)
+    assert design.layers[0].material == merged["gel"]
+    # the design file form holds the user material in full; its record key follows its table
+    assert design.to_dict()["layers"][0]["material"]["mu_MPa"] == 0.01
+    stiffer = space_from_dict(
+        {**data, "materials": {"gel": {**data["materials"]["gel"], "mu_MPa": 0.02}}}
+    )
+    options = SimOptions()
+    assert record_key(point, options, space.catalogue) != record_key(
+        point, options, stiffer.catalogue
+    )
+    # the same name meaning another material than the --catalogue's is refused
+    with pytest.raises(DesignError) as info:
+        space_from_dict({**data, "materials": {"gel": {**data["materials"]["gel"],
+                                                       "mu_MPa": 0.02}}}, merged)  # fmt: skip
+    assert info.value.field == "materials.gel"
+    # the worker side: the tables alone rebuild the catalogue
+    tables = material_tables({"gel": merged["gel"]})
+    assert catalogue_from_tables(tables)["gel"] == merged["gel"]
