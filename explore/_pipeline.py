@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import io
 import json
 import math
 import sys
 import time
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -26,10 +28,19 @@ import numpy as np
 
 from sim import SOLVER_VERSION, SimOptions
 from sim.errors import DesignError
-from sim.provenance import provenance, write_json
-from sim.space import load_space
+from sim.provenance import check_folder_kind, provenance, write_json
+from sim.space import load_space, point_to_design
+from sim.sweep import default_workers
 from sim.targets import Targets, load_targets
 
+from ._buildable import (
+    DEFAULT_FE_BUDGET,
+    FE_SEARCH,
+    fe_screen,
+    material_notes,
+    predictable_materials,
+    screen_summary,
+)
 from ._confirm import REFERENCES, confirm, reference_point, run_fe
 from ._objective import TAPPING, closeness
 from ._search import (
@@ -64,7 +75,12 @@ class OptimizeConfig:
     most this many search/confirm/retrain rounds; ``tolerance``: agreement needed to stop
     (|surrogate - FE| / FE on the tapping metrics, together with an FE-confirmed design within
     it of every tapping target) and the closeness counted as "within" a target;
-    ``max_disagreement``: the trust guard's limit on the ensemble's std/|mean|.
+    ``max_disagreement``: the trust guard's limit on the ensemble's std/|mean|; ``workers``: FE
+    processes (``sim.sweep.default_workers``: one per usable core), which never change the
+    answer, so a run may be resumed with another number of them; ``catalogues``: the user's
+    ``--catalogue`` files (recorded with their sha256; a resume with others is refused);
+    ``buildable_fe``: buildable stacks of the merged catalogue simulated by FE only, for the
+    materials the surrogate cannot predict (``explore._buildable``).
     """
 
     surrogate: str = str(DEFAULT_CHECKPOINT)
@@ -81,9 +97,11 @@ class OptimizeConfig:
     storage: str | None = None
     study: str = "fingertip"
     seed: int = 0
-    workers: int = 2
+    workers: int = field(default_factory=default_workers)
     dataset: str | None = None
     retrain_epochs: int = 150
+    catalogues: tuple[str, ...] = ()
+    buildable_fe: int = DEFAULT_FE_BUDGET
 
     def check(self) -> None:
         def at_least(name: str, value: int, low: int) -> None:
@@ -97,6 +115,7 @@ class OptimizeConfig:
         at_least("rounds", self.rounds, 1)
         at_least("workers", self.workers, 1)
         at_least("retrain_epochs", self.retrain_epochs, 1)
+        at_least("buildable_fe", self.buildable_fe, 0)
         if self.mode not in ("single", "multi"):
             raise DesignError("--mode", f"must be single or multi, got {self.mode!r}")
         for name in ("tolerance", "max_disagreement"):
@@ -106,32 +125,102 @@ class OptimizeConfig:
 
 
 # ----------------------------------------------------------------------------- run folder
-def _prepare(config: OptimizeConfig, out: Path, targets: Targets, options: SimOptions) -> str:
-    """Create or resume the run folder; returns the storage URL."""
-    storage = config.storage or f"sqlite:///{(out / 'study.db').resolve()}"
+#: configuration entries that never change the answer: a run may be resumed with others
+_FREE = ("workers", "studies")
+
+
+def _record(config: OptimizeConfig, out: Path, targets: Targets, options: SimOptions) -> dict:
+    """What config.json holds (without the studies, added as they start)."""
     record = {
         **dataclasses.asdict(config),
         "sim_options": dataclasses.asdict(options),
-        "storage": storage,
+        "storage": _storage_url(config, out),
         "targets": dict(targets.values),
         "displacement_reading": targets.reading,
     }
-    record = json.loads(json.dumps(record))  # as config.json holds it (lists, not tuples)
+    return json.loads(json.dumps(record))  # as config.json holds it (lists, not tuples)
+
+
+def _storage_url(config: OptimizeConfig, out: Path) -> str:
+    return config.storage or f"sqlite:///{(out / 'study.db').resolve()}"
+
+
+def _read_config(out: Path) -> dict[str, Any] | None:
+    """The run folder's config.json (None if there is none); unreadable: one error line."""
     path = out / "config.json"
-    if path.exists():
-        old = json.loads(path.read_text())
-        if {k: v for k, v in old.items() if k != "studies"} != record:
-            diff = next(k for k in record if record[k] != old.get(k))
-            raise DesignError(
-                "--out",
-                f"{out} holds a run with another configuration ({diff}); "
-                "use another --out or the same options to resume",
-            )
-        return storage
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(path, {**record, "studies": []})
-    write_json(out / "meta.json", provenance(record, config.seed))
-    return storage
+    if not path.exists():
+        return None
+    try:
+        cfg = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DesignError("--out", f"{path} is not readable JSON ({exc})") from None
+    if not isinstance(cfg, dict) or not isinstance(cfg.get("studies"), list):
+        raise DesignError("--out", f"{path} is not the configuration of a search run")
+    return cfg
+
+
+def _check_resume(out: Path, record: dict) -> None:
+    """A run folder is resumed only with the configuration it was made with (``_FREE`` aside)."""
+    old = _read_config(out)
+    if old is None:
+        return
+    keys = sorted((set(old) | set(record)) - set(_FREE))
+    diff = [k for k in keys if old.get(k) != record.get(k)]
+    if diff:
+        raise DesignError(
+            "--out",
+            f"{out} holds a run with another configuration ({', '.join(diff)}); "
+            "use another --out or the same options to resume",
+        )
+
+
+def _prepare(config: OptimizeConfig, out: Path, record: dict) -> str:
+    """Create the run folder (a resumed one is left as it is); returns the storage URL."""
+    if not (out / "config.json").exists():
+        out.mkdir(parents=True, exist_ok=True)
+        write_json(out / "config.json", {**record, "studies": []})
+        write_json(out / "meta.json", provenance(record, config.seed, kind="optimize"))
+    return record["storage"]
+
+
+def check_storage(url: str) -> None:
+    """Open the Optuna storage ``url`` once (creating its tables if needed), or refuse it in one
+    line naming ``--storage``: checked before any FE work or folder is made."""
+    import optuna
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import ArgumentError, SQLAlchemyError
+
+    example = "e.g. sqlite:///path/study.db or postgresql://user:password@host/database"
+    try:
+        make_url(url)
+    except ArgumentError:
+        raise DesignError("--storage", f"{url!r} is not a database URL ({example})") from None
+    try:
+        optuna.logging.set_verbosity(optuna.logging.WARNING)
+        storage = optuna.storages.RDBStorage(url)
+    except (SQLAlchemyError, ImportError, ValueError, OSError, RuntimeError) as exc:
+        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        raise DesignError("--storage", f"cannot open {url}: {first}") from None
+    storage.remove_session()
+    storage.engine.dispose()
+
+
+def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:
+    """Everything a search can check without its surrogate, before any work: the options, the
+    run folder (absent, empty or a search run's), the targets file, the ``--catalogue`` files
+    and the space file (the storage URL: ``check_storage``). Returns the targets.
+    ``fingertip run --from-scratch`` calls it before its sweep; ``optimize`` calls it first."""
+    config.check()
+    out = Path(out)
+    check_folder_kind(out, "optimize")
+    _read_config(out)
+    targets = load_targets(config.targets)
+    from sim.materials import load_user_catalogues
+
+    catalogue = load_user_catalogues(config.catalogues)[1]  # the --catalogue files, checked
+    if config.space:
+        load_space(config.space, catalogue)
+    return targets
 
 
 def _add_study(out: Path, name: str, search: str, round_: int, mode: str) -> None:
@@ -145,42 +234,62 @@ def _add_study(out: Path, name: str, search: str, round_: int, mode: str) -> Non
         write_json(path, cfg)
 
 
-def _load_confirmations(out: Path) -> list[Confirmation]:
+def _save_confirmations(out: Path, items: list[Confirmation], *, final: bool) -> None:
+    """confirmations.json, rewritten only when its content changes. Before the end of the loop
+    (``final`` False) a file that already continues ``items`` (a resumed run that made later
+    rounds before) is left as it is."""
+    text = json.dumps([c.to_json() for c in items], indent=1, allow_nan=False)
     path = out / "confirmations.json"
-    if not path.exists():
-        return []
-    return [Confirmation.from_json(d) for d in json.loads(path.read_text())]
+
+    def continues(old: str) -> bool:
+        try:
+            return json.loads(old)[: len(items)] == json.loads(text)
+        except (ValueError, TypeError):
+            return False
+
+    _write_if_changed(path, text, None if final else continues)
 
 
-def _save_confirmations(out: Path, items: list[Confirmation]) -> None:
-    tmp = out / ".confirmations.json.tmp"
-    tmp.write_text(json.dumps([c.to_json() for c in items], indent=1, allow_nan=False))
-    tmp.replace(out / "confirmations.json")
+def _write_if_changed(path: Path, text: str, keep: Callable[[str], bool] | None = None) -> None:
+    """Write ``text`` to ``path`` atomically unless the file holds it already (or ``keep`` says
+    its content is to stay): a re-run that changes nothing rewrites nothing."""
+    data = text.encode()
+    if path.exists():
+        old = path.read_bytes()  # exact bytes: csv's "\r\n" line ends included
+        if old == data or (keep is not None and keep(old.decode(errors="replace"))):
+            return
+    tmp = path.with_name(f".{path.name}.tmp")
+    tmp.write_bytes(data)
+    tmp.replace(path)
 
 
-def write_trials(out: Path, rows: list[TrialRow], names: list[str], metrics: list[str]) -> None:
-    """trials.csv: one row per scored trial of every round (see explore._types)."""
+def write_trials(
+    out: Path, rows: list[TrialRow], names: list[str], metrics: list[str], *, final: bool = True
+) -> None:
+    """trials.csv: one row per scored trial of every round (see explore._types), rewritten only
+    when its content changes (before the end, ``final`` False, a file that continues these rows
+    is kept)."""
     header = [
         "round", "trial", "search", *names, "score", *OBJECTIVE_NAMES,
         *[f"pred.{m}" for m in metrics], *[f"std.{m}" for m in metrics],
         "in_domain", "disagreement", "trusted",
     ]  # fmt: skip
-    tmp = out / ".trials.csv.tmp"
-    with tmp.open("w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        for r in rows:
-            cells = [r.round, r.trial, r.search]
-            for n in names:
-                v = r.point.get(n, "")
-                cells.append("" if isinstance(v, float) and math.isnan(v) else v)
-            cells.append(_cell(r.score))
-            cells += [_cell(v) for v in r.objectives]
-            cells += [_cell(r.predicted.get(m, {}).get("median")) for m in metrics]
-            cells += [_cell(r.predicted.get(m, {}).get("std")) for m in metrics]
-            cells += [int(r.in_domain), _cell(r.disagreement), int(not r.flags)]
-            w.writerow(cells)
-    tmp.replace(out / "trials.csv")
+    fh = io.StringIO(newline="")
+    w = csv.writer(fh)
+    w.writerow(header)
+    for r in rows:
+        cells = [r.round, r.trial, r.search]
+        for n in names:
+            v = r.point.get(n, "")
+            cells.append("" if isinstance(v, float) and math.isnan(v) else v)
+        cells.append(_cell(r.score))
+        cells += [_cell(v) for v in r.objectives]
+        cells += [_cell(r.predicted.get(m, {}).get("median")) for m in metrics]
+        cells += [_cell(r.predicted.get(m, {}).get("std")) for m in metrics]
+        cells += [int(r.in_domain), _cell(r.disagreement), int(not r.flags)]
+        w.writerow(cells)
+    text = fh.getvalue()
+    _write_if_changed(out / "trials.csv", text, None if final else lambda old: old.startswith(text))
 
 
 def _cell(v: Any) -> Any:
@@ -221,8 +330,16 @@ def _sim_options(dataset: Path | None) -> SimOptions:
     return options_from_dict(cfg["options"]) if "options" in cfg else SimOptions()
 
 
-def retrain(surrogate, dataset: Path, confirmed: list[Confirmation], epochs: int, seed: int):
-    """Warm-started retraining on the training sweep plus the FE-confirmed designs."""
+def retrain(
+    surrogate,
+    dataset: Path,
+    confirmed: list[Confirmation],
+    epochs: int,
+    seed: int,
+    progress: Callable[[int], None] | None = None,
+):
+    """Warm-started retraining on the training sweep plus the FE-confirmed designs;
+    ``progress`` is called with the number of epochs done since its last call."""
     from surrogate import SweepData, read_sweep
     from surrogate._train import Split, TrainConfig, fit
 
@@ -259,7 +376,8 @@ def retrain(surrogate, dataset: Path, confirmed: list[Confirmation], epochs: int
     old = {k: v for k, v in surrogate.header.get("training", {}).items() if k in fields}
     old = {k: tuple(v) if isinstance(v, list) else v for k, v in old.items()}
     config = TrainConfig(**{**old, "seed": seed, "max_epochs": epochs, "patience": epochs})
-    result = fit(aug, config, progress=False, split=Split(train, val, test), init=surrogate)
+    result = fit(aug, config, progress=progress or False, split=Split(train, val, test),
+                 init=surrogate)  # fmt: skip
     result.surrogate.header["active_learning"] = {
         "confirmed_designs": len(ok),
         "weight": CONFIRMED_WEIGHT,
@@ -273,18 +391,95 @@ def _nan(v: Any) -> float:
 
 
 # ----------------------------------------------------------------------------- the loop
+@dataclass(frozen=True)
+class _Setup:
+    """The checked inputs of a search (``_setup``)."""
+
+    surrogate: Any
+    space: Any
+    build_space: Any
+    build_note: str | None
+    targets: Targets
+    dataset: Path | None
+    options: SimOptions
+    record: dict
+    catalogue: dict = field(default_factory=dict)  # shipped + user materials, by name
+
+
+def _setup(config: OptimizeConfig, out: Path) -> _Setup:
+    """Check every input before any work and before the run folder is made: the options, the
+    folder, the targets, the space (inside the surrogate's), the configuration of a resumed
+    run, the storage URL."""
+    from surrogate import load_checkpoint
+
+    targets = check_inputs(config, out)
+    # a surrogate trained on FE results of another solver version still searches (the shipped
+    # one until it is re-made), with a warning: every answer is confirmed by this solver's FE
+    surrogate = load_checkpoint(config.surrogate, allow_solver_mismatch=True)
+    user, catalogue = _catalogues(config, surrogate.space)
+    space = load_space(config.space, catalogue) if config.space else surrogate.space
+    try:
+        check_subspace(space, surrogate.space)
+    except ValueError as exc:
+        name, _, msg = str(exc).partition(": ")
+        raise DesignError(f"space {name}", msg) from None
+    build_space, build_note = None, None
+    if config.buildable_trials:
+        try:
+            build_space = catalogue_only(space)
+        except ValueError as exc:  # e.g. a core that must be "param"
+            build_note = f"no buildable search: {exc}"
+    dataset = _find_dataset(config, surrogate)
+    options = _sim_options(dataset)
+    record = _record(config, out, targets, options)
+    record.pop("catalogues")  # the files by content, and only when given (older runs: none)
+    if user:
+        record["catalogues"] = [c.record() for c in user]
+    _check_resume(out, record)
+    if config.storage is not None:
+        check_storage(config.storage)
+    return _Setup(
+        surrogate, space, build_space, build_note, targets, dataset, options, record, catalogue
+    )
+
+
+def _catalogues(config: OptimizeConfig, trained) -> tuple[tuple, dict]:
+    """The ``--catalogue`` files and the merged catalogue: shipped, the user materials the
+    surrogate's space holds (it was trained on them) and the files' (a name must mean one
+    material)."""
+    from sim.materials import load_user_catalogues
+
+    user, catalogue = load_user_catalogues(config.catalogues)
+    for mat in trained.materials:
+        name = str(mat.name)
+        if name in catalogue and catalogue[name] != mat:
+            raise DesignError(
+                "--catalogue",
+                f"material {name!r} differs from the one the surrogate was trained on; rename it",
+            )
+        catalogue[name] = mat
+    return user, catalogue
+
+
+#: summary.json entries that say how long this invocation took (the rest is the answer)
+_TIMING_KEYS = ("wall_time_s", "timings", "resumed")
+
+
 def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) -> Summary:
-    """Run (or resume) a search in ``out``; returns the summary (also written to disk)."""
+    """Run (or resume) a search in ``out``; returns the summary (also written to disk).
+
+    Resumable at any point, with the same answer as an uninterrupted run: what each round has
+    done is read from its own files (its studies, ``rounds/round-<r>-candidates.json``, the FE
+    records, ``surrogates/round-<r+1>.safetensors``), and each round decides from the
+    confirmations of the rounds up to it only. A finished run re-run computes and rewrites
+    nothing (``summary.json`` keeps the first run's ``wall_time_s``)."""
     from tqdm import tqdm
 
     from surrogate import load_checkpoint, save_checkpoint
 
-    config.check()
     out = Path(out)
-    # a surrogate trained on FE results of another solver version still searches (the shipped
-    # one until it is re-made), with a warning: every answer is confirmed by this solver's FE
-    surrogate = load_checkpoint(config.surrogate, allow_solver_mismatch=True)
-    trained_on = surrogate.header.get("solver_version")
+    s = _setup(config, out)
+    trained_on = s.surrogate.header.get("solver_version")
     if trained_on != SOLVER_VERSION:
         print(
             f"warning: the surrogate {config.surrogate} was trained on FE results of solver "
@@ -292,22 +487,9 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             "answers are confirmed with this solver",
             file=sys.stderr,
         )
-    space = load_space(config.space) if config.space else surrogate.space
-    try:
-        check_subspace(space, surrogate.space)
-    except ValueError as exc:
-        field, _, msg = str(exc).partition(": ")
-        raise DesignError(f"space {field}", msg) from None
-    build_space, build_note = None, None
-    if config.buildable_trials:
-        try:
-            build_space = catalogue_only(space)
-        except ValueError as exc:  # e.g. a core that must be "param"
-            build_note = f"no buildable search: {exc}"
-    targets = load_targets(config.targets)
-    dataset = _find_dataset(config, surrogate)
-    options = _sim_options(dataset)
-    storage = _prepare(config, out, targets, options)
+    resumed = (out / "config.json").exists()
+    storage = _prepare(config, out, s.record)
+    targets, space, options, dataset = s.targets, s.space, s.options, s.dataset
     t0 = time.perf_counter()
     timings = {"fe_s": 0.0, "search_s": 0.0, "retrain_s": 0.0}
 
@@ -320,13 +502,14 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         desc="FE references",
     )
     timings["fe_s"] += time.perf_counter() - tic
-    confirmations = _load_confirmations(out)
+    confirmations: list[Confirmation] = []  # those of the rounds so far, in order
     all_rows: list[TrialRow] = []
     rounds: list[dict[str, Any]] = []
+    surrogate = s.surrogate
     metric_names = list(surrogate.metric_names)
     for r in range(config.rounds):
-        ckpt = out / "surrogates" / f"round-{r}.safetensors"
-        if r > 0 and ckpt.exists():
+        if r > 0:  # the surrogate retrained after round r - 1, as stored (resumed or not)
+            ckpt = out / "surrogates" / f"round-{r}.safetensors"
             surrogate = load_checkpoint(ckpt, allow_solver_mismatch=True)
         settings = SearchSettings(
             trials=config.trials,
@@ -335,8 +518,8 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             max_disagreement=config.max_disagreement,
         )
         searches = [("continuous", space, config.trials)]
-        if build_space is not None:
-            searches.append(("buildable", build_space, config.buildable_trials))
+        if s.build_space is not None:
+            searches.append(("buildable", s.build_space, config.buildable_trials))
         round_rows: dict[str, list[TrialRow]] = {}
         for search, sp, n in searches:
             name = f"{config.study}-r{r}-{search}"
@@ -358,14 +541,17 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             chosen = _choose(round_rows, surrogate, config, confirmations)
             _save_candidates(out, r, chosen)
         tic = time.perf_counter()
-        new = confirm(chosen, out, targets, options, workers=config.workers, progress=progress)
+        new = confirm(
+            chosen, out, targets, options, workers=config.workers, progress=progress,
+            materials=_user_tables(s.catalogue), catalogue=s.catalogue,
+        )  # fmt: skip
         timings["fe_s"] += time.perf_counter() - tic
         known = {c.key for c in confirmations}
         confirmations += [c for c in new if c.key not in known]
-        _save_confirmations(out, confirmations)
+        _save_confirmations(out, confirmations, final=False)
         info = _round_info(r, new, targets, config.tolerance)
         rounds.append(info)
-        write_trials(out, all_rows, space.names, metric_names)
+        write_trials(out, all_rows, space.names, metric_names, final=False)
         info["target_met"] = _target_met(confirmations, targets, config.tolerance)
         # done when the surrogate can be trusted AND an FE-confirmed design meets every tapping
         # target; a trusted surrogate whose best design misses searches again (new seed)
@@ -376,21 +562,65 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             break
         nxt = out / "surrogates" / f"round-{r + 1}.safetensors"
         if not nxt.exists():
-            if progress:
-                print(f"round {r + 1}: retraining the surrogate on {len(confirmations)} FE designs")
             tic = time.perf_counter()
-            model = retrain(surrogate, dataset, confirmations, config.retrain_epochs, config.seed)
+            label = f"round {r + 2}: retrain on {len(confirmations)} FE designs"
+            bar = tqdm(total=config.retrain_epochs, desc=label, unit="epoch",
+                       disable=not progress)  # fmt: skip
+            try:
+                model = retrain(surrogate, dataset, confirmations, config.retrain_epochs,
+                                config.seed, progress=bar.update)  # fmt: skip
+            finally:
+                bar.close()
             timings["retrain_s"] += time.perf_counter() - tic
             nxt.parent.mkdir(parents=True, exist_ok=True)
-            save_checkpoint(model, nxt)
-    summary = summarise(confirmations, targets, config.tolerance, rounds, all_rows, space)
-    if build_note:
-        summary.notes.append(build_note)
-    summary_json = summary.to_json()
-    summary_json["wall_time_s"] = time.perf_counter() - t0  # this invocation (resumes: less)
-    summary_json["timings"] = timings
-    write_json(out / "summary.json", summary_json)
+            tmp = nxt.with_name(f".{nxt.name}.tmp")
+            save_checkpoint(model, tmp)
+            tmp.replace(nxt)  # a kill never leaves half a checkpoint
+    _save_confirmations(out, confirmations, final=True)
+    write_trials(out, all_rows, space.names, metric_names, final=True)
+    screen = []
+    fe_only = set(s.catalogue) - predictable_materials(s.surrogate.space)
+    if config.buildable_trials and config.buildable_fe and fe_only:  # unpredictable stacks
+        trusted = [c for c in confirmations if c.trusted and math.isfinite(c.fe_score)]
+        tic = time.perf_counter()
+        screen = fe_screen(
+            out, min(trusted, key=lambda c: c.fe_score, default=None), space, s.catalogue,
+            targets, options, budget=config.buildable_fe, seed=config.seed,
+            workers=config.workers, progress=progress,
+        )  # fmt: skip
+        timings["fe_s"] += time.perf_counter() - tic
+    summary = summarise(
+        confirmations + screen, targets, config.tolerance, rounds, all_rows, space,
+        catalogue=s.catalogue,
+    )  # fmt: skip
+    if screen:
+        summary.notes.append(screen_summary(screen, len(s.catalogue)))
+    if s.build_note:
+        summary.notes.append(s.build_note)
+    _write_summary(out, summary, time.perf_counter() - t0, timings, resumed)
     return summary
+
+
+def _write_summary(
+    out: Path, summary: Summary, wall_time_s: float, timings: dict[str, float], resumed: bool
+) -> None:
+    """summary.json: the answer, and how long the invocation that wrote it took
+    (``wall_time_s``, ``timings``; ``resumed``: it continued a run folder, so the time of the
+    killed invocations before it is not counted). Left as it is when the answer is the one it
+    holds already (a finished run re-run)."""
+    data = summary.to_json()
+    path = out / "summary.json"
+    if path.exists():
+        try:
+            old = json.loads(path.read_text())
+        except (OSError, ValueError):
+            old = None
+        if isinstance(old, dict):
+            answer = {k: v for k, v in old.items() if k not in _TIMING_KEYS}
+            if answer == json.loads(json.dumps(data, allow_nan=False)):
+                return
+    data = {**data, "wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
+    _write_if_changed(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
 
 
 def _choose(
@@ -480,19 +710,22 @@ def _round_info(r: int, new: list[Confirmation], targets: Targets, tol: float) -
 
 
 # ----------------------------------------------------------------------------- summary
-def _answer(c: Confirmation | None, targets: Targets, tol: float, space) -> dict | None:
+def _answer(
+    c: Confirmation | None, targets: Targets, tol: float, space, catalogue=None
+) -> dict | None:
     if c is None:
         return None
     errors = _target_errors(c, targets)
     return {
-        "design": space.design(c.candidate.point).to_dict(),
+        "design": point_to_design(c.candidate.point, catalogue or space.catalogue).to_dict(),
         "point": c.to_json()["candidate"]["point"],
+        "search": c.candidate.search,
         "reason": c.candidate.reason,
         "round": c.candidate.round,
         "trusted_by_surrogate": c.candidate.trusted,
         "flags": list(c.candidate.flags),
         "predicted": c.candidate.predicted,
-        "predicted_score": c.candidate.score,
+        "predicted_score": c.to_json()["candidate"]["score"],  # None: no prediction
         "fe_metrics": c.to_json()["fe_metrics"],
         "fe_score": c.fe_score,
         "errors_vs_targets": errors,
@@ -509,20 +742,27 @@ def summarise(
     rounds: list[dict[str, Any]],
     rows: list[TrialRow],
     space,
+    catalogue: dict | None = None,
 ) -> Summary:
+    """The answers (the best trusted FE result of the search, and the best of the buildable
+    ones: the catalogue-only search's and the FE-only screen's, which competes for this answer
+    only) and the notes; ``catalogue``: the merged catalogue the designs' material names come
+    from (default: the space's)."""
     # an unsettled or invalid FE result is never an answer
     ok = [c for c in confirmations if c.trusted and math.isfinite(c.fe_score)]
-    best = min(ok, key=lambda c: c.fe_score, default=None)
+    best = min((c for c in ok if c.candidate.search != FE_SEARCH), key=lambda c: c.fe_score,
+               default=None)  # fmt: skip
     buildable = min(
-        (c for c in ok if c.candidate.search == "buildable"),
+        (c for c in ok if c.candidate.search in ("buildable", FE_SEARCH)),
         key=lambda c: c.fe_score,
         default=None,
     )
     answers = {
-        "best": _answer(best, targets, tol, space),
-        "buildable": _answer(buildable, targets, tol, space),
+        "best": _answer(best, targets, tol, space, catalogue),
+        "buildable": _answer(buildable, targets, tol, space, catalogue),
     }
     notes = _notes(answers, targets, tol, rows)
+    notes += material_notes(answers, catalogue or space.catalogue, tol)
     return Summary(answers, dict(targets.values), tol, rounds, notes)
 
 
@@ -537,6 +777,15 @@ def _notes(
         answer = answers.get(kind)
         if answer is None:
             continue
+        if answer.get("search") == FE_SEARCH:  # no surrogate view of these materials
+            notes += [
+                f"{kind}: {m} is missed: FE {answer['fe_metrics'][targets.metric(m)]:.3g} vs "
+                f"target {targets.values[m]:.3g} ({100 * e:+.1f} %, tolerance ±{100 * tol:.0f} "
+                "%); this stack comes from the FE-only screen of the catalogue"
+                for m, e in answer["errors_vs_targets"].items()
+                if abs(e) > tol
+            ]
+            continue
         searched = [r for r in rows if r.search == search and math.isfinite(r.score)]
         last = max((r.round for r in searched), default=0)
         missed = [
@@ -549,6 +798,13 @@ def _notes(
                       "target"]  # fmt: skip
         notes += missed
     return notes
+
+
+def _user_tables(catalogue: dict) -> dict | None:
+    """The user materials of a merged catalogue as tables, for the FE worker processes."""
+    from sim.materials import material_tables, user_materials
+
+    return material_tables(user_materials(catalogue)) or None
 
 
 def _why(

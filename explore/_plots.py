@@ -14,11 +14,12 @@ dimensionless (``explore._objective``).
 from __future__ import annotations
 
 import csv
+import io
 import itertools
 import json
 import math
 import warnings
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -29,6 +30,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import LogNorm, Normalize
 from matplotlib.figure import Figure
 
+from sim.errors import DesignError
 from sim.targets import READINGS, Targets
 
 from ._objective import TAPPING, closeness, objectives
@@ -65,6 +67,7 @@ __all__ = [
     "render_projections",
     "render_wedge",
     "run_targets",
+    "spread_labels",
     "write_figures",
 ]
 
@@ -156,8 +159,12 @@ class RunData:
 
 
 def _read_json(path: Path) -> Any:
-    with path.open() as fh:
-        return json.load(fh)
+    """A JSON file of the run folder; a damaged one is one error line naming it."""
+    try:
+        with path.open(encoding="utf-8") as fh:
+            return json.load(fh)
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DesignError(str(path), f"not readable JSON ({exc})") from None
 
 
 def _parse_column(cells: list[str]) -> np.ndarray:
@@ -316,7 +323,8 @@ def _score_of(trial: Any) -> float:
 
 def importance_info(run: RunData) -> ImportanceInfo:
     """Parameter importances of the score in the first continuous study (Optuna's default
-    evaluator, target ``trial.user_attrs["score"]``; trials without a finite score ignored)."""
+    evaluator, PED-ANOVA, which draws nothing at random; target ``trial.user_attrs["score"]``;
+    trials without a finite score ignored)."""
     import optuna
 
     study = _load_study(run)
@@ -872,11 +880,11 @@ def render_pareto(info: ParetoInfo) -> Figure:
     if len(info.confirmed):
         cx, cy, cz = info.confirmed.T
         ax.scatter(cx, cy, c=cz, norm=norm, marker="*", s=160, ec="black", label="FE-confirmed")
-        for (x, y, _), label in zip(info.confirmed, info.confirmed_labels, strict=True):
-            ax.annotate(label, (x, y), fontsize=6, xytext=(4, 4), textcoords="offset points")
     if np.all(every[:, :2] > 0):
         ax.set_xscale("log")
         ax.set_yscale("log")
+    if len(info.confirmed):
+        _callouts(fig, ax, info.confirmed[:, :2], info.confirmed_labels)
     fig.colorbar(sc, ax=ax, label="wedge effort F / F_ref")
     ax.set_xlabel("compliance error (rms relative, 1 N and 4 N)")
     ax.set_ylabel("hysteresis error (|relative|)")
@@ -884,6 +892,47 @@ def render_pareto(info: ParetoInfo) -> Figure:
     if ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=7)
     return fig
+
+
+def spread_labels(
+    wanted: np.ndarray, gap: float, low: float = 0.0, high: float = 1.0
+) -> np.ndarray:
+    """Positions of labels along one axis, each as near its ``wanted`` position as the others
+    allow, at least ``gap`` apart and inside [``low``, ``high``] (if they fit: ``gap`` x count
+    <= ``high`` - ``low``). Order is kept: label i ends below label j if it wanted to."""
+    wanted = np.asarray(wanted, dtype=float)
+    order = np.argsort(wanted, kind="stable")
+    y = np.clip(wanted[order], low, high)
+    for k in range(1, len(y)):  # push up the ones that crowd the one below
+        y[k] = max(y[k], y[k - 1] + gap)
+    if len(y) and y[-1] > high:  # then down from the top, as little as needed
+        y[-1] = high
+        for k in range(len(y) - 2, -1, -1):
+            y[k] = min(y[k], y[k + 1] - gap)
+    out = np.empty_like(y)
+    out[order] = y
+    return out
+
+
+def _callouts(fig: Figure, ax: Any, points: np.ndarray, labels: Sequence[str]) -> None:
+    """Label ``points`` (data coordinates) in a column right of the axes, each at the height of
+    its point where the others allow (``spread_labels``), joined to it by a thin line: labels
+    never overlap, however close the points."""
+    ax.autoscale_view()
+    to_axes = ax.transData + ax.transAxes.inverted()
+    wanted = to_axes.transform(points)[:, 1]
+    size = 6.0
+    axes_height_pt = 0.75 * fig.get_figheight() * 72.0  # constrained layout leaves ~3/4
+    gap = 1.5 * size / axes_height_pt
+    if gap * len(labels) > 1.0:  # too many for the column: smaller type, tighter
+        size = max(3.0, size / (gap * len(labels)))
+        gap = 1.0 / len(labels)
+    slots = spread_labels(wanted, gap, 0.5 * gap, 1.0 - 0.5 * gap)
+    for (x, y), slot, label in zip(points, slots, labels, strict=True):
+        ax.annotate(label, (x, y), xytext=(1.02, slot), textcoords="axes fraction",
+                    fontsize=size, va="center", ha="left", annotation_clip=False,
+                    arrowprops={"arrowstyle": "-", "lw": 0.4, "color": "0.6",
+                                "shrinkA": 0, "shrinkB": 4})  # fmt: skip
 
 
 def _segments(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -956,7 +1005,8 @@ def render_importance(info: ImportanceInfo) -> Figure:
     for yy, v in zip(y, info.importances, strict=True):
         ax.text(v, yy, f" {v:.2f}", va="center", fontsize=6)
     ax.set_xlabel("importance (normalised, sum 1)")
-    ax.set_title(f"{title} (study {info.study_name}, {info.n_trials} trials)", fontsize=9)
+    # two lines: a study name of any length never runs off the figure
+    ax.set_title(f"{title}\n(study {info.study_name}, {info.n_trials} trials)", fontsize=9)
     return fig
 
 
@@ -1010,8 +1060,14 @@ def render_wedge(info: WedgeInfo) -> Figure:
     for ax, curves, when in profiles:
         _draw_curves(ax, curves)
         ax.set_xlabel("distance from the wedge [mm]")
-        ax.set_ylabel("surface deflection [mm]")
+        ax.set_ylabel("surface deflection, downward [mm]")
         ax.set_title(f"surface profile after {when}", fontsize=8)
+        # the surface drawn as it goes: deflection downward, as in `fingertip simulate --out`'s
+        # figure (sim.output) and the paper's profiles
+        ax.invert_yaxis()
+        if not curves:
+            ax.text(0.5, 0.5, f"not reached (a wedge hold shorter than {when})", ha="center",
+                    va="center", fontsize=8, transform=ax.transAxes)  # fmt: skip
     for ax in axes:
         if ax.get_legend_handles_labels()[0]:
             ax.legend(fontsize=6)
@@ -1085,7 +1141,13 @@ def write_figures(run_dir: str | Path) -> dict[str, Path]:
     paths = {}
     for name in FIGURES:
         path = folder / f"{name}.png"
-        figures[name].savefig(path, dpi=_DPI)
+        buffer = io.BytesIO()
+        figures[name].savefig(buffer, dpi=_DPI, format="png")  # no date: same figure, same bytes
         figures[name].clear()
+        data = buffer.getvalue()
+        if not path.is_file() or path.read_bytes() != data:  # the same figure: left as it is
+            tmp = path.with_name(f".{path.name}.tmp")
+            tmp.write_bytes(data)
+            tmp.replace(path)
         paths[name] = path
     return paths

@@ -70,7 +70,7 @@ def _material_words(material: Any) -> str:
         return f"`{material}` (catalogue)"
     if not isinstance(material, Mapping):
         return "unknown material"
-    skip = {"model", "name", "source", "moduli", "prony_g", "prony_tau_s"}
+    skip = {"model", "name", "source", "moduli", "prony_g", "prony_tau_s", "prony_k", "provenance"}
     law = ", ".join(_quantity(k, v) for k, v in material.items() if k not in skip)
     text = f"{material.get('name') or 'a custom'} {material.get('model', 'material')} ({law})"
     g, tau = material.get("prony_g") or [], material.get("prony_tau_s") or []
@@ -331,5 +331,9 @@ def write_report(run_dir: str | Path) -> Path:
         *_figures_section(paths),
     ]
     path = run_dir / "report.md"
-    path.write_text("\n".join(lines).rstrip() + "\n", encoding="utf-8")
+    text = "\n".join(lines).rstrip() + "\n"
+    if not path.is_file() or path.read_text(encoding="utf-8") != text:  # the same: left alone
+        tmp = path.with_name(f".{path.name}.tmp")
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(path)
     return path

@@ -113,7 +113,7 @@ def catalogue_only(space: DesignSpace) -> DesignSpace:
                 weights=tuple(w for _, w in keep) if p.weights else (),
             )
         params.append(p)
-    return DesignSpace(tuple(params))
+    return DesignSpace(tuple(params), space.materials)
 
 
 def check_subspace(space: DesignSpace, trained: DesignSpace) -> None:
@@ -274,20 +274,36 @@ def run_study(
     ``flush`` trials: the same sampling at a fraction of the cost of a database transaction
     per call; a kill loses at most the unwritten batch. ``shared=True`` (a database several
     workers share) asks and tells on ``study`` itself, so the workers see each other's trials.
+
+    Reproducible through kills (``shared=False``): each batch of ``settings.batch`` trials is
+    asked from a sampler seeded by (``settings.seed``, number of trials before the batch), so
+    the trials depend only on the trials before them, never on how many invocations made them.
+    A resumed study restarts at the last whole batch it holds: the stored trials of a batch cut
+    by a kill (Optuna writes trials one by one) are asked again, identical, and not stored
+    twice. A resumed search therefore holds exactly the trials of an uninterrupted one.
     """
     import optuna
 
-    target = study if shared else _twin(study, settings)
-    done = _finished(target)
-    pending: list = []
     multi = settings.mode == "multi"
+    if shared:
+        target, done, n_stored = study, _finished(study), None
+    else:
+        states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
+        stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
+        n_stored = len(stored)
+        done = min(n_stored - n_stored % settings.batch, settings.trials)
+        target = _twin(study, settings, stored[:done])
+    pending: list = []
     while done < settings.trials:
+        if not shared:  # a fresh sampler per batch, seeded by the trials before it
+            target.sampler = _sampler(settings, _batch_seed(settings.seed, done))
         batch = [target.ask() for _ in range(min(settings.batch, settings.trials - done))]
         points = [suggest_point(t, space) for t in batch]
         rows = predict_rows(
             surrogate, points, targets, round_=round_, trials=[t.number for t in batch],
             search=search, max_disagreement=settings.max_disagreement,
         )  # fmt: skip
+        new = 0
         for t, row in zip(batch, rows, strict=True):
             values = list(row.objectives) if multi else [row.score]
             _store(t, row)
@@ -295,24 +311,37 @@ def run_study(
                 frozen = target.tell(t, values if multi else values[0])
             else:
                 frozen = target.tell(t, state=optuna.trial.TrialState.FAIL)
-            pending.append(frozen)
+            if n_stored is None or frozen.number >= n_stored:  # stored before a kill: kept
+                pending.append(frozen)
+                new += 1
         done += len(batch)
-        if not shared and (len(pending) >= flush or done >= settings.trials):
+        if not shared and pending and (len(pending) >= flush or done >= settings.trials):
             study.add_trials(pending)
             pending = []
-        if progress is not None:
-            progress(len(batch))
+        if progress is not None and new:
+            progress(new)
     return rows_of(study, surrogate, space, targets, round_=round_, search=search,
                    max_disagreement=settings.max_disagreement)  # fmt: skip
 
 
-def _twin(study, settings: SearchSettings):
-    """An in-memory study with the same sampler and directions, holding ``study``'s trials."""
+def _batch_seed(seed: int, done: int) -> int:
+    """The sampler seed of the batch that starts after ``done`` trials (``seed`` itself for the
+    first batch)."""
+    if done == 0:
+        return seed
+    return int(np.random.SeedSequence([seed, done]).generate_state(1)[0])
+
+
+def _twin(study, settings: SearchSettings, trials: Sequence | None = None):
+    """An in-memory study with the same sampler and directions, holding ``trials`` (default:
+    every finished trial of ``study``)."""
     import optuna
 
     twin = create_study(None, study.study_name, settings)
-    finished = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
-    twin.add_trials(study.get_trials(deepcopy=False, states=finished))
+    if trials is None:
+        finished = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
+        trials = study.get_trials(deepcopy=False, states=finished)
+    twin.add_trials(trials)
     return twin
 
 
@@ -355,30 +384,43 @@ def rows_of(
     )  # fmt: skip
 
 
-def create_study(storage, name: str, settings: SearchSettings):
-    """A new or resumed study with a seeded sampler: TPE (multivariate, grouped for the
-    conditional space) for one objective, NSGA-II for three."""
+def _sampler(settings: SearchSettings, seed: int):
+    """The seeded sampler of a study: TPE (multivariate, grouped for the conditional space) for
+    one objective, NSGA-II for three."""
     import optuna
 
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
         if settings.mode == "multi":
-            sampler = optuna.samplers.NSGAIISampler(seed=settings.seed)
-            directions = ["minimize"] * 3
-        else:
-            sampler = optuna.samplers.TPESampler(
-                seed=settings.seed, multivariate=True, group=True, n_startup_trials=64
-            )
-            directions = ["minimize"]
+            return optuna.samplers.NSGAIISampler(seed=seed)
+        return optuna.samplers.TPESampler(
+            seed=seed, multivariate=True, group=True, n_startup_trials=64
+        )
+
+
+def create_study(storage, name: str, settings: SearchSettings):
+    """A new or resumed study with a seeded sampler (``_sampler``). Resuming an existing study
+    writes nothing to its storage (a finished run re-run leaves its files as they are)."""
+    import optuna
+
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    sampler = _sampler(settings, settings.seed)
+    directions = ["minimize"] * (3 if settings.mode == "multi" else 1)
+    study = None
+    if storage is not None:
+        try:
+            study = optuna.load_study(study_name=name, storage=storage, sampler=sampler)
+        except KeyError:  # no such study yet
+            study = None
+    if study is None:
         study = optuna.create_study(
             storage=storage,
             study_name=name,
             sampler=sampler,
             directions=directions,
-            load_if_exists=True,
+            load_if_exists=True,  # another worker of a shared storage may have just made it
         )
-    if settings.mode == "multi":
+    if settings.mode == "multi" and study.metric_names != list(OBJECTIVE_NAMES):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
             study.set_metric_names(list(OBJECTIVE_NAMES))

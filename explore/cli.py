@@ -22,7 +22,8 @@ from sim import (
     simulate,
 )
 from sim.options import apply_overrides, parse_override
-from sim.provenance import check_new_folder
+from sim.provenance import check_folder_kind, check_new_folder
+from sim.sweep import default_workers
 
 __all__ = ["main"]
 
@@ -31,10 +32,41 @@ class UsageError(Exception):
     """Bad command-line input: printed as one line, exit code 2."""
 
 
+WORKERS_HELP = (
+    f"FE processes (default {default_workers()}: one per usable core; one design's FE runs on "
+    "one core, and the answer never depends on the number)"
+)
+
+
+def _add_catalogue_option(p) -> None:
+    from pathlib import Path
+
+    p.add_argument(
+        "--catalogue",
+        action="append",
+        type=Path,
+        metavar="FILE.toml",
+        help="a user material catalogue (e.g. from fit-material), merged with the shipped one; "
+        "a name defined twice is refused (repeatable)",
+    )
+
+
+def _user_catalogues(args: argparse.Namespace):
+    """The ``--catalogue`` files and the merged catalogue (shipped + user)."""
+    from sim.materials import load_user_catalogues
+
+    return load_user_catalogues(args.catalogue or [])
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     if (args.design is None) == (args.material is None):
         raise UsageError("simulate: give either DESIGN.toml or --material NAME")
-    design = homogeneous_design(args.material) if args.material else load_design(args.design)
+    user, catalogue = _user_catalogues(args)
+    design = (
+        homogeneous_design(args.material, catalogue=catalogue)
+        if args.material
+        else load_design(args.design, catalogue)
+    )
     protocols = PROTOCOLS if args.protocol == "all" else (args.protocol,)
     options = apply_overrides(SimOptions(), dict(parse_override(s) for s in args.set or []))
     if args.out is not None:
@@ -43,7 +75,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.out is not None:
         from sim.output import write_result
 
-        write_result(result, args.out, options)
+        write_result(result, args.out, options, catalogues=user)
     tap = result.protocols.get("tapping", {})
     if args.json:
         json.dump(result.to_json(), sys.stdout, allow_nan=False)
@@ -71,10 +103,11 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     for protocol, violation in result.violations():  # a warning: the exit code is unchanged
         print(f"warning: {protocol}: {violation.warning()}", file=sys.stderr)
     if tap.get("settled") is False:
+        why = "out of reach at its rate of convergence" if tap.get("stalled") else "not reached"
         print(
-            f"warning: tapping: no periodic state within {tap['taps']} taps (residual "
+            f"warning: tapping: periodic state {why} after {tap['taps']} taps (residual "
             f"{tap['residual']:.1e}): the tapping metrics are not converged in time "
-            "(--set tapping.max_taps=...)",
+            "(--set tapping.max_taps=... --set tapping.stall_window=0)",
             file=sys.stderr,
         )
     return 0 if result.ok else 1
@@ -128,6 +161,7 @@ def _add_simulate(sub) -> None:
         "tapping.rest_s=0.5, tapping.settle_tol=1e-3, wedge.hold_s=50, mesh.h_apex_mm=0.03 "
         "(repeatable; see sim.options.option_names())",
     )
+    _add_catalogue_option(p)
     p.set_defaults(func=_cmd_simulate)
 
 
@@ -135,7 +169,8 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     from sim.space import load_space
     from sim.sweep import run_sweep
 
-    space = load_space(args.space)
+    user, catalogue = _user_catalogues(args)
+    space = load_space(args.space, catalogue)
     options = apply_overrides(SimOptions(), dict(parse_override(s) for s in args.set or []))
     summary = run_sweep(
         space,
@@ -148,6 +183,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         options=options,
         retry_failed=args.retry_failed,
         progress=not args.no_progress,
+        catalogues=user,
     )
     print(
         f"{summary.n_designs} designs in {summary.folder}: {summary.ok} ok, {summary.failed} "
@@ -166,13 +202,20 @@ def _add_sweep(sub) -> None:
     p.add_argument("space", nargs="?", type=Path, help="design-space TOML (default: shipped)")
     p.add_argument("--n", type=int, required=True, help="number of designs")
     p.add_argument("--out", type=Path, required=True, help="sweep folder, e.g. runs/NAME")
-    p.add_argument("--workers", type=int, default=1, help="local processes (default 1)")
+    p.add_argument("--workers", type=int, default=default_workers(), help=WORKERS_HELP)
     p.add_argument("--scheduler", help="Dask distributed scheduler address (tcp://host:port)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the scrambled Sobol / Latin-hypercube sample (default 0); resuming a "
+        "folder needs the same seed",
+    )
     p.add_argument("--sampler", choices=["sobol", "lhs"], default="sobol")
     p.add_argument("--retry-failed", action="store_true", help="run failed designs again")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--set", action="append", metavar="SECTION.FIELD=VALUE")
+    _add_catalogue_option(p)
     p.set_defaults(func=_cmd_sweep)
 
 
@@ -218,7 +261,13 @@ def _add_train(sub) -> None:
     p = sub.add_parser("train", help="train the neural surrogate (deep ensemble) on a sweep")
     p.add_argument("sweep", type=Path, help="sweep folder (runs/NAME with table.csv)")
     p.add_argument("--out", type=Path, help="run folder (default: runs/<sweep>-surrogate)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the train/validation/test split, the initial weights and the minibatch "
+        "order (default 0): the same seed gives the same surrogate",
+    )
     p.add_argument("--members", type=int, default=5, help="ensemble members (default 5)")
     p.add_argument("--max-epochs", type=int, help="cap on epochs (early stopping decides)")
     p.add_argument(
@@ -296,6 +345,8 @@ def _optimize_config(args: argparse.Namespace):
         "seed": args.seed,
         "workers": args.workers,
         "dataset": str(args.dataset) if args.dataset else None,
+        "catalogues": tuple(str(p) for p in args.catalogue) if args.catalogue else None,
+        "buildable_fe": args.buildable_fe,
     }
     base = OptimizeConfig()
     return OptimizeConfig(
@@ -365,9 +416,21 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
     )
     p.add_argument("--storage", help="Optuna storage URL (default: sqlite in the run folder)")
     p.add_argument("--study", help=f"study name prefix (default {d.study})")
-    p.add_argument("--seed", type=int)
-    p.add_argument("--workers", type=int, help=f"FE processes (default {d.workers})")
+    p.add_argument(
+        "--seed",
+        type=int,
+        help=f"seed of the searches (round r uses seed + r; default {d.seed}): the same seed "
+        "gives the same answer, whatever --workers",
+    )
+    p.add_argument("--workers", type=int, help=WORKERS_HELP)
     p.add_argument("--dataset", type=Path, help="the surrogate's training sweep (retraining)")
+    p.add_argument(
+        "--buildable-fe",
+        type=int,
+        help="buildable stacks of catalogue materials the surrogate cannot predict, simulated by "
+        f"FE only after the rounds, 0 = none (default {d.buildable_fe})",
+    )
+    _add_catalogue_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
@@ -387,15 +450,23 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     progress = not args.no_progress
     if args.from_scratch:
+        from explore._pipeline import check_inputs, check_storage
         from sim.space import load_space
         from sim.sweep import run_sweep
         from surrogate import train_surrogate
         from surrogate._run import CHECKPOINT_NAME
 
         sweep = args.out.parent / f"{args.out.name}-sweep"
-        run_sweep(load_space(), args.n, sweep, workers=args.workers or 2, seed=0,
-                  progress=progress)  # fmt: skip
         trained = args.out.parent / f"{args.out.name}-surrogate"
+        # every input is checked before hours of sweep and training, not after
+        config = _optimize_config(args)
+        check_inputs(config, args.out)
+        check_folder_kind(sweep, "sweep")
+        check_folder_kind(trained, "train")
+        if config.storage is not None:
+            check_storage(config.storage)
+        run_sweep(load_space(), args.n, sweep, workers=config.workers, seed=0,
+                  progress=progress)  # fmt: skip
         ckpt = trained / CHECKPOINT_NAME
         if not ckpt.exists():
             train_surrogate(sweep, trained, seed=0, progress=progress)
@@ -427,9 +498,17 @@ def _add_run(sub) -> None:
 
 def _cmd_report(args: argparse.Namespace) -> int:
     from explore._report import write_report
+    from sim.provenance import KINDS, folder_kind
 
-    if not (args.run / "config.json").exists():
-        raise UsageError(f"report: {args.run} is not a search run folder (no config.json)")
+    if not args.run.is_dir():
+        raise UsageError(f"report: {args.run} is not a folder")
+    kind = folder_kind(args.run)
+    if kind != "optimize":
+        what = f"holds a {KINDS[kind]}, not" if kind else "is not"
+        raise UsageError(
+            f"report: {args.run} {what} a search run folder (fingertip optimize / run); "
+            "nothing written"
+        )
     print(f"report: {write_report(args.run)}")
     return 0
 
@@ -442,6 +521,97 @@ def _add_report(sub) -> None:
     p.set_defaults(func=_cmd_report)
 
 
+def _cmd_fit_material(args: argparse.Namespace) -> int:
+    from sim.fit import (
+        MODES,
+        STABILITY_STRAIN_RANGE,
+        fit_material,
+        read_curve,
+        read_relaxation,
+        write_fit,
+    )
+    from sim.materials import CATALOGUE
+
+    if args.name in CATALOGUE:
+        raise DesignError(
+            "--name", f"{args.name!r} is a shipped catalogue material; choose another"
+        )
+    curves = [read_curve(getattr(args, m), m) for m in MODES if getattr(args, m) is not None]
+    relaxation = read_relaxation(args.relaxation) if args.relaxation is not None else None
+    fit = fit_material(
+        args.model, curves, name=args.name, relaxation=relaxation, terms=args.terms,
+        nu=args.nu, prony_terms=args.prony, source=args.source, rate_per_s=args.rate_per_s,
+    )  # fmt: skip
+    paths = write_fit(fit, args.out)
+    terms = f", {fit.terms} terms" if fit.terms is not None else ""
+    nu = f"nu = {fit.nu:g}" + ("" if fit.nu_given else " (assumed: no --nu)")
+    print(f"{fit.name}: {fit.model}{terms}, {nu}, moduli = {fit.moduli}")
+    for key, value in fit.params.items():
+        print(f"  {key:10s} = {value}")
+    if fit.prony is not None:
+        print(f"  prony_g    = {list(fit.prony.g)}\n  prony_tau_s = {list(fit.prony.tau_s)}")
+    print(f"{'test':12s} {'points':>6s} {'nominal strain':>18s} {'R2':>8s} {'rms':>12s}")
+    for m in fit.modes:
+        span = f"{m.strain_range[0]:g}..{m.strain_range[1]:g}"
+        print(f"{m.mode:12s} {m.n_points:6d} {span:>18s} {m.r2:8.4f} {m.rms_MPa:8.3g} MPa")
+    if fit.prony is not None:
+        p = fit.prony
+        span = f"t {p.time_range_s[0]:g}..{p.time_range_s[1]:g} s"
+        print(f"{'relaxation':12s} {p.n_points:6d} {span:>18s} {p.r2:8.4f} {p.rms:8.3g} g_R")
+    lo, hi = STABILITY_STRAIN_RANGE
+    ranges = ", ".join(f"{k} {a:g}..{b:g}" for k, (a, b) in fit.stable_ranges.items())
+    print(f"Drucker-stable over nominal strains {lo:g}..{hi:g}: {ranges}")
+    if not fit.stable_everywhere:
+        print(
+            f"warning: {fit.name} is not Drucker-stable over nominal strains {lo:g}..{hi:g} "
+            f"({ranges}): a design straining it beyond may not converge or be unphysical",
+            file=sys.stderr,
+        )
+    print("written: " + ", ".join(str(p) for p in paths))
+    print(f'use it with --catalogue {paths[0]} (material = "{fit.name}")')
+    return 0
+
+
+def _add_fit_material(sub) -> None:
+    from pathlib import Path
+
+    from sim.fit import FIT_MODELS, MODES
+
+    p = sub.add_parser(
+        "fit-material",
+        help="fit a catalogue entry to test data (Abaqus' nominal stress-strain conventions)",
+    )
+    p.add_argument("--model", required=True, choices=FIT_MODELS)
+    p.add_argument(
+        "--terms",
+        type=int,
+        help="terms of yeoh (1-3, default 3), ogden, hyperfoam (1-3, default 1)",
+    )
+    for mode in MODES:
+        p.add_argument(
+            f"--{mode}",
+            type=Path,
+            metavar="CSV",
+            help=f"{mode} test: nominal_strain,nominal_stress_MPa"
+            + (" (negative strain and stress)" if mode == "compression" else ""),
+        )
+    p.add_argument(
+        "--relaxation", type=Path, metavar="CSV", help="time_s,g_R (normalised, 1 at t = 0)"
+    )
+    p.add_argument("--nu", type=float, help="Poisson's ratio (default 0.49, recorded as assumed)")
+    p.add_argument("--prony", type=int, help="Prony terms fitted to --relaxation (default 3)")
+    p.add_argument(
+        "--rate-per-s",
+        type=float,
+        help="nominal strain rate of the tests: with --relaxation the curves are fitted through "
+        "the Prony terms and the moduli are the instantaneous ones",
+    )
+    p.add_argument("--name", required=True, help="catalogue name of the material")
+    p.add_argument("--out", type=Path, required=True, help="catalogue entry to write (TOML)")
+    p.add_argument("--source", help="where the test data come from (default: the CSV files)")
+    p.set_defaults(func=_cmd_fit_material)
+
+
 _SUBCOMMANDS: list[Callable] = [
     _add_simulate,
     _add_sweep,
@@ -450,6 +620,7 @@ _SUBCOMMANDS: list[Callable] = [
     _add_optimize,
     _add_run,
     _add_report,
+    _add_fit_material,
 ]
 
 

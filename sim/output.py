@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -46,7 +47,7 @@ def curve_plot_data(result: SimResult) -> dict[str, dict[str, Any]]:
         figs["profile"] = {
             "series": [(k[8:], v["distance_mm"], v["deflection_mm"]) for k, v in prof],
             "xlabel": "distance from the wedge corner (mm)",
-            "ylabel": "surface deflection (mm)",
+            "ylabel": "surface deflection, downward (mm)",
             "title": "Surface deflection under the wedge",
             "invert_y": True,
         }
@@ -114,12 +115,19 @@ def write_vtu(result: SimResult, folder: Path) -> list[Path]:
     return paths
 
 
-def write_result(result: SimResult, out: str | Path, options: SimOptions) -> Path:
-    """Create the run folder ``out`` with result.json, meta.json, figures/ and VTU meshes."""
+def write_result(
+    result: SimResult, out: str | Path, options: SimOptions, catalogues: Sequence[Any] = ()
+) -> Path:
+    """Create the run folder ``out`` with result.json, meta.json, figures/ and VTU meshes.
+
+    ``catalogues``: the ``--catalogue`` files used (``sim.materials.UserCatalogue``), recorded
+    with their sha256 in meta.json (the design holds their materials' tables in full)."""
     with run_folder(out) as tmp:
         write_json(tmp / "result.json", result.to_json())
         config = {"design": result.design.to_dict(), "options": dataclasses.asdict(options)}
-        write_json(tmp / "meta.json", provenance(config))
+        if catalogues:
+            config["catalogues"] = [c.record() for c in catalogues]
+        write_json(tmp / "meta.json", provenance(config, kind="simulate"))
         figures = tmp / "figures"
         figures.mkdir()
         _render(curve_plot_data(result), figures)

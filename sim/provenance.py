@@ -15,7 +15,16 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-__all__ = ["check_new_folder", "git_commit", "package_versions", "provenance", "run_folder"]
+__all__ = [
+    "KINDS",
+    "check_folder_kind",
+    "check_new_folder",
+    "folder_kind",
+    "git_commit",
+    "package_versions",
+    "provenance",
+    "run_folder",
+]
 
 _PACKAGES = ("numpy", "scipy", "scikit-fem", "qdldl", "triangle", "meshio", "matplotlib", "torch")
 
@@ -49,11 +58,24 @@ def git_commit() -> str:
     return commit + ("-dirty" if dirty else "")
 
 
-def provenance(config: dict[str, Any], seed: int | None = None) -> dict[str, Any]:
-    """What a run folder's ``meta.json`` records."""
+#: the kinds of folder the commands make (``meta.json``'s ``"kind"``), in words
+KINDS = {
+    "simulate": "simulation result (fingertip simulate --out)",
+    "sweep": "sweep (fingertip sweep)",
+    "train": "surrogate training run (fingertip train)",
+    "optimize": "search run (fingertip optimize / run)",
+}
+
+
+def provenance(
+    config: dict[str, Any], seed: int | None = None, kind: str | None = None
+) -> dict[str, Any]:
+    """What a run folder's ``meta.json`` records; ``kind`` (``KINDS``) says which command made
+    the folder, so that the others refuse it."""
     from .simulate import SOLVER_VERSION
 
     return {
+        **({"kind": kind} if kind is not None else {}),
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "command": " ".join(sys.argv),
         "git_commit": git_commit(),
@@ -65,11 +87,82 @@ def provenance(config: dict[str, Any], seed: int | None = None) -> dict[str, Any
     }
 
 
-def check_new_folder(path: str | Path) -> None:
-    """Raise ``FileExistsError`` if ``path`` exists and is not empty (runs never overwrite)."""
+def _read_dict(path: Path) -> dict[str, Any] | None:
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def folder_kind(path: str | Path) -> str | None:
+    """Which command made the folder ``path`` (a key of ``KINDS``): ``meta.json``'s ``"kind"``,
+    else (folders made before the marker) recognised by their files; None for a folder no
+    command made, an empty one or none."""
     path = Path(path)
-    if path.exists() and (not path.is_dir() or any(path.iterdir())):
-        raise FileExistsError(f"{path} exists and is not empty; choose a new folder")
+    if not path.is_dir():
+        return None
+    kind = (_read_dict(path / "meta.json") or {}).get("kind")
+    if kind in KINDS:
+        return kind
+    if (path / "result.json").is_file():
+        return "simulate"
+    if (path / "model.safetensors").is_file() and (path / "history.json").is_file():
+        return "train"
+    config = _read_dict(path / "config.json") or {}
+    if "studies" in config or (path / "study.db").is_file():
+        return "optimize"
+    if {"space", "sampler"} <= set(config) or (path / "records").is_dir():
+        return "sweep"  # also a folder holding only the records of a sweep (README)
+    return None
+
+
+def _check_parents(path: Path, option: str) -> None:
+    from .errors import DesignError
+
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise DesignError(option, f"{parent} is a file, not a folder")
+            return
+
+
+def check_folder_kind(path: str | Path, kind: str, option: str = "--out") -> None:
+    """Refuse ``path`` in one line (``DesignError`` naming ``option``) unless it is absent,
+    empty, or a folder of ``kind`` (``KINDS``): a command never writes into another command's
+    folder, or into a folder of other files."""
+    from .errors import DesignError
+
+    path = Path(path)
+    _check_parents(path, option)
+    if not path.exists():
+        return
+    if not path.is_dir():
+        raise DesignError(option, f"{path} is a file, not a folder")
+    if not any(path.iterdir()):
+        return
+    found = folder_kind(path)
+    if found == kind:
+        return
+    what = f"a {KINDS[found]}" if found else "files no fingertip command made"
+    raise DesignError(option, f"{path} holds {what}, not a {KINDS[kind]}; choose another folder")
+
+
+def check_new_folder(path: str | Path) -> None:
+    """Raise ``FileExistsError`` if ``path`` exists and is not an empty folder (runs never
+    overwrite)."""
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise FileExistsError(f"{path} is a file, not a folder; choose a new folder")
+    if path.exists() and any(path.iterdir()):
+        found = folder_kind(path)
+        what = f" (a {KINDS[found]})" if found else ""
+        raise FileExistsError(f"{path} exists and is not empty{what}; choose a new folder")
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise FileExistsError(f"{parent} is a file, not a folder; choose a new folder")
+            break
 
 
 @contextmanager

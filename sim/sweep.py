@@ -23,24 +23,26 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.stats import qmc
 
 from .errors import DesignError, SimulationError
+from .materials import Material, UserCatalogue, catalogue_from_tables, material_tables
 from .options import apply_overrides
 from .protocols import profile_summary
-from .provenance import provenance, write_json
+from .provenance import check_folder_kind, provenance, write_json
 from .simulate import METRICS, SOLVER_VERSION, SimOptions, diagnostic_names, simulate
 from .space import DesignSpace, point_to_design, space_from_dict
 
 __all__ = [
     "SweepSummary",
+    "catalogue_hashes",
+    "default_workers",
     "evaluate_point",
     "json_safe",
     "options_from_dict",
@@ -50,6 +52,17 @@ __all__ = [
 ]
 
 SAMPLERS = ("sobol", "lhs")
+
+
+def default_workers() -> int:
+    """The default number of FE processes of ``sweep``, ``run`` and ``optimize``: one per core
+    this process may use (2 on the project's machines). One design's FE is solved on one core
+    (qdldl's sparse LDLᵀ is serial), so one process per core keeps every core busy and more only
+    share them; the answer never depends on it (each design is simulated alone)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - platforms without sched_getaffinity
+        return max(1, os.cpu_count() or 1)
 
 
 @dataclass(frozen=True)
@@ -67,6 +80,8 @@ class SweepSummary:
 
 def sample_points(space: DesignSpace, n: int, seed: int, sampler: str = "sobol") -> list[dict]:
     """``n`` space-filling design points (deterministic in seed; Sobol prefixes nest)."""
+    from scipy.stats import qmc  # here: `import sim.sweep` stays light for the CLI
+
     d = len(space.sampled)
     if d == 0:
         unit = np.zeros((n, 0))
@@ -81,20 +96,33 @@ def sample_points(space: DesignSpace, n: int, seed: int, sampler: str = "sobol")
     return [space.point(row) for row in unit]
 
 
-def record_key(point: dict[str, Any], options: SimOptions) -> str:
-    """Hash of the design (as built), the simulation options and the solver version."""
-    design = point_to_design(point).to_dict()
+def record_key(
+    point: dict[str, Any], options: SimOptions, catalogue: Mapping[str, Material] | None = None
+) -> str:
+    """Hash of the design (as built; a user material by its whole table, not its name), the
+    simulation options and the solver version."""
+    design = point_to_design(point, catalogue).to_dict()
     payload = {"design": design, "options": dataclasses.asdict(options), "solver": SOLVER_VERSION}
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
 
 
-def evaluate_point(point: dict[str, Any], options_dict: dict[str, Any]) -> dict[str, Any]:
-    """Simulate one design point; never raises (failures are records with a reason)."""
+def evaluate_point(
+    point: dict[str, Any],
+    options_dict: dict[str, Any],
+    materials: dict[str, dict[str, Any]] | None = None,
+) -> dict[str, Any]:
+    """Simulate one design point; never raises (failures are records with a reason).
+
+    ``materials``: the user catalogue materials the point may name, as tables
+    (``sim.materials.material_tables``): passed explicitly, so that a worker process sees
+    them whatever it inherited from its parent.
+    """
     options = options_from_dict(options_dict)
     t0 = time.perf_counter()
     record: dict[str, Any] = {"params": _jsonable(point), "solver_version": SOLVER_VERSION}
     try:
-        design = point_to_design(point)
+        catalogue = catalogue_from_tables(materials) if materials else None
+        design = point_to_design(point, catalogue)
         res = simulate(design, options=options)
     except (DesignError, SimulationError, ArithmeticError, ValueError, RuntimeError) as exc:
         record.update(status="failed", reason=f"{type(exc).__name__}: {exc}", metrics={})
@@ -242,17 +270,57 @@ def _config(space: DesignSpace, n: int, seed: int, sampler: str, options: SimOpt
     }
 
 
+#: what a sweep's config field is called in an error message
+_FIELD_WORDS = {
+    "space": "another design space",
+    "seed": "another --seed",
+    "sampler": "another --sampler",
+    "options": "other simulation options (--set)",
+    "solver_version": "another solver version",
+}
+
+
 def _check_config(folder: Path, config: dict) -> None:
+    """A folder is resumed only with the configuration it was made with; ``--n`` may grow (a
+    larger Sobol sample extends the smaller one) but never shrink: a smaller ``--n`` is refused,
+    so the table always lists every design the folder holds."""
     path = folder / "config.json"
     if not path.exists():
         return
-    old = json.loads(path.read_text())
-    for field in ("space", "seed", "sampler", "options", "solver_version"):
+    try:
+        old = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DesignError(
+            "--out", f"{path} is not readable JSON ({exc}); choose a new folder"
+        ) from None
+    for field, words in _FIELD_WORDS.items():
         if old.get(field) != json.loads(json.dumps(config[field])):
             raise DesignError(
                 "--out",
-                f"{folder} holds a sweep with a different {field}; resume it with the same "
-                "arguments (only --n may grow) or choose a new folder",
+                f"{folder} holds a sweep with {words}; resume it with the same arguments "
+                "(only --n may grow) or choose a new folder",
+            )
+    if catalogue_hashes(old) != catalogue_hashes(config):
+        raise DesignError(
+            "--catalogue",
+            f"{folder} holds a sweep made with other --catalogue files (by content: sha256 "
+            f"{catalogue_hashes(old) or 'none'}); resume it with the same files or choose a "
+            "new folder",
+        )
+    n_old = old.get("n")
+    if isinstance(n_old, int) and config["n"] != n_old:
+        if config["sampler"] != "sobol":
+            raise DesignError(
+                "--n",
+                f"{folder} holds a {config['sampler']} sweep of {n_old} designs; --n cannot "
+                f"change with --sampler {config['sampler']} (a sample of another size is "
+                f"another sample), got {config['n']}",
+            )
+        if config["n"] < n_old:
+            raise DesignError(
+                "--n",
+                f"{folder} holds a sweep of {n_old} designs; --n may only grow, got "
+                f"{config['n']} (use --n {n_old} to resume it)",
             )
 
 
@@ -269,21 +337,31 @@ def run_sweep(
     retry_failed: bool = False,
     progress: bool = True,
     on_record: Callable[[str, dict], None] | None = None,
+    catalogues: Sequence[UserCatalogue] = (),
 ) -> SweepSummary:
-    """Evaluate ``n`` sampled designs of ``space`` into the folder ``out`` (resumable)."""
+    """Evaluate ``n`` sampled designs of ``space`` into the folder ``out`` (resumable).
+
+    ``catalogues``: the user's ``--catalogue`` files, recorded (path, sha256) in config.json; a
+    resume with other files is refused. The user materials the space names travel with it
+    (``space.materials``) to the worker processes."""
     if n < 1:
         raise DesignError("--n", f"must be >= 1, got {n}")
     if workers < 1:
         raise DesignError("--workers", f"must be >= 1, got {workers}")
     options = options or SimOptions()
     folder = Path(out)
+    check_folder_kind(folder, "sweep")  # never into another command's folder
     config = _config(space, n, seed, sampler, options)
+    if catalogues:  # the --catalogue files, for the record (the space holds their materials)
+        config["catalogues"] = [c.record() for c in catalogues]
     _check_config(folder, config)
     points = sample_points(space, n, seed, sampler)
-    keys = [record_key(p, options) for p in points]
+    keys = [record_key(p, options, space.catalogue) for p in points]
+    materials = material_tables({str(m.name): m for m in space.materials}) or None
+    client = _connect(scheduler) if scheduler else None  # refused before the folder is made
     folder.mkdir(parents=True, exist_ok=True)
     write_json(folder / "config.json", json.loads(json.dumps(config)))
-    write_json(folder / "meta.json", provenance(config, seed))
+    write_json(folder / "meta.json", provenance(config, seed, kind="sweep"))
     store = SweepStore(folder)
     done = store.load()
     todo = []
@@ -310,13 +388,13 @@ def run_sweep(
             on_record(key, record)
 
     try:
-        if scheduler:
-            _run_dask(scheduler, todo, options_dict, store_result)
+        if client is not None:
+            _run_dask(client, todo, options_dict, store_result, materials)
         elif workers == 1:
             for key, point in todo:
-                store_result(key, evaluate_point(point, options_dict))
+                store_result(key, evaluate_point(point, options_dict, materials))
         else:
-            _run_local(workers, todo, options_dict, store_result)
+            _run_local(workers, todo, options_dict, store_result, materials)
     finally:
         bar.close()
         store.consolidate(keys, space.names)
@@ -339,13 +417,19 @@ def _progress(total: int, enabled: bool):
     return tqdm(total=total, desc="sweep", unit="design", disable=not enabled, smoothing=0.1)
 
 
-def _run_local(workers: int, todo: Iterable, options_dict: dict, store_result: Callable) -> None:
+def _run_local(
+    workers: int,
+    todo: Iterable,
+    options_dict: dict,
+    store_result: Callable,
+    materials: dict | None = None,
+) -> None:
     """Local processes; the parent keeps at most 2 x workers designs in flight."""
     items = iter(todo)
     with ProcessPoolExecutor(max_workers=workers, initializer=_single_thread) as pool:
         pending = {}
         for key, point in items:
-            pending[pool.submit(evaluate_point, point, options_dict)] = key
+            pending[pool.submit(evaluate_point, point, options_dict, materials)] = key
             if len(pending) >= 2 * workers:
                 break
         while pending:
@@ -354,7 +438,7 @@ def _run_local(workers: int, todo: Iterable, options_dict: dict, store_result: C
                 store_result(pending.pop(fut), fut.result())
                 nxt = next(items, None)
                 if nxt is not None:
-                    pending[pool.submit(evaluate_point, nxt[1], options_dict)] = nxt[0]
+                    pending[pool.submit(evaluate_point, nxt[1], options_dict, materials)] = nxt[0]
 
 
 def _single_thread() -> None:
@@ -362,28 +446,42 @@ def _single_thread() -> None:
         os.environ[var] = "1"
 
 
-def _run_dask(address: str, todo: list, options_dict: dict, store_result: Callable) -> None:
-    """A Dask distributed cluster: tasks go to the workers, results come back here."""
+def _connect(address: str):
+    """A client of the Dask distributed scheduler at ``address`` (one error line if there is
+    none)."""
     try:
-        from dask.distributed import Client, as_completed
+        from dask.distributed import Client
     except ImportError:  # pragma: no cover - depends on the installation
         raise DesignError(
             "--scheduler", "needs dask.distributed: pip install 'fingertip[cluster]'"
         ) from None
     try:
-        client = Client(address, timeout="10s")
-    except OSError as exc:
+        return Client(address, timeout="10s")
+    except (OSError, ValueError, TypeError) as exc:
         raise DesignError("--scheduler", f"cannot reach {address}: {exc}") from None
+
+
+def _run_dask(
+    client, todo: list, options_dict: dict, store_result: Callable, materials: dict | None = None
+) -> None:
+    """A Dask distributed cluster: tasks go to the workers, results come back here."""
+    from dask.distributed import as_completed
+
     with client:
         futures = {
             client.submit(
-                evaluate_point, point, options_dict, key=f"fingertip-{key}", pure=False
+                evaluate_point, point, options_dict, materials, key=f"fingertip-{key}", pure=False
             ): key
             for key, point in todo
         }
         for fut in as_completed(futures):
             store_result(futures[fut], fut.result())
             fut.release()
+
+
+def catalogue_hashes(config: Mapping[str, Any]) -> list[str]:
+    """The sorted sha256 of the ``--catalogue`` files a run's config records (none: [])."""
+    return sorted(c["sha256"] for c in config.get("catalogues", []))
 
 
 def load_space_config(folder: Path) -> DesignSpace:

@@ -17,6 +17,10 @@ The displacement reading says how the target displacements were measured: from t
 undeformed top (as the paper reads its simulations) or from the first touch of each tap (as a
 tapping experiment on a finger measures them). ``Targets.metric`` maps each target to the
 simulator metric read the same way, so every comparison is like with like.
+
+Descriptive keys may go with them (``source``, ``note``, ``displacement_reading_rationale``,
+``loading_frequency_Hz``, ``inclination_deg``; ``surface_profile``, ``surface_profile_note``);
+any other table or key is refused with one line naming it (``ALLOWED_KEYS``).
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import numpy as np
 
 from .errors import DesignError, read_toml
 
-__all__ = ["DEFAULT_TARGETS_PATH", "READINGS", "Targets", "load_targets"]
+__all__ = ["ALLOWED_KEYS", "DEFAULT_TARGETS_PATH", "READINGS", "Targets", "load_targets"]
 
 DEFAULT_TARGETS_PATH = Path(__file__).parent / "data" / "human_targets.toml"
 READINGS = {
@@ -42,6 +46,39 @@ READINGS = {
     },
 }
 _TAPPING = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm")
+#: every key a targets file may hold, per table: the target values, how they are read, and
+#: descriptive entries (sources, notes, the conditions of the experiment). The conditions
+#: (``loading_frequency_Hz``, ``inclination_deg``) document the measurement and do not change
+#: the simulated protocol (that is ``--set tapping.frequency_Hz=...``). Any other key is refused,
+#: as in design and space files: a misspelt target must not leave the default in place.
+ALLOWED_KEYS = {
+    "tapping": (
+        *_TAPPING,
+        "displacement_reading",
+        "displacement_reading_rationale",
+        "loading_frequency_Hz",
+        "inclination_deg",
+        "source",
+        "note",
+    ),
+    "conformance": (
+        "wedge_peak_force_N",
+        "direction",
+        "surface_profile_csv",
+        "surface_profile",
+        "surface_profile_note",
+        "source",
+        "note",
+    ),
+}
+_TEXT_KEYS = (
+    "surface_profile_csv",
+    "displacement_reading_rationale",
+    "source",
+    "note",
+    "surface_profile",
+    "surface_profile_note",
+)
 
 
 @dataclass(frozen=True)
@@ -70,6 +107,7 @@ def load_targets(path: str | Path | None = None) -> Targets:
     """Read and validate a targets file (the human fingertip when ``path`` is None)."""
     path = DEFAULT_TARGETS_PATH if path is None else Path(path)
     data = read_toml(path, "TARGETS")
+    _check_keys(data)
     tap = data.get("tapping")
     if not isinstance(tap, dict):
         raise DesignError("tapping", "missing: a [tapping] table with the target values")
@@ -95,6 +133,31 @@ def load_targets(path: str | Path | None = None) -> Targets:
         profile = _read_profile(path.parent / conf["surface_profile_csv"])
     sources = {k: v["source"] for k, v in data.items() if isinstance(v, dict) and "source" in v}
     return Targets(values, reading, wedge, profile, sources)
+
+
+def _check_keys(data: dict[str, Any]) -> None:
+    """Refuse any table or key a targets file may not hold (one line naming it and the allowed
+    ones), and descriptive entries of the wrong type."""
+    for table, body in data.items():
+        if table not in ALLOWED_KEYS:
+            what = "table" if isinstance(body, dict) else "key"
+            raise DesignError(
+                table, f"unknown {what}; a targets file holds the tables [tapping], [conformance]"
+            )
+        if not isinstance(body, dict):
+            raise DesignError(table, "must be a table ([tapping], [conformance])")
+        for key, value in body.items():
+            if key not in ALLOWED_KEYS[table]:
+                raise DesignError(
+                    f"{table}.{key}", f"unknown key; allowed: {', '.join(ALLOWED_KEYS[table])}"
+                )
+            if key in _TEXT_KEYS and not isinstance(value, str):
+                raise DesignError(f"{table}.{key}", f"must be text, got {value!r}")
+            if key in ("loading_frequency_Hz", "inclination_deg"):
+                _number(value, f"{table}.{key}")
+    direction = data.get("conformance", {}).get("direction", "lower_is_better")
+    if direction != "lower_is_better":
+        raise DesignError("conformance.direction", f'must be "lower_is_better", got {direction!r}')
 
 
 def _read_profile(path: Path) -> tuple[np.ndarray, np.ndarray]:

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from sim.errors import DesignError, read_toml
+from sim.provenance import KINDS, folder_kind
 from sim.simulate import METRICS, diagnostic_names
 from sim.space import DesignSpace, space_from_dict
 
@@ -224,6 +225,9 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
     config_path, table_path = folder / "config.json", folder / "table.csv"
     if not folder.is_dir():
         raise DesignError("SWEEP", f"no such sweep folder: {folder}")
+    kind = folder_kind(folder)
+    if kind not in ("sweep", None) and not (folder / "table.csv").exists():
+        raise DesignError("SWEEP", f"{folder} holds a {KINDS[kind]}, not a {KINDS['sweep']}")
     if not config_path.exists() or not table_path.exists():
         raise DesignError(
             "SWEEP", f"{folder} has no config.json and table.csv; run `fingertip sweep` first"

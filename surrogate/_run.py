@@ -81,7 +81,7 @@ def train_surrogate(
     split = result.split
     with run_folder(out) as tmp:
         write_json(tmp / "config.json", run_config)
-        write_json(tmp / "meta.json", provenance(run_config, seed))
+        write_json(tmp / "meta.json", provenance(run_config, seed, kind="train"))
         save_checkpoint(result.surrogate, tmp / CHECKPOINT_NAME)
         write_json(
             tmp / "history.json",

@@ -9,7 +9,7 @@ thread count is left as it is; results are bit-identical for a given thread coun
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
@@ -140,11 +140,14 @@ def fit(
     data: SweepData,
     config: TrainConfig = TrainConfig(),
     *,
-    progress: bool = True,
+    progress: bool | Callable[[int], None] = True,
     split: Split | None = None,
     init: Surrogate | None = None,
 ):
     """Train an ensemble on ``data`` (a sweep) and return a ``FitResult``.
+
+    ``progress``: True shows a bar of the epochs, False nothing; a callable is called with 1
+    after each epoch instead (the caller's own bar: ``fingertip run``'s retraining).
 
     ``split``: row positions of train/validation/test (default: a random split from the seed
     and ``config.fractions``). ``init``: warm start from a trained surrogate with the same
@@ -208,9 +211,10 @@ def fit(
             range(config.max_epochs),
             desc="train",
             unit="epoch",
-            disable=not progress,
+            disable=progress is not True,
             mininterval=0.5,
         )
+        tick = progress if callable(progress) else None
         for epoch in bar:
             model.train()
             order = torch.argsort(torch.rand(members, n, generator=gen), dim=1)
@@ -237,6 +241,8 @@ def fit(
             history["train_nll"].append(float((total / steps).mean()))
             history["val_nll"].append(float(val.mean()))
             bar.set_postfix(val_nll=f"{float(best.mean()):.3f}", refresh=False)
+            if tick is not None:
+                tick(1)
             if epoch - int(best_epoch.max()) >= config.patience:
                 break
         bar.close()

@@ -547,3 +547,173 @@ def test_installed_console_script_error(tmp_path: Path) -> None:
     res = run_cli("simulate", "design.toml", cwd=tmp_path, exe=[exe])
     assert res.returncode == 2
     assert_one_line_error(res.stderr, "layers[0].material.nu")
+
+
+# --- each command keeps to its own folders ------------------------------------------------------
+SHIPPED = REPO / "surrogate" / "pretrained" / "default"
+
+
+def _snapshot(folder: Path) -> dict[str, tuple[bytes, int]]:
+    return {
+        str(p.relative_to(folder)): (p.read_bytes(), p.stat().st_mtime_ns)
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+def _sweep_copy(tmp_path: Path) -> Path:
+    """A sweep folder: the shipped training sweep's config.json and first rows."""
+    folder = tmp_path / "sweep"
+    folder.mkdir()
+    shutil.copy(SHIPPED / "config.json", folder / "config.json")
+    lines = (SHIPPED / "table.csv").read_text().splitlines(keepends=True)[:6]
+    (folder / "table.csv").write_text("".join(lines))
+    return folder
+
+
+@pytest.mark.parametrize("marker", [True, False])
+def test_a_simulate_folder_is_refused_by_the_other_commands(
+    pu_run, tmp_path: Path, capsys: pytest.CaptureFixture[str], marker: bool
+) -> None:
+    """sweep --out, optimize --out, run --out and report on a `simulate --out` folder: one
+    line each, and the folder keeps every byte (also a folder made before the kind marker,
+    recognised by its result.json)."""
+    res, made = pu_run
+    assert res.returncode == 0, res.stderr
+    out = tmp_path / "pu"
+    shutil.copytree(made, out)
+    meta = json.loads((out / "meta.json").read_text())
+    assert meta["kind"] == "simulate"
+    if not marker:
+        del meta["kind"]
+        (out / "meta.json").write_text(json.dumps(meta))
+    before = _snapshot(out)
+    for argv in (
+        ["sweep", "--n", "2", "--out", str(out)],
+        ["optimize", "--out", str(out)],
+        ["run", "--out", str(out)],
+        ["report", str(out)],
+    ):
+        assert main(argv) == 2, argv
+        line = assert_one_line_error(capsys.readouterr().err, str(out))
+        assert "simulation result" in line, line
+    assert _snapshot(out) == before
+
+
+def test_report_and_optimize_refuse_a_sweep_folder(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    folder = _sweep_copy(tmp_path)
+    before = _snapshot(folder)
+    assert main(["report", str(folder)]) == 2
+    line = assert_one_line_error(capsys.readouterr().err, str(folder))
+    assert "sweep" in line and "nothing written" in line
+    assert main(["optimize", "--out", str(folder)]) == 2
+    assert "holds a sweep" in assert_one_line_error(capsys.readouterr().err, "--out")
+    assert _snapshot(folder) == before
+    assert not (folder / "figures").exists() and not (folder / "report.md").exists()
+
+
+def test_report_on_a_damaged_run_folder_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "meta.json").write_text(json.dumps({"kind": "optimize"}))
+    (run / "config.json").write_text("{not json")
+    assert main(["report", str(run)]) == 2
+    assert "not readable JSON" in assert_one_line_error(capsys.readouterr().err, "config.json")
+    # the same folder refuses a resume in one line too
+    assert main(["optimize", "--out", str(run)]) == 2
+    assert "not readable JSON" in assert_one_line_error(capsys.readouterr().err, "config.json")
+
+
+def test_sweep_out_on_another_kind_of_folder(tmp_path: Path, capsys) -> None:
+    opt = tmp_path / "opt"
+    opt.mkdir()
+    (opt / "config.json").write_text(json.dumps({"studies": []}))  # a search run's config
+    other = tmp_path / "mine"
+    other.mkdir()
+    (other / "notes.txt").write_text("mine")
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    for out, words in (
+        (opt, "holds a search run"),
+        (other, "holds files no fingertip command made"),
+        (afile, "is a file, not a folder"),
+        (afile / "below", "is a file, not a folder"),
+    ):
+        assert main(["sweep", "--n", "1", "--out", str(out)]) == 2
+        line = assert_one_line_error(capsys.readouterr().err, "--out")
+        assert words in line and "Errno" not in line, line
+    assert (other / "notes.txt").read_text() == "mine" and len(list(other.iterdir())) == 1
+    assert afile.read_text() == ""
+
+
+def test_an_empty_file_as_out_is_called_a_file(tmp_path: Path, capsys) -> None:
+    afile = tmp_path / "empty"
+    afile.write_text("")
+    code = main(["simulate", "--material", "silicone_gls40", "--out", str(afile)])
+    assert code == 2
+    line = assert_one_line_error(capsys.readouterr().err, str(afile))
+    assert "is a file, not a folder" in line and "not empty" not in line
+
+
+# --- the search is refused before any work, and leaves no folder ----------------------------------
+@pytest.mark.parametrize(
+    ("url", "words"),
+    [
+        ("notaurl", "is not a database URL"),
+        ("foo://", "cannot open foo://"),
+        ("postgresql://nobody@127.0.0.1:1/nodb", "cannot open postgresql://"),
+        ("sqlite:////nonexistent/folder/study.db", "cannot open sqlite:////nonexistent"),
+    ],
+)
+def test_a_bad_storage_url_is_refused_before_any_work(
+    url: str, words: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = tmp_path / "run"
+    assert main(["optimize", "--storage", url, "--out", str(out), "--no-progress"]) == 2
+    line = assert_one_line_error(capsys.readouterr().err, "--storage")
+    assert words in line, line
+    assert not out.exists()  # so the corrected command is not refused as "another storage"
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_run_from_scratch_checks_its_inputs_before_the_sweep(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    targets = tmp_path / "t.toml"
+    targets.write_text("[tapping]\ndisp_at_1N_mm = 1.8\ndisp_at_4N_mm = 2.9\nhysteresis = 2\n")
+    out = tmp_path / "main"
+    for argv, field in (
+        (["--targets", str(targets)], "tapping.hysteresis"),
+        (["--storage", "notaurl"], "--storage"),
+        (["--space", str(tmp_path / "missing.toml")], "SPACE"),
+        (["--trials", "0"], "--trials"),
+    ):
+        code = main(["run", "--from-scratch", "--n", "2", "--out", str(out), *argv])
+        assert code == 2, argv
+        assert_one_line_error(capsys.readouterr().err, field)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["t.toml"]  # no sweep, no run folder
+
+
+# --- one --workers default, documented seeds ----------------------------------------------------
+def test_one_workers_default_and_every_seed_documented() -> None:
+    from explore._pipeline import OptimizeConfig
+    from explore.cli import build_parser
+    from sim.sweep import default_workers
+
+    parser = build_parser()
+    sub = next(
+        a for a in parser._actions if isinstance(a, __import__("argparse")._SubParsersAction)
+    )
+    n = default_workers()
+    assert n >= 1 and OptimizeConfig().workers == n
+    assert parser.parse_args(["sweep", "--n", "1", "--out", "x"]).workers == n
+    for name in ("sweep", "optimize", "run"):
+        helps = {a.dest: a.help or "" for a in sub.choices[name]._actions}
+        assert f"default {n}:" in helps["workers"], (name, helps["workers"])
+    for name in ("sweep", "train", "optimize", "run"):
+        helps = {a.dest: a.help or "" for a in sub.choices[name]._actions}
+        assert "seed" in helps["seed"] and "default" in helps["seed"], name

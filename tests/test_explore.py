@@ -8,6 +8,7 @@ import dataclasses
 import json
 import math
 import os
+import shutil
 import signal
 import sqlite3
 import subprocess
@@ -346,29 +347,156 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     report = (out / "report.md").read_text()
     assert "figures/loops.png" in report or "figures/" in report
     assert (out / "figures").is_dir() and any((out / "figures").glob("*.png"))
-    # re-running the finished command computes nothing new and gives the same answer
-    mtimes = {p: p.stat().st_mtime_ns for p in (out / "fe").rglob("*.json")}
+    # re-running the finished command computes nothing and rewrites nothing: every file keeps
+    # its bytes and its modification time (summary.json its first wall_time_s), the same report
+    before = _snapshot(out)
     proc = _run(_optimize_args(tiny_model, out, 60))
     assert proc.returncode == 0, proc.stderr
-    assert {p: p.stat().st_mtime_ns for p in (out / "fe").rglob("*.json")} == mtimes
-    again = json.loads((out / "summary.json").read_text())
-    assert again["answers"]["best"]["fe_score"] == best["fe_score"]
+    after = _snapshot(out)
+    assert after.keys() == before.keys()
+    changed = sorted(str(p.relative_to(out)) for p in before if after[p] != before[p])
+    assert not changed, f"rewritten by the re-run: {changed}"
+    assert proc.stdout.splitlines()[-1] == f"report: {out / 'report.md'}"
+    # the other commands refuse the run folder, in one line, writing nothing
+    for argv, words in (
+        (["sweep", "--n", "2", "--out", str(out)], "holds a search run"),
+        (["train", str(out), "--out", str(tmp_path / "model")], "holds a search run"),
+        (["simulate", "--material", "silicone_gls40", "--out", str(out)], "not empty"),
+    ):
+        proc = _run(argv)
+        assert proc.returncode == 2 and words in proc.stderr, (argv, proc.stderr)
+        assert len(proc.stderr.splitlines()) == 1 and "Traceback" not in proc.stderr
+    assert _snapshot(out) == before and not (tmp_path / "model").exists()
+
+
+def _snapshot(folder: Path) -> dict[Path, tuple[bytes, int]]:
+    """Every file of ``folder``: its bytes and modification time."""
+    return {
+        p: (p.read_bytes(), p.stat().st_mtime_ns) for p in sorted(folder.rglob("*")) if p.is_file()
+    }
 
 
 def _layers(design: dict) -> list[dict]:
     return design.get("layers", [])
 
 
-def _stored_trials(db: Path) -> int:
-    """Finished trials in an Optuna SQLite file, read with plain SQL (0 while it has none)."""
+def _stored_trials(db: Path, study: str | None = None) -> int:
+    """Finished trials in an Optuna SQLite file (of one study, or of all), read with plain SQL
+    (0 while it has none)."""
     if not db.exists():
         return 0
+    sql = "SELECT COUNT(*) FROM trials JOIN studies USING (study_id) WHERE state IN "
+    sql += "('COMPLETE', 'FAIL')" + (" AND study_name = ?" if study else "")
     try:
         with closing(sqlite3.connect(db, timeout=5)) as con:
-            sql = "SELECT COUNT(*) FROM trials WHERE state IN ('COMPLETE', 'FAIL')"
-            return con.execute(sql).fetchone()[0]
+            return con.execute(sql, (study,) if study else ()).fetchone()[0]
     except sqlite3.Error:  # the schema is not written yet, or the file is busy
         return 0
+
+
+def _kill_when(args: list[str], db: Path, study: str, low: int, high: int) -> int:
+    """Start ``args`` and kill -9 it once ``study`` holds between ``low`` and ``high`` finished
+    trials; returns how many it holds then."""
+    proc = subprocess.Popen(args, cwd=REPO, env=_env(), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)  # fmt: skip
+    stored = 0
+    deadline = time.monotonic() + 600
+    while time.monotonic() < deadline and proc.poll() is None and not low <= stored < high:
+        time.sleep(0.05)
+        stored = _stored_trials(db, study)  # a cheap read, so the kill lands right after a flush
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    return _stored_trials(db, study)
+
+
+def _without(d: dict, *keys: str) -> dict:
+    return {k: v for k, v in d.items() if k not in keys}
+
+
+def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
+    """kill -9 during round 2's search, after round 1's FE and retraining; the same command
+    then ends exactly where an uninterrupted run ends: the same trials, candidates, FE
+    confirmations, retrained surrogate, answer, report and figures."""
+    from surrogate import load_checkpoint
+
+    n = 300
+    ref, out = tmp_path / "ref" / "opt", tmp_path / "killed" / "opt"
+    proc = _run(_optimize_args(tiny_model, ref, n))
+    assert proc.returncode == 0, proc.stderr
+    args = [sys.executable, "-m", "explore.cli", *_optimize_args(tiny_model, out, n)]
+    stored = _kill_when(args, out / "study.db", "fingertip-r1-continuous", 128, n)
+    assert 128 <= stored < n, f"could not catch round 2's search mid-way ({stored} trials)"
+    assert not (out / "summary.json").exists()
+    proc = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=900,
+                          env=_env())  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+
+    def same_bytes(name: str) -> None:
+        a, b = (ref / name).read_bytes(), (out / name).read_bytes()
+        assert a == b.replace(str(out).encode(), str(ref).encode()), f"{name} differs"
+
+    files = sorted(str(p.relative_to(ref)) for p in ref.rglob("*") if p.is_file())
+    assert files == sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
+    # byte for byte: everything but the files that record when or how long (checked below)
+    timed = ("meta.json", "summary.json", "study.db", "surrogates/", "fe/")
+    for name in files:
+        if not name.startswith(timed):
+            same_bytes(name)
+    assert {"trials.csv", "confirmations.json", "report.md", "config.json"} <= set(files)
+    assert "rounds/round-1-candidates.json" in files and "figures/importance.png" in files
+    timing = ("wall_time_s", "timings", "resumed")
+    a, b = (json.loads((d / "summary.json").read_text()) for d in (ref, out))
+    assert _without(a, *timing) == _without(b, *timing) and b["resumed"] and not a["resumed"]
+    assert len(a["rounds"]) == 2
+    # FE records: the same results (only the time each took differs)
+    rec_a, rec_b = (sorted((d / "fe").rglob("*.json")) for d in (ref, out))
+    assert [p.relative_to(ref) for p in rec_a] == [p.relative_to(out) for p in rec_b]
+    for pa, pb in zip(rec_a, rec_b, strict=True):
+        ra, rb = json.loads(pa.read_text()), json.loads(pb.read_text())
+        assert _without(ra, "wall_time_s") == _without(rb, "wall_time_s"), pa.name
+    # the surrogate retrained after round 1: the same weights and header (but its date)
+    ma, mb = (load_checkpoint(d / "surrogates" / "round-1.safetensors") for d in (ref, out))
+    sa, sb = ma.model.state_dict(), mb.model.state_dict()
+    assert sa.keys() == sb.keys() and all(torch_equal(sa[k], sb[k]) for k in sa)
+    assert _without(ma.header, "created_utc", "sha256") == _without(
+        mb.header, "created_utc", "sha256"
+    )
+    # every study holds the same trials
+    cfg = json.loads((ref / "config.json").read_text())
+    for st in cfg["studies"]:
+        ta, tb = (optuna.load_study(study_name=st["name"], storage=f"sqlite:///{d}/study.db")
+                  .trials for d in (ref, out))  # fmt: skip
+        assert [(t.params, t.values) for t in ta] == [(t.params, t.values) for t in tb]
+
+
+def torch_equal(a, b) -> bool:
+    import torch
+
+    return bool(torch.equal(a, b))
+
+
+@pytest.mark.parametrize("mode", ["single", "multi"])
+def test_a_study_cut_anywhere_resumes_to_the_same_trials(tiny_model, mode):
+    """Optuna stores the trials of a flush one by one, so a kill may cut a batch anywhere: the
+    resumed study asks the cut batch again and holds exactly the uninterrupted study's trials."""
+    from explore._search import run_study
+    from surrogate import load_checkpoint
+
+    model = load_checkpoint(tiny_model)
+    settings = SearchSettings(trials=150, mode=mode, seed=3)
+    targets = load_targets()
+
+    def search(study) -> list:
+        run_study(study, model, model.space, targets, settings, round_=0, search="continuous")
+        return [(t.number, t.params, t.values, t.state) for t in study.trials]
+
+    whole = create_study(None, "whole", settings)
+    reference = search(whole)
+    assert len(reference) == 150
+    for cut in (0, 16, 37, 130):  # at a batch boundary, inside a batch, inside a later one
+        study = create_study(None, f"cut{cut}", settings)
+        study.add_trials(whole.trials[:cut])
+        assert search(study) == reference, cut
 
 
 def test_search_resumes_after_kill(tiny_model, tmp_path):
@@ -412,6 +540,44 @@ def test_optimize_bad_input_is_one_line(tiny_model, tmp_path, capsys):
                              "--out", str(tmp_path / "y")])  # fmt: skip
     err = capsys.readouterr().err
     assert code == 2 and "geometry.height_mm" in err and err.count("\n") == 1
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()  # no folder left
+
+
+def test_a_smaller_n_is_refused_and_the_table_stays(tiny_model, tmp_path, capsys):
+    """A sweep folder of N designs: --n may only grow (a smaller one would drop rows from
+    table.csv); with a Latin hypercube, whose samples of two sizes differ, it may not change."""
+    root = tiny_model.parent.parent
+    sweep, space = root / "sweep", root / "space.toml"
+    table = (sweep / "table.csv").read_bytes()
+    code = explore.cli.main(["sweep", str(space), "--n", "5", "--out", str(sweep), *FAST])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and "Traceback" not in err
+    assert "holds a sweep of 10 designs; --n may only grow, got 5" in err
+    assert (sweep / "table.csv").read_bytes() == table
+    other = [*FAST[:-1], "wedge.hold_s=6"]  # another --set: named in words
+    assert explore.cli.main(["sweep", str(space), "--n", "10", "--out", str(sweep), *other]) == 2
+    err = capsys.readouterr().err
+    assert "holds a sweep with other simulation options (--set)" in err and err.count("\n") == 1
+    assert (sweep / "table.csv").read_bytes() == table
+    lhs = tmp_path / "lhs"
+    shutil.copytree(sweep, lhs)
+    cfg = json.loads((lhs / "config.json").read_text())
+    (lhs / "config.json").write_text(json.dumps({**cfg, "sampler": "lhs"}))
+    argv = ["sweep", str(space), "--n", "12", "--out", str(lhs), "--sampler", "lhs", *FAST]
+    assert explore.cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--n cannot change with --sampler lhs" in err and err.count("\n") == 1
+
+
+def test_retraining_reports_every_epoch_to_its_progress_bar(tiny_model):
+    """fingertip run's retraining drives a bar through a callback (the library prints nothing)."""
+    from explore._pipeline import retrain
+    from surrogate import load_checkpoint
+
+    ticks: list[int] = []
+    model = load_checkpoint(tiny_model)
+    retrain(model, tiny_model.parent.parent / "sweep", [], 6, 0, progress=ticks.append)
+    assert ticks == [1] * 6
 
 
 def test_report_of_a_folder_that_is_not_a_run_is_one_line(tmp_path, capsys):

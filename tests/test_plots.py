@@ -448,3 +448,84 @@ def test_an_empty_run_folder_does_not_crash(tmp_path: Path) -> None:
     text = write_report(tmp_path).read_text()
     assert "No summary.json" in text and "(figures/parity.png)" in text
     assert not (tmp_path / "study.db").exists()
+
+
+# ---------------------------------------------------------------------------------------------
+# Legibility: labels that do not overlap, titles inside the figure, one direction of deflection
+# ---------------------------------------------------------------------------------------------
+
+
+def _text_boxes(fig, texts):
+    """The boxes of the texts themselves (an annotation's own extent includes its line)."""
+    from matplotlib.text import Text
+
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    return [Text.get_window_extent(t, renderer) for t in texts if t.get_text()]
+
+
+def _overlap(a, b) -> bool:
+    return a.x0 < b.x1 and b.x0 < a.x1 and a.y0 < b.y1 and b.y0 < a.y1
+
+
+def test_spread_labels_keeps_order_and_gap_and_stays_close() -> None:
+    from explore._plots import spread_labels
+
+    wanted = np.array([0.50, 0.51, 0.10, 0.505, 0.99, 0.98])
+    got = spread_labels(wanted, gap=0.05)
+    order = np.argsort(wanted, kind="stable")
+    assert np.all(np.diff(got[order]) >= 0.05 - 1e-12)  # the gap, in the wanted order
+    assert got.min() >= 0.0 and got.max() <= 1.0
+    assert got[2] == pytest.approx(0.10)  # alone: exactly where it wanted to be
+    assert np.max(np.abs(got - wanted)) < 0.1  # the crowded ones moved by a few gaps only
+
+
+def test_pareto_labels_of_coinciding_designs_do_not_overlap(run_dir: Path) -> None:
+    """Confirmed designs that sit (almost) on top of each other get legible labels."""
+    from explore._plots import render_pareto
+
+    info = pareto_info(load_run(run_dir))
+    close = np.array([[0.5, 0.8, 0.2], [0.501, 0.801, 0.3], [0.5, 0.799, 0.4], [0.05, 0.3, 1.0]])
+    labels = ("uncertain r1/t18", "uncertain r0/t9", "best r2/t7", "buildable r0/t3")
+    crowded = dataclasses.replace(info, confirmed=close, confirmed_labels=labels)
+    fig = render_pareto(crowded)
+    ax = fig.axes[0]
+    texts = [t for t in ax.texts if t.get_text() in labels]
+    assert sorted(t.get_text() for t in texts) == sorted(labels)
+    boxes = _text_boxes(fig, texts)
+    assert not any(_overlap(a, b) for a, b in itertools.combinations(boxes, 2))
+    page = fig.bbox
+    assert all(page.x0 <= b.x0 and b.x1 <= page.x1 and page.y0 <= b.y0 for b in boxes)
+
+
+def test_importance_title_fits_the_figure() -> None:
+    from explore._plots import ImportanceInfo, render_importance
+
+    info = ImportanceInfo(
+        ("geometry.height_mm", "core.tau_s", "skin.thickness_mm"),
+        (0.5, 0.3, 0.2),
+        "a-rather-long-study-prefix-r0-continuous",
+        3000,
+    )
+    fig = render_importance(info)
+    (box,) = _text_boxes(fig, [fig.axes[0].title])
+    page = fig.bbox
+    assert page.x0 <= box.x0 and box.x1 <= page.x1 and box.y1 <= page.y1
+
+
+def test_wedge_profiles_point_down_in_the_report_as_in_simulate(run_dir: Path) -> None:
+    """The surface-deflection profile is drawn the same way up by `fingertip simulate --out`
+    (sim.output) and by the report: deflection downward."""
+    from types import SimpleNamespace
+
+    from explore._plots import render_wedge, wedge_info
+    from sim.output import curve_plot_data
+
+    record = json.loads(next((run_dir / "fe" / "records").glob("*.json")).read_text())
+    simulate = curve_plot_data(SimpleNamespace(curves=record["curves"]))["profile"]
+    fig = render_wedge(wedge_info(load_run(run_dir)))
+    profile_axes = fig.axes[1:3]
+    assert simulate["invert_y"] is True
+    assert all(ax.yaxis_inverted() for ax in profile_axes)
+    assert all("downward" in ax.get_ylabel() for ax in profile_axes)
+    assert "downward" in simulate["ylabel"]

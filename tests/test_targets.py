@@ -77,3 +77,53 @@ def test_missing_or_bad_values(tmp_path):
     with pytest.raises(DesignError) as exc:
         load_targets(p)
     assert exc.value.field == "tapping.disp_at_4N_mm"
+
+
+@pytest.mark.parametrize(
+    ("extra", "conf", "top", "field", "listed"),
+    [
+        ("", "", "softness_index = 3.0", "softness_index", "[tapping], [conformance]"),
+        ("plate_force_at_1mm_N = 1.0", "", "", "tapping.plate_force_at_1mm_N", "disp_at_1N_mm"),
+        ("disp_at_1n_mm = 1.83", "", "", "tapping.disp_at_1n_mm", "hysteresis_Nmm"),
+        ("", "wedge_force_N = 0", "", "conformance.wedge_force_N", "wedge_peak_force_N"),
+        ("", "", "[compliance]\nx = 1", "compliance", "[tapping], [conformance]"),
+        ("source = 3", "", "", "tapping.source", "must be text"),
+        ('loading_frequency_Hz = "fast"', "", "", "tapping.loading_frequency_Hz", "number"),
+        ("", 'direction = "higher_is_better"', "", "conformance.direction", "lower_is_better"),
+    ],
+)  # fmt: skip
+def test_unknown_keys_are_refused_naming_the_key_and_the_allowed_ones(
+    tmp_path, extra, conf, top, field, listed
+):
+    """A misspelt or foreign key is never ignored (the default would silently stay)."""
+    p = tmp_path / "t.toml"
+    p.write_text(top + "\n" + BASE.format(extra=extra, conf=conf))
+    with pytest.raises(DesignError) as exc:
+        load_targets(p)
+    assert exc.value.field == field
+    assert listed in exc.value.message, exc.value.message
+
+
+def test_the_shipped_targets_file_uses_only_allowed_keys():
+    import tomllib
+
+    from sim.targets import ALLOWED_KEYS, DEFAULT_TARGETS_PATH
+
+    data = tomllib.loads(DEFAULT_TARGETS_PATH.read_text())
+    for table, body in data.items():
+        assert set(body) <= set(ALLOWED_KEYS[table])
+
+
+def test_cli_refuses_an_unknown_target_key_in_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    p = _write(tmp_path, extra="softness = 3.0")
+    proc = subprocess.run(
+        [sys.executable, "-m", "explore.cli", "optimize", "--targets", str(p), "--out",
+         str(tmp_path / "run")], capture_output=True, text=True, timeout=300,
+    )  # fmt: skip
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1 and "tapping.softness" in lines[0] and "allowed:" in lines[0], lines
+    assert not (tmp_path / "run").exists()  # refused before any folder is made
