@@ -762,8 +762,24 @@ def summarise(
         "buildable": _answer(buildable, targets, tol, space, catalogue),
     }
     notes = _notes(answers, targets, tol, rows)
+    if answers["best"] is None:
+        notes = [_no_answer(confirmations)]
     notes += material_notes(answers, catalogue or space.catalogue, tol)
     return Summary(answers, dict(targets.values), tol, rounds, notes)
+
+
+def _no_answer(confirmations: list[Confirmation]) -> str:
+    """Why there is no best design: the FE failed, or no FE result could be trusted."""
+    ran = [c for c in confirmations if c.status == "ok"]
+    if not ran:
+        return "no design was confirmed by FE (every confirmation failed)"
+    unsettled = sum(c.diagnostics.get("settled") is False for c in ran)
+    invalid = sum(c.diagnostics.get("valid") is False for c in ran)
+    return (
+        f"no trusted answer: of {len(ran)} FE-confirmed designs, {invalid} went beyond the "
+        f"validity limits and {unsettled} did not reach their periodic state (see "
+        "confirmations.json, `diagnostics`; `--set validity.*` widens the limits)"
+    )
 
 
 def _notes(

@@ -233,6 +233,10 @@ def test_an_untrusted_fe_result_is_never_an_answer():
     )
     assert summary.answers["best"]["fe_record"] == "fe/records/c.json"
     assert summary.answers["best"]["diagnostics"] == {"settled": True, "valid": True}
+    # with no trusted result there is no answer, and the note says why
+    none = summarise([perfect_but_unsettled, perfect_but_invalid], targets, 0.05, [], [], space)
+    assert none.answers["best"] is None
+    assert "1 went beyond the validity limits and 1 did not reach" in none.notes[0]
 
 
 def test_confirm_reuses_existing_fe_records(tmp_path, monkeypatch):
