@@ -770,7 +770,7 @@ def summarise(
 
 def _no_answer(confirmations: list[Confirmation]) -> str:
     """Why there is no best design: the FE failed, or no FE result could be trusted."""
-    ran = [c for c in confirmations if c.status == "ok"]
+    ran = [c for c in confirmations if c.status == "ok" and c.candidate.search != FE_SEARCH]
     if not ran:
         return "no design was confirmed by FE (every confirmation failed)"
     unsettled = sum(c.diagnostics.get("settled") is False for c in ran)
