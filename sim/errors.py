@@ -30,6 +30,22 @@ class SimulationError(RuntimeError):
         self.reason = reason
 
 
+def read_bytes(path, field: str, kind: str) -> bytes:
+    """The bytes of a file; missing, a directory or unreadable is one ``DesignError`` naming
+    ``field`` (``kind``: what the file should be, e.g. "TOML file", "CSV file")."""
+    from pathlib import Path
+
+    path = Path(path)
+    try:
+        return path.read_bytes()
+    except FileNotFoundError:
+        raise DesignError(field, f"no such file: {path}") from None
+    except IsADirectoryError:
+        raise DesignError(field, f"{path} is a directory, not a {kind}") from None
+    except OSError as exc:
+        raise DesignError(field, f"cannot read {path}: {exc.strerror}") from None
+
+
 def read_toml(path, field: str) -> dict:
     """Parse a TOML file; any failure (missing, a directory, unreadable, not UTF-8, malformed)
     becomes one ``DesignError`` naming ``field`` (e.g. "DESIGN", "SPACE", "TARGETS")."""

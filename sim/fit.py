@@ -68,7 +68,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.special import exprel
 
-from .errors import DesignError
+from .errors import DesignError, read_bytes
 from .materials import LAWS, MAX_PRONY_TERMS, Material, Prony
 from .materials._law import MAX_TERMS
 from .materials._validate import poisson
@@ -144,15 +144,9 @@ def _read_rows(path: str | Path, option: str, kind: str) -> tuple[Array, Array, 
     ``DesignError`` naming ``option``, the file and the line."""
     path = Path(path)
     header = _HEADERS[kind]
+    raw = read_bytes(path, option, "CSV file")
     try:
-        raw = path.read_bytes()
         text = raw.decode("utf-8-sig")
-    except FileNotFoundError:
-        raise DesignError(option, f"no such file: {path}") from None
-    except IsADirectoryError:
-        raise DesignError(option, f"{path} is a directory, not a CSV file") from None
-    except OSError as exc:
-        raise DesignError(option, f"cannot read {path}: {exc.strerror}") from None
     except UnicodeDecodeError:
         raise DesignError(option, f"{path} is not UTF-8 text") from None
     rows = [

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sim.errors import DesignError
+from sim.errors import DesignError, read_bytes
 from sim.materials._material import Material, material_from_table
 
 CATALOGUE_PATH = Path(__file__).resolve().parents[1] / "data" / "materials.toml"
@@ -83,14 +83,7 @@ def read_user_catalogue(path: str | Path, option: str = "--catalogue") -> UserCa
     """Read a user catalogue; every problem is one ``DesignError`` (naming ``option`` for the
     file, ``file:name.key`` for an entry)."""
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise DesignError(option, f"no such file: {path}") from None
-    except IsADirectoryError:
-        raise DesignError(option, f"{path} is a directory, not a TOML file") from None
-    except OSError as exc:
-        raise DesignError(option, f"cannot read {path}: {exc.strerror}") from None
+    raw = read_bytes(path, option, "TOML file")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError:

@@ -84,6 +84,30 @@ def td_tangent(C: Array, W_d: Any, W_tt: Any, W_td: Any, W_dd: Any, out: Array) 
     return out
 
 
+def check_ogden_terms(values: Mapping[str, Any], field: str) -> None:
+    """Admissible Ogden-type terms (``mu_MPa``, ``alpha``, as many of each; every
+    ``alpha != 0``, every ``mu alpha > 0`` for stability, ``sum mu > 0``), errors naming
+    ``f"{field}.key"``; shared by the hyperfoam and the Ogden law."""
+    mu, alpha = values["mu_MPa"], values["alpha"]
+    if len(alpha) != len(mu):
+        raise DesignError(
+            f"{field}.alpha",
+            f"must have as many terms as mu_MPa ({len(mu)}), got {len(alpha)}",
+        )
+    for i, (m, a) in enumerate(zip(mu, alpha, strict=True)):
+        if a == 0.0:
+            raise DesignError(f"{field}.alpha", f"alpha[{i}] must be nonzero, got 0")
+        if not m * a > 0.0:
+            raise DesignError(
+                f"{field}.mu_MPa",
+                f"mu_MPa[{i}] * alpha[{i}] must be > 0 (stability), got {m:g} * {a:g}",
+            )
+    if not sum(mu) > 0.0:
+        raise DesignError(
+            f"{field}.mu_MPa", f"sum (initial shear modulus) must be > 0, got {sum(mu):g}"
+        )
+
+
 def bulk_modulus(mu0: float, nu: float) -> float:
     """Initial bulk modulus ``K = 2 mu0 (1 + nu) / (3 (1 - 2 nu))`` (MPa)."""
     return 2.0 * mu0 * (1.0 + nu) / (3.0 * (1.0 - 2.0 * nu))

@@ -35,9 +35,16 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from sim.errors import DesignError
 from sim.materials import _validate as v
-from sim.materials._law import Array, Law, as_C, list_field, td_stress, td_tangent
+from sim.materials._law import (
+    Array,
+    Law,
+    as_C,
+    check_ogden_terms,
+    list_field,
+    td_stress,
+    td_tangent,
+)
 
 
 def _sinh_ratio(n: float, d: Array) -> Array:
@@ -84,24 +91,7 @@ class Ogden(Law):
 
     @classmethod
     def _check(cls, values: Mapping[str, Any], field: str) -> None:
-        mu, alpha = values["mu_MPa"], values["alpha"]
-        if len(alpha) != len(mu):
-            raise DesignError(
-                f"{field}.alpha",
-                f"must have as many terms as mu_MPa ({len(mu)}), got {len(alpha)}",
-            )
-        for i, (m, a) in enumerate(zip(mu, alpha, strict=True)):
-            if a == 0.0:
-                raise DesignError(f"{field}.alpha", f"alpha[{i}] must be nonzero, got 0")
-            if not m * a > 0.0:
-                raise DesignError(
-                    f"{field}.mu_MPa",
-                    f"mu_MPa[{i}] * alpha[{i}] must be > 0 (stability), got {m:g} * {a:g}",
-                )
-        if not sum(mu) > 0.0:
-            raise DesignError(
-                f"{field}.mu_MPa", f"sum (initial shear modulus) must be > 0, got {sum(mu):g}"
-            )
+        check_ogden_terms(values, field)
         v.poisson(values["nu"], f"{field}.nu")
 
     @property
