@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from sim import METRICS, SimOptions
+from sim.families import is_family
 from sim.materials import CATALOGUE, Material, material_tables
 from sim.space import LAYER_ROLES, DesignSpace, Parameter, active_roles, mask_inactive
 from sim.targets import Targets
@@ -88,8 +89,7 @@ def predictable_materials(trained: DesignSpace) -> set[str]:
         if name in trained.names:
             p = trained[name]
             out |= set(p.choices if p.kind == "choice" else (p.value,))
-    out.discard("param")
-    return out
+    return {m for m in out if not is_family(m)}
 
 
 def screen_space(space: DesignSpace, catalogue: Mapping[str, Material]) -> DesignSpace:

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from sim.families import family_uses, is_family
 from sim.space import PARAM_MATERIAL_KEYS, DesignSpace, Parameter, mask_inactive
 from sim.targets import Targets
 
@@ -95,14 +96,14 @@ class TrialRow:
 
 # ----------------------------------------------------------------------------- spaces
 def catalogue_only(space: DesignSpace) -> DesignSpace:
-    """The space restricted to catalogue materials (no "param"): what can be built today."""
+    """The space restricted to catalogue materials (no family): what can be bought today."""
     params = []
     for p in space.parameters:
         if p.name.endswith(".material") and p.kind == "choice":
             keep = [
                 (c, w)
                 for c, w in zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True)
-                if c != "param"
+                if not is_family(c)
             ]
             if not keep:
                 raise ValueError(f"{p.name}: the space has no catalogue material")
@@ -169,7 +170,7 @@ def _used(space: DesignSpace, point: dict[str, Any], p: Parameter) -> bool:
     if key == "thickness_mm":
         return head != "core"
     if key in PARAM_MATERIAL_KEYS:
-        return point.get(f"{head}.material") == "param"
+        return family_uses(point.get(f"{head}.material"), key)
     return True
 
 

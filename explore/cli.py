@@ -598,7 +598,7 @@ def _add_fit_material(sub) -> None:
     p.add_argument(
         "--relaxation", type=Path, metavar="CSV", help="time_s,g_R (normalised, 1 at t = 0)"
     )
-    p.add_argument("--nu", type=float, help="Poisson's ratio (default 0.49, recorded as assumed)")
+    p.add_argument("--nu", type=float, help="Poisson's ratio (default 0.499, recorded as assumed)")
     p.add_argument("--prony", type=int, help="Prony terms fitted to --relaxation (default 3)")
     p.add_argument(
         "--rate-per-s",

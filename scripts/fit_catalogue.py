@@ -18,7 +18,7 @@ nominal strain of ``--max-strain`` (1.0: beyond what a fingertip skin sees in te
 inside the stability check's range), without the points of the starting toe whose stress is not
 positive (the strain comes from the crosshead: slack), as a uniaxial test at the file's crosshead
 speed over the 33 mm gauge length.  Elastic only (the database has no relaxation data),
-compression extrapolated from tension, nu = 0.49 assumed: each entry says so.
+compression extrapolated from tension, nu = 0.499 assumed: each entry says so.
 """
 
 from __future__ import annotations

@@ -99,9 +99,10 @@ FIT_MODELS = ("neo_hookean", "mooney_rivlin", "yeoh", "ogden", "hyperfoam")
 STABILITY_STRAIN_RANGE = (-0.8, 2.0)
 #: the deformations checked (uniaxial covers compression with its negative strains)
 STABILITY_MODES = ("uniaxial", "biaxial", "planar")
-#: Poisson's ratio when none is given: the catalogue's convention for silicones (0.49, an
-#: assumption recorded in the entry: a tensile test says nothing of the bulk modulus)
-DEFAULT_NU = 0.49
+#: Poisson's ratio when none is given: the catalogue's convention for silicones (0.499 as the gel
+#: family's ``sim.families.GEL_NU``, an assumption recorded in the entry: a tensile test says
+#: nothing of the bulk modulus; the incompressible fits do not depend on it)
+DEFAULT_NU = 0.499
 DEFAULT_TERMS = {"yeoh": 3, "ogden": 1, "hyperfoam": 1}  # Abaqus: Yeoh has 3, N = 1 default
 DEFAULT_PRONY_TERMS = 3
 MIN_CURVE_POINTS = 3

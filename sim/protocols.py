@@ -430,6 +430,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
             metrics_k, last, _ = tap(opts.steps_loaded)
             history.append(metrics_k)
     metrics = {name: float(v) for name, v in zip(TAP_METRICS, history[-1], strict=True)}
+    metrics["sag_mm"] = float(last["touch"])
     curves = {
         "tapping": {
             "time_s": last["t"],

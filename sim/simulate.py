@@ -38,7 +38,9 @@ __all__ = [
 ]
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
-SOLVER_VERSION = "2.0"
+SOLVER_VERSION = "2.1"
+# 2.1: sag_mm metric (the displacement at the start of the measured tap); catalogue silicones at
+#      nu = 0.499 (was 0.49); material families gel/foam (sim.families)
 # 2.0: tapping to the periodic state on a residual (sim.periodic), rest steps from the shortest
 #      relaxation time, 48 loaded steps, Newton started from the previous tap's increment,
 #      separate shear/bulk relaxation, validity and settling recorded
@@ -69,6 +71,12 @@ METRICS: dict[str, tuple[str, str, str]] = {
         "displacement at 4 N from first touch of the tap",
     ),
     "hysteresis_Nmm": ("tapping", "N mm", "area of the last tap's force-displacement loop"),
+    "sag_mm": (
+        "tapping",
+        "mm",
+        "displacement at the start (first touch) of the measured tap from the undeformed top: "
+        "what the earlier taps left unrecovered",
+    ),
     "plate_force_at_1mm_N": ("plate", "N", "plate force at 1 mm indentation (L = 22 mm)"),
     "wedge_peak_force_N": ("wedge", "N", "peak wedge force, at the end of the 1 s ramp"),
     "wedge_force_at_100s_N": ("wedge", "N", "wedge force at t = 100 s of the hold"),

@@ -41,12 +41,11 @@ import numpy as np
 
 from .design import MIN_CORE_MM, Design, Layer
 from .errors import DesignError, read_toml
+from .families import FAMILIES, FAMILY_KEYS, family_material, family_uses, is_family
 from .geometry import Geometry
 from .materials import (
     CATALOGUE,
-    LAWS,
     Material,
-    Prony,
     catalogue_from_tables,
     catalogue_material,
     material_tables,
@@ -66,10 +65,11 @@ __all__ = [
 
 DEFAULT_SPACE_PATH = Path(__file__).parent / "data" / "default_space.toml"
 LAYER_ROLES = ("skin", "middle", "core")
-#: keys of the continuous material family (see ``param_material``)
-PARAM_MATERIAL_KEYS = ("mu0_MPa", "alpha", "nu", "g_total", "tau_s")
-#: relaxation times of the three Prony terms relative to ``tau_s``
-PRONY_TIME_RATIOS = (1.0 / 3.0, 1.0, 3.0)
+#: keys of the continuous material families (``sim.families``; which of them a layer uses is
+#: ``sim.families.family_uses``)
+PARAM_MATERIAL_KEYS = FAMILY_KEYS
+#: relaxation times of the three Prony terms of the "param" family relative to ``tau_s``
+PRONY_TIME_RATIOS = FAMILIES["param"].time_ratios
 _GEOMETRY_KEYS = ("half_width_mm", "height_mm", "exponent")
 _LAYER_KEYS = ("thickness_mm", "material", *PARAM_MATERIAL_KEYS)
 
@@ -87,13 +87,8 @@ def param_material(
     equally (g(inf) = 1 - g_total; the instantaneous modulus is mu0 / (1 - g_total)).
     Valid for every mu0 > 0, alpha != 0, -1 < nu < 0.5, 0 <= g_total < 1, tau > 0.
     """
-    law = LAWS["hyperfoam"](mu_MPa=(float(mu0_MPa),), alpha=(float(alpha),), nu=float(nu))
-    if g_total > 0:
-        g = tuple(float(g_total) / 3.0 for _ in PRONY_TIME_RATIOS)
-        prony = Prony(g, tuple(float(tau_s) * r for r in PRONY_TIME_RATIOS))
-    else:
-        prony = Prony()
-    return Material(law, prony, "long_term")
+    values = {"mu0_MPa": mu0_MPa, "alpha": alpha, "nu": nu, "g_total": g_total, "tau_s": tau_s}
+    return family_material("param", values)
 
 
 @dataclass(frozen=True)
@@ -243,7 +238,7 @@ def mask_inactive(values: dict[str, Any]) -> dict[str, Any]:
             used = active and (
                 key == "material"
                 or (key == "thickness_mm" and role != "core")
-                or (key in PARAM_MATERIAL_KEYS and out.get(f"{role}.material") == "param")
+                or family_uses(out.get(f"{role}.material"), key)
             )
             if not used:
                 out[name] = "" if key == "material" else math.nan
@@ -259,8 +254,8 @@ def point_to_design(
     layers = []
     for role in active_roles(point["layers.count"]):
         name = point[f"{role}.material"]
-        if name == "param":
-            mat = param_material(*(float(point[f"{role}.{k}"]) for k in PARAM_MATERIAL_KEYS))
+        if is_family(name):
+            mat = family_material(name, {k: point[f"{role}.{k}"] for k in FAMILIES[name].keys})
         else:
             mat = catalogue_material(name, f"{role}.material", catalogue)
         thickness = None if role == "core" else float(point[f"{role}.thickness_mm"])
@@ -385,14 +380,14 @@ def space_from_dict(
         mat = _parameter(f"{role}.material", table["material"])
         names = _values(mat)
         for name in names:
-            if name != "param" and name not in known:
+            if not is_family(name) and name not in known:
                 raise DesignError(
                     f"{role}.material",
-                    f"unknown material {name!r}; use 'param' or one of "
+                    f"unknown material {name!r}; use a family ({', '.join(FAMILIES)}) or one of "
                     + ", ".join(sorted(known))
                     + (" (or load its catalogue with --catalogue)"),
                 )
-            if name != "param" and CATALOGUE.get(name) != known[name]:
+            if not is_family(name) and CATALOGUE.get(name) != known[name]:
                 used.setdefault(name, known[name])
         params.append(mat)
         if role != "core":
@@ -402,31 +397,31 @@ def space_from_dict(
             if min(_values(p)) < 0.1:
                 raise DesignError(f"{role}.thickness_mm", "must be >= 0.1 mm")
             params.append(p)
-        if "param" in names:
-            for key in PARAM_MATERIAL_KEYS:
-                if key not in table:
-                    raise DesignError(f"{role}.{key}", "missing (the 'param' material needs it)")
-                p = _parameter(f"{role}.{key}", table[key])
-                _check_param_bounds(p, key)
-                params.append(p)
+        families = [FAMILIES[n] for n in names if is_family(n)]
+        for key in PARAM_MATERIAL_KEYS:
+            users = [f for f in families if key in f.keys]
+            if not users:
+                continue
+            if key not in table:
+                raise DesignError(
+                    f"{role}.{key}", f"missing (the {users[0].name!r} family needs it)"
+                )
+            p = _parameter(f"{role}.{key}", table[key])
+            for fam in users:
+                _check_family_bounds(p, key, fam)
+            params.append(p)
     space = DesignSpace(tuple(params), tuple(used[n] for n in sorted(used)))
     _check_thickness(space)
     return space
 
 
-def _check_param_bounds(p: Parameter, key: str) -> None:
+def _check_family_bounds(p: Parameter, key: str, family: Any) -> None:
+    """The space's range of ``p`` must lie within what ``family`` admits for ``key``."""
     lo, hi = min(_values(p)), max(_values(p))
-    limits = {
-        "mu0_MPa": (0.0, math.inf, "> 0"),
-        "alpha": (0.0, 50.0, "in (0, 50]"),
-        "nu": (-0.999, 0.499, "in [-0.999, 0.499]"),
-        "g_total": (0.0, 0.95, "in [0, 0.95]"),
-        "tau_s": (0.0, math.inf, "> 0"),
-    }
-    a, b, text = limits[key]
+    a, b, text = family.limits[key]
     strict_low = key in ("mu0_MPa", "alpha", "tau_s")
     if (lo <= a if strict_low else lo < a) or hi > b:
-        raise DesignError(p.name, f"must be {text}, got [{lo}, {hi}]")
+        raise DesignError(p.name, f"must be {text} for the {family.name} family, got [{lo}, {hi}]")
 
 
 def _check_thickness(space: DesignSpace) -> None:

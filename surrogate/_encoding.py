@@ -8,7 +8,7 @@ Encoding of a design space's parameters, in the space's order:
 - choice: one-hot over the space's choices; an inactive choice is all zeros;
 - fixed: no feature (the parameter stays in the header and is checked on input).
 
-Then physical descriptors that put every material, catalogue or "param", on the same axes
+Then physical descriptors that put every material, catalogue or family, on the same axes
 (``material_descriptors``): per layer the long-term shear modulus, the storage modulus and the
 loss tangent of its Prony series around the tap's frequency; and one flag, ``design:elastic``,
 set when no active material relaxes (such a design dissipates nothing in a closed cycle).
@@ -28,12 +28,12 @@ from typing import Any
 import numpy as np
 
 from sim.errors import DesignError
+from sim.families import FAMILIES, family_uses, is_family
 from sim.materials import CATALOGUE
 from sim.protocols import TappingOptions
 from sim.space import (
     LAYER_ROLES,
     PARAM_MATERIAL_KEYS,
-    PRONY_TIME_RATIOS,
     DesignSpace,
     Parameter,
     active_roles,
@@ -110,7 +110,7 @@ def is_optional(space: DesignSpace, p: Parameter) -> bool:
         return not always
     material = space[f"{head}.material"]
     names = material.choices if material.kind == "choice" else (material.value,)
-    return not (always and all(m == "param" for m in names))
+    return not (always and all(family_uses(m, key) for m in names))
 
 
 def _choice_key(v: Any) -> str:
@@ -262,7 +262,6 @@ class Encoder:
             if mat_name not in cols:
                 continue
             mats = np.asarray(cols[mat_name], dtype=object)
-            is_param = np.asarray([m == "param" for m in mats], dtype=bool)
             for key in ("material", "thickness_mm", *PARAM_MATERIAL_KEYS):
                 name = f"{role}.{key}"
                 if name not in cols:
@@ -272,7 +271,7 @@ class Encoder:
                 elif key == "thickness_mm":
                     on = role_on & (role != "core")
                 else:
-                    on = role_on & is_param
+                    on = role_on & np.asarray([family_uses(m, key) for m in mats], dtype=bool)
                 col = cols[name]
                 if isinstance(col, np.ndarray):
                     col = np.where(on, col, np.nan)
@@ -448,22 +447,27 @@ def material_descriptors(
     known = CATALOGUE if catalogue is None else catalogue
     blocks = []
     elastic = np.ones(n, dtype=bool)
-    k = len(PRONY_TIME_RATIOS)
+    k = max(len(f.time_ratios) for f in FAMILIES.values())
     for role in roles:
         names = np.asarray(cols[f"{role}.material"], dtype=object)
         on = names != ""
         mu = np.ones(n)
         g = np.zeros((n, k))
         tau = np.ones((n, k))
-        param = names == "param"
+        param = np.asarray([is_family(m) for m in names], dtype=bool)
         # an unknown name (flagged out of domain by ``encode``): no descriptors, and not elastic
         unknown = on & ~param & ~np.isin(names, list(known))
         elastic &= ~unknown
         on &= ~unknown
-        if param.any():
-            mu[param] = cols[f"{role}.mu0_MPa"][param]
-            g[param] = cols[f"{role}.g_total"][param, None] / k
-            tau[param] = cols[f"{role}.tau_s"][param, None] * np.asarray(PRONY_TIME_RATIOS)
+        for fam in FAMILIES.values():
+            rows = names == fam.name
+            if not rows.any():
+                continue
+            ratios = np.asarray(fam.time_ratios)
+            mu[rows] = cols[f"{role}.mu0_MPa"][rows]
+            g[rows] = 0.0
+            g[rows, : ratios.size] = cols[f"{role}.g_total"][rows, None] / ratios.size
+            tau[rows, : ratios.size] = cols[f"{role}.tau_s"][rows, None] * ratios
         for name in set(names[on & ~param]):
             rows = names == name
             mu_c, g_c, tau_c = _catalogue_entry(name, known)

@@ -237,7 +237,6 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
         space = space_from_dict(config["space"])
     except (json.JSONDecodeError, KeyError, TypeError) as exc:
         raise DesignError("SWEEP", f"unreadable {config_path}: {exc}") from None
-    metric_names = tuple(METRICS)
     points, targets, index = [], [], []
     n_rows, unchecked = 0, 0
     excluded: dict[str, int] = {}
@@ -246,9 +245,12 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
         with table_path.open(newline="") as fh:
             reader = csv.DictReader(fh)
             header = reader.fieldnames or []
-            missing = [c for c in ("index", *space.names, *metric_names) if c not in header]
-            if missing:
-                raise DesignError("SWEEP", f"{table_path} has no column {missing[0]!r}")
+            # the metrics the table has (a table from before a metric was added lacks it)
+            metric_names = tuple(m for m in METRICS if m in header)
+            missing = [c for c in ("index", *space.names) if c not in header]
+            if missing or not metric_names:
+                what = missing[0] if missing else next(iter(METRICS))
+                raise DesignError("SWEEP", f"{table_path} has no column {what!r}")
             for row in reader:
                 n_rows += 1
                 where = f"{table_path} row {n_rows}"

@@ -289,7 +289,7 @@ def test_elastic_fit_says_elastic_only_and_extrapolated(tests_dir, capsys) -> No
         "ELASTIC-ONLY" in raw["source"]
         and "compression extrapolated from tension" in (raw["source"])
     )
-    assert "nu = 0.49 is our assumption" in raw["source"]
+    assert "nu = 0.499 is our assumption" in raw["source"]
     assert raw["provenance"]["relaxation"] == "none: ELASTIC-ONLY"
     assert raw["provenance"]["compression"] == "extrapolated from tension"
 
