@@ -23,8 +23,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.targets import Targets
+from sim.trust import TRUST_OUTPUTS
 
-__all__ = ["WEDGE_REFERENCE_N", "WEDGE_WEIGHT", "Closeness", "closeness", "objectives"]
+TRUST_NAMES = tuple(TRUST_OUTPUTS)
+
+__all__ = [
+    "WEDGE_REFERENCE_N",
+    "WEDGE_WEIGHT",
+    "Closeness",
+    "closeness",
+    "infeasibility",
+    "objectives",
+]
 
 WEDGE_REFERENCE_N = 2.35  # silicone GLS 40 on the reference geometry (docs/validation.md)
 WEDGE_WEIGHT = 0.1
@@ -77,3 +87,54 @@ def _value(metrics: Mapping, name: str):
     if v is None:
         return np.nan
     return v
+
+
+def infeasibility(
+    values: Mapping[str, np.ndarray], targets: Targets, validity, tapping
+) -> tuple[np.ndarray, np.ndarray]:
+    """How far predicted designs are from credible, and why: ``(penalty, why)``.
+
+    A credible design is one whose FE result can be an answer: it settles, stays within the
+    validity limits (``sim.trust.trust_flags`` on the predicted trust outputs) and recovers
+    between taps (``sag_mm`` within ``targets.max_sag_mm``). ``penalty`` is 0 for a credible
+    design and ``1 + excess`` otherwise, ``excess`` summing how far each limit is passed
+    (relative: strain / limit - 1, limit J / J - 1, sag / limit - 1, and 1 per failed yes/no
+    limit), so that a search ranks every credible design first and still sees the way back
+    towards the credible ones. Outputs the predictor does not have are not judged."""
+    from sim.trust import trust_flags
+
+    n = len(np.atleast_1d(next(iter(values.values())))) if values else 0
+    excess = np.zeros(n)
+    why = np.full(n, "", dtype=object)
+    if not n:
+        return excess, why
+
+    def get(name: str) -> np.ndarray | None:
+        v = values.get(name)
+        return None if v is None else np.asarray(v, dtype=float).reshape(n)
+
+    trust = {k: v for k in TRUST_NAMES if (v := get(k)) is not None}
+    if trust:
+        flags = trust_flags(trust, validity, tapping)
+        bad = ~(flags["valid"] & flags["settled"])
+        why = np.where(bad, flags["why"], why)
+        excess += bad.astype(float)
+        limits = [p.strip() for p in validity.strain_limit_protocols.split(",") if p.strip()]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            for p in limits:
+                if (v := trust.get(f"{p}_max_compressive_log_strain")) is not None:
+                    excess += np.nan_to_num(
+                        np.maximum(v / validity.max_compressive_log_strain - 1, 0)
+                    )
+            for p in ("tapping", "plate", "wedge"):
+                if (v := trust.get(f"{p}_min_J")) is not None:
+                    excess += np.nan_to_num(np.maximum(validity.min_J / v - 1, 0), posinf=10.0)
+    sag = get("sag_mm")
+    if sag is not None and targets.max_sag_mm is not None:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            over = sag > targets.max_sag_mm
+            why = np.where(over & (why == ""), f"sag > {targets.max_sag_mm:g} mm", why)
+            rel = np.maximum(sag / max(targets.max_sag_mm, 1e-9) - 1, 0)
+            excess += np.where(over, 1.0 + np.nan_to_num(rel), 0.0)
+    penalty = np.where(why != "", 1.0 + excess, 0.0)
+    return penalty, why

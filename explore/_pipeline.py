@@ -31,7 +31,7 @@ from sim.errors import DesignError
 from sim.provenance import check_folder_kind, provenance, write_json
 from sim.space import load_space, point_to_design
 from sim.sweep import default_workers
-from sim.targets import Targets, load_targets
+from sim.targets import READINGS, Targets, load_targets
 
 from ._buildable import (
     DEFAULT_FE_BUDGET,
@@ -44,6 +44,7 @@ from ._buildable import (
 from ._confirm import REFERENCES, confirm, reference_point, run_fe
 from ._objective import TAPPING, closeness
 from ._search import (
+    FAMILY_SEARCHES,
     OBJECTIVE_NAMES,
     SearchSettings,
     TrialRow,
@@ -51,9 +52,12 @@ from ._search import (
     catalogue_only,
     check_subspace,
     create_study,
+    design_family,
+    family_space,
     run_study,
     select_candidates,
 )
+from ._sensitivity import sensitivity_notes
 from ._types import Candidate, Confirmation, Summary
 
 __all__ = ["DEFAULT_CHECKPOINT", "OptimizeConfig", "optimize"]
@@ -80,7 +84,11 @@ class OptimizeConfig:
     answer, so a run may be resumed with another number of them; ``catalogues``: the user's
     ``--catalogue`` files (recorded with their sha256; a resume with others is refused);
     ``buildable_fe``: buildable stacks of the merged catalogue simulated by FE only, for the
-    materials the surrogate cannot predict (``explore._buildable``).
+    materials the surrogate cannot predict (``explore._buildable``); ``family_trials``:
+    surrogate evaluations per round of each family's own study (gel only, foam core:
+    ``explore._search.family_space``), whose best design is confirmed too; ``allow_untrusted``:
+    let designs that are not credible (an FE result beyond the validity limits or unsettled,
+    or a sag over the targets' limit) compete for the answers, flagged as such.
     """
 
     surrogate: str = str(DEFAULT_CHECKPOINT)
@@ -102,6 +110,8 @@ class OptimizeConfig:
     retrain_epochs: int = 150
     catalogues: tuple[str, ...] = ()
     buildable_fe: int = DEFAULT_FE_BUDGET
+    family_trials: int = 300
+    allow_untrusted: bool = False
 
     def check(self) -> None:
         def at_least(name: str, value: int, low: int) -> None:
@@ -116,6 +126,7 @@ class OptimizeConfig:
         at_least("workers", self.workers, 1)
         at_least("retrain_epochs", self.retrain_epochs, 1)
         at_least("buildable_fe", self.buildable_fe, 0)
+        at_least("family_trials", self.family_trials, 0)
         if self.mode not in ("single", "multi"):
             raise DesignError("--mode", f"must be single or multi, got {self.mode!r}")
         for name in ("tolerance", "max_disagreement"):
@@ -137,6 +148,7 @@ def _record(config: OptimizeConfig, out: Path, targets: Targets, options: SimOpt
         "storage": _storage_url(config, out),
         "targets": dict(targets.values),
         "displacement_reading": targets.reading,
+        "max_sag_mm": targets.max_sag_mm,
     }
     return json.loads(json.dumps(record))  # as config.json holds it (lists, not tuples)
 
@@ -516,8 +528,14 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             mode=config.mode,
             seed=config.seed + r,
             max_disagreement=config.max_disagreement,
+            allow_untrusted=config.allow_untrusted,
+            options=options,
         )
         searches = [("continuous", space, config.trials)]
+        for fam in FAMILY_SEARCHES if config.family_trials else ():
+            sub = family_space(space, fam)
+            if sub is not None:
+                searches.append((fam, sub, config.family_trials))
         if s.build_space is not None:
             searches.append(("buildable", s.build_space, config.buildable_trials))
         round_rows: dict[str, list[TrialRow]] = {}
@@ -581,7 +599,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
     screen = []
     fe_only = set(s.catalogue) - predictable_materials(s.surrogate.space)
     if config.buildable_trials and config.buildable_fe and fe_only:  # unpredictable stacks
-        trusted = [c for c in confirmations if c.trusted and math.isfinite(c.fe_score)]
+        trusted = [c for c in confirmations if credible(c, targets, config.allow_untrusted)]
         tic = time.perf_counter()
         screen = fe_screen(
             out, min(trusted, key=lambda c: c.fe_score, default=None), space, s.catalogue,
@@ -591,7 +609,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         timings["fe_s"] += time.perf_counter() - tic
     summary = summarise(
         confirmations + screen, targets, config.tolerance, rounds, all_rows, space,
-        catalogue=s.catalogue,
+        catalogue=s.catalogue, allow_untrusted=config.allow_untrusted, surrogate=surrogate,
     )  # fmt: skip
     if screen:
         summary.notes.append(screen_summary(screen, len(s.catalogue)))
@@ -641,18 +659,20 @@ def _choose(
         round_rows["continuous"], features, best=config.confirm,
         uncertain=config.uncertain, exclude=done,
     )  # fmt: skip
-    if "buildable" in round_rows:
-        build = select_candidates(
-            round_rows["buildable"], features, best=1, uncertain=0,
-            exclude=done + [c.point for c in chosen], reason_best="buildable",
+    for search in (*FAMILY_SEARCHES, "buildable"):  # the best of each family's own search
+        if search not in round_rows:
+            continue
+        best = select_candidates(
+            round_rows[search], features, best=1, uncertain=0,
+            exclude=done + [c.point for c in chosen], reason_best=search,
         )  # fmt: skip
-        if not build:  # every buildable design flagged: FE decides anyway
+        if not best:  # every design of the family flagged: FE decides anyway
             flagged = sorted(
-                (x for x in round_rows["buildable"] if math.isfinite(x.score)),
+                (x for x in round_rows[search] if math.isfinite(x.score)),
                 key=lambda x: x.score,
             )
-            build = [flagged[0].candidate("buildable")] if flagged else []
-        chosen += build
+            best = [flagged[0].candidate(search)] if flagged else []
+        chosen += best
     return chosen
 
 
@@ -682,9 +702,9 @@ def _target_errors(c: Confirmation, targets: Targets) -> dict[str, float]:
 
 
 def _target_met(confirmations: list[Confirmation], targets: Targets, tol: float) -> bool:
-    """Whether some trusted FE-confirmed design is within ``tol`` of every tapping target."""
+    """Whether some credible FE-confirmed design is within ``tol`` of every tapping target."""
     return any(
-        c.trusted and all(abs(e) <= tol for e in _target_errors(c, targets).values())
+        credible(c, targets) and all(abs(e) <= tol for e in _target_errors(c, targets).values())
         for c in confirmations
     )
 
@@ -716,9 +736,11 @@ def _answer(
     if c is None:
         return None
     errors = _target_errors(c, targets)
+    fe = c.to_json()["fe_metrics"]
     return {
         "design": point_to_design(c.candidate.point, catalogue or space.catalogue).to_dict(),
         "point": c.to_json()["candidate"]["point"],
+        "family": design_family(c.candidate.point),
         "search": c.candidate.search,
         "reason": c.candidate.reason,
         "round": c.candidate.round,
@@ -726,13 +748,37 @@ def _answer(
         "flags": list(c.candidate.flags),
         "predicted": c.candidate.predicted,
         "predicted_score": c.to_json()["candidate"]["score"],  # None: no prediction
-        "fe_metrics": c.to_json()["fe_metrics"],
+        "fe_metrics": fe,
         "fe_score": c.fe_score,
+        "readings": _readings(fe),
         "errors_vs_targets": errors,
         "within_tolerance": {m: abs(e) <= tol for m, e in errors.items()},
+        "credible": credible(c, targets),  # False only when --allow-untrusted let it in
         "diagnostics": c.diagnostics,
         "fe_record": f"fe/records/{c.key}.json",
     }
+
+
+def _readings(fe: dict[str, float | None]) -> dict[str, Any]:
+    """The tapping displacements in both readings, and the sag between them (mm)."""
+    return {
+        reading: {t: fe.get(m) for t, m in names.items()} for reading, names in READINGS.items()
+    } | {"sag_mm": fe.get("sag_mm")}
+
+
+#: the answers of a run, in report order: kind -> what the design must be (``design_family``)
+ANSWER_KINDS = {"best": None, "gel": "gel", "foam": "foam", "buildable": "catalogue"}
+
+
+def credible(c: Confirmation, targets: Targets, allow_untrusted: bool = False) -> bool:
+    """Whether an FE-confirmed design can be an answer: it ran, its taps settled, it stayed
+    within the validity limits (``Confirmation.trusted``) and it recovers between taps (its
+    ``sag_mm`` within ``targets.max_sag_mm``). ``allow_untrusted``: any design that ran."""
+    if c.status != "ok" or not math.isfinite(c.fe_score):
+        return False
+    if allow_untrusted:
+        return True
+    return c.trusted and bool(targets.sag_ok(_nan(c.fe_metrics.get("sag_mm"))))
 
 
 def summarise(
@@ -743,42 +789,49 @@ def summarise(
     rows: list[TrialRow],
     space,
     catalogue: dict | None = None,
+    allow_untrusted: bool = False,
+    surrogate=None,
 ) -> Summary:
-    """The answers (the best trusted FE result of the search, and the best of the buildable
-    ones: the catalogue-only search's and the FE-only screen's, which competes for this answer
-    only) and the notes; ``catalogue``: the merged catalogue the designs' material names come
-    from (default: the space's)."""
-    # an unsettled or invalid FE result is never an answer
-    ok = [c for c in confirmations if c.trusted and math.isfinite(c.fe_score)]
-    best = min((c for c in ok if c.candidate.search != FE_SEARCH), key=lambda c: c.fe_score,
-               default=None)  # fmt: skip
-    buildable = min(
-        (c for c in ok if c.candidate.search in ("buildable", FE_SEARCH)),
-        key=lambda c: c.fe_score,
-        default=None,
-    )
-    answers = {
-        "best": _answer(best, targets, tol, space, catalogue),
-        "buildable": _answer(buildable, targets, tol, space, catalogue),
-    }
+    """The answers and the notes. "best": the best credible FE result of the searches;
+    "gel", "foam", "buildable": the best credible FE result of that family (every layer a gel;
+    a foam core; catalogue materials only, the FE-only screen included, which competes for this
+    answer only), whichever search proposed it. ``catalogue``: the merged catalogue the designs'
+    material names come from (default: the space's); ``surrogate``: for the sensitivities of a
+    missed target around the best design (``explore._sensitivity``)."""
+    ok = [c for c in confirmations if credible(c, targets, allow_untrusted)]
+    answers: dict[str, dict | None] = {}
+    for kind, family in ANSWER_KINDS.items():
+        pool = [
+            c
+            for c in ok
+            if (family is None and c.candidate.search != FE_SEARCH)
+            or (family is not None and design_family(c.candidate.point) == family)
+        ]
+        best = min(pool, key=lambda c: c.fe_score, default=None)
+        answers[kind] = _answer(best, targets, tol, space, catalogue)
     notes = _notes(answers, targets, tol, rows)
     if answers["best"] is None:
-        notes = [_no_answer(confirmations)]
+        notes = [_no_answer(confirmations, targets)]
+    elif surrogate is not None and not all(answers["best"]["within_tolerance"].values()):
+        notes += sensitivity_notes(surrogate, answers["best"]["point"], targets, tol)
     notes += material_notes(answers, catalogue or space.catalogue, tol)
     return Summary(answers, dict(targets.values), tol, rounds, notes)
 
 
-def _no_answer(confirmations: list[Confirmation]) -> str:
-    """Why there is no best design: the FE failed, or no FE result could be trusted."""
+def _no_answer(confirmations: list[Confirmation], targets: Targets) -> str:
+    """Why there is no best design: the FE failed, or no FE result was credible."""
     ran = [c for c in confirmations if c.status == "ok" and c.candidate.search != FE_SEARCH]
     if not ran:
         return "no design was confirmed by FE (every confirmation failed)"
     unsettled = sum(c.diagnostics.get("settled") is False for c in ran)
     invalid = sum(c.diagnostics.get("valid") is False for c in ran)
+    sagging = sum(c.trusted and not targets.sag_ok(_nan(c.fe_metrics.get("sag_mm"))) for c in ran)
     return (
-        f"no trusted answer: of {len(ran)} FE-confirmed designs, {invalid} went beyond the "
-        f"validity limits and {unsettled} did not reach their periodic state (see "
-        "confirmations.json, `diagnostics`; `--set validity.*` widens the limits)"
+        f"no credible answer: of {len(ran)} FE-confirmed designs, {invalid} went beyond the "
+        f"validity limits, {unsettled} did not reach their periodic state and {sagging} sagged "
+        f"more than {targets.max_sag_mm} mm between taps (see confirmations.json, "
+        "`diagnostics`; `--set validity.*` widens the limits, `--allow-untrusted` lets such "
+        "designs compete, flagged)"
     )
 
 
@@ -789,7 +842,8 @@ def _notes(
     if answers.get("best") is None:
         return ["no design was confirmed by FE (every confirmation failed)"]
     notes = []
-    for kind, search in (("best", "continuous"), ("buildable", "buildable")):
+    for kind, search in (("best", "continuous"), *((f, f) for f in FAMILY_SEARCHES),
+                         ("buildable", "buildable")):  # fmt: skip
         answer = answers.get(kind)
         if answer is None:
             continue

@@ -227,14 +227,18 @@ def load_run(run_dir: str | Path) -> RunData:
 def run_targets(run: RunData) -> Targets | None:
     """The run's targets (``config["targets"]``, else ``summary["targets"]``); None if absent.
 
-    A ``displacement_reading`` entry, if present, selects the reading (default: from the
-    undeformed top)."""
+    A ``displacement_reading`` entry (in the targets, or beside them in config.json) selects the
+    reading (default: from the undeformed top); ``max_sag_mm`` beside them, the sag limit."""
     raw = run.config.get("targets") or run.summary.get("targets") or {}
     values = {k: float(raw[k]) for k in TAPPING if isinstance(raw.get(k), int | float)}
     if len(values) < len(TAPPING):
         return None
-    reading = raw.get("displacement_reading", "from_undeformed_top")
-    return Targets(values=values, reading=reading if reading in READINGS else "from_undeformed_top")
+    reading = raw.get("displacement_reading", run.config.get("displacement_reading"))
+    reading = reading if reading in READINGS else "from_undeformed_top"
+    sag = run.config.get("max_sag_mm")
+    return Targets(
+        values=values, reading=reading, max_sag_mm=sag if isinstance(sag, int | float) else None
+    )
 
 
 def _finite_score_mask(run: RunData) -> np.ndarray:

@@ -27,7 +27,9 @@ _TARGET_WORDS = {
     "hysteresis_Nmm": ("energy lost per tap (loop area)", "N mm"),
 }
 _ANSWERS = {
-    "best": "Best design (closest to the targets, confirmed by FE)",
+    "best": "Best credible design (closest to the targets, confirmed by FE)",
+    "gel": "Best gel-only design (every layer a silicone gel, confirmed by FE)",
+    "foam": "Best foam-core design (a soft foam core, confirmed by FE)",
     "buildable": "Best buildable design (catalogue materials only, confirmed by FE)",
 }
 _ROUND_ORDER = ("round", "n_confirmed", "max_rel_error", "median_rel_error", "agreed")
@@ -151,8 +153,37 @@ def _targets_section(targets: Targets | None, tolerance: Any) -> list[str]:
         targets.reading, "from the undeformed top of the fingertip"
     )
     tol = f"±{100 * tolerance:.0f} %" if isinstance(tolerance, int | float) else "not recorded"
-    lines += ["", f"Displacements are read {reading}. Tolerance on each target: {tol}.", ""]
-    return lines
+    lines += ["", f"Displacements are read {reading}. Tolerance on each target: {tol}."]
+    if targets.max_sag_mm is not None:
+        lines.append(
+            f"A credible answer also recovers between taps: its sag (the displacement left at "
+            f"the start of a tap by the earlier ones) is at most {_fmt(targets.max_sag_mm)} mm."
+        )
+    return [*lines, ""]
+
+
+def _readings_rows(answer: Mapping[str, Any]) -> list[str]:
+    """Both readings of the tapping displacements, and the sag between them."""
+    r = answer.get("readings")
+    if not r:
+        return []
+    top, touch = r.get("from_undeformed_top", {}), r.get("from_first_touch", {})
+    d = answer.get("diagnostics") or {}
+    return [
+        "| reading | at 1 N (mm) | at 4 N (mm) |",
+        "|---|---|---|",
+        f"| from first touch | {_fmt(touch.get('disp_at_1N_mm'))} | "
+        f"{_fmt(touch.get('disp_at_4N_mm'))} |",
+        f"| from the undeformed top | {_fmt(top.get('disp_at_1N_mm'))} | "
+        f"{_fmt(top.get('disp_at_4N_mm'))} |",
+        "",
+        f"- **Sag** (left by earlier taps): {_fmt(r.get('sag_mm'))} mm; settled: "
+        f"{_fmt(d.get('settled'))}; within the validity limits: {_fmt(d.get('valid'))} "
+        f"(largest compressive log strain in tapping "
+        f"{_fmt(d.get('tapping_max_compressive_log_strain'))}, smallest J "
+        f"{_fmt(d.get('tapping_min_J'))}).",
+        "",
+    ]
 
 
 def _answer_rows(answer: Mapping[str, Any], targets: Targets, tolerance: Any) -> list[str]:
@@ -191,11 +222,14 @@ def _answer_section(
 ) -> list[str]:
     lines = [f"### {_ANSWERS[kind]}", ""]
     if not answer:
-        return [*lines, f"No {kind} design was confirmed by FE in this run.", ""]
+        return [*lines, f"No credible {kind} design was confirmed by FE in this run.", ""]
     lines += _design_words(answer)
     lines += [f"- **FE score**: {_fmt(answer.get('fe_score'))} (0 = every target met).", ""]
+    if answer.get("credible") is False:
+        lines += ["**Not credible** (let in by `--allow-untrusted`): see its diagnostics.", ""]
     if targets is not None:
         lines += [*_answer_rows(answer, targets, tolerance), ""]
+    lines += _readings_rows(answer)
     return lines
 
 

@@ -27,17 +27,21 @@ import numpy as np
 from sim.families import family_uses, is_family
 from sim.space import PARAM_MATERIAL_KEYS, DesignSpace, Parameter, mask_inactive
 from sim.targets import Targets
+from sim.trust import TRUST_OUTPUTS
 
-from ._objective import closeness, objectives
+from ._objective import closeness, infeasibility, objectives
 from ._types import Candidate
 
 __all__ = [
+    "FAMILY_SEARCHES",
     "SCORED",
     "SearchSettings",
     "TrialRow",
     "catalogue_only",
     "check_subspace",
     "create_study",
+    "design_family",
+    "family_space",
     "point_from_params",
     "predict_rows",
     "rows_of",
@@ -48,6 +52,9 @@ __all__ = [
 
 #: the metrics the closeness score reads (targets.metric maps the displacement reading)
 SCORED = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm", "wedge_peak_force_N")
+#: the predictions credibility is judged on (``infeasibility``); the yes/no ones by their mean
+_JUDGED = (*TRUST_OUTPUTS, "sag_mm")
+_YES_NO = ("reached_base", "folded")
 OBJECTIVE_NAMES = ("compliance_error", "hysteresis_error", "wedge_effort")
 
 
@@ -62,6 +69,11 @@ class SearchSettings:
     seed: int = 0
     batch: int = 16
     max_disagreement: float = 0.10
+    #: score designs the surrogate predicts not credible (beyond the validity limits,
+    #: unsettled, sag over the targets' limit) like the others; they stay flagged
+    allow_untrusted: bool = False
+    #: the simulation options whose validity limits and tapping tolerances judge credibility
+    options: Any = None
 
 
 @dataclass(frozen=True)
@@ -115,6 +127,54 @@ def catalogue_only(space: DesignSpace) -> DesignSpace:
             )
         params.append(p)
     return DesignSpace(tuple(params), space.materials)
+
+
+#: the families a run searches and answers for besides the best design (``family_space``)
+FAMILY_SEARCHES = ("gel", "foam")
+
+
+def family_space(space: DesignSpace, family: str) -> DesignSpace | None:
+    """The space restricted to one family's designs, None when the space has none: "gel",
+    every layer a gel; "foam", a foam core under any other layers the space allows (no foam
+    outside the core)."""
+    params = []
+    for p in space.parameters:
+        if p.name.endswith(".material") and p.kind == "choice":
+            core = p.name.startswith("core.")
+            if family == "gel" or (family == "foam" and core):
+                allowed = {family}
+            else:
+                allowed = {c for c in p.choices if c != "foam"}
+            keep = [
+                (c, w)
+                for c, w in zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True)
+                if c in allowed
+            ]
+            if not keep:
+                return None
+            p = Parameter(
+                p.name,
+                "choice",
+                choices=tuple(c for c, _ in keep),
+                weights=tuple(w for _, w in keep) if p.weights else (),
+            )
+        params.append(p)
+    return DesignSpace(tuple(params), space.materials)
+
+
+def design_family(point: dict[str, Any]) -> str:
+    """The family a design belongs to: "gel" (every layer a gel), "foam" (a foam core),
+    "catalogue" (catalogue materials only) or "mixed"."""
+    from sim.space import active_roles
+
+    mats = [point.get(f"{r}.material") for r in active_roles(point["layers.count"])]
+    if all(m == "gel" for m in mats):
+        return "gel"
+    if mats[-1] == "foam" and "foam" not in mats[:-1]:
+        return "foam"
+    if not any(is_family(m) for m in mats):
+        return "catalogue"
+    return "mixed"
 
 
 def check_subspace(space: DesignSpace, trained: DesignSpace) -> None:
@@ -184,8 +244,18 @@ def predict_rows(
     trials: Sequence[int] | None = None,
     search: str = "continuous",
     max_disagreement: float = 0.10,
+    options=None,
+    allow_untrusted: bool = False,
 ) -> list[TrialRow]:
-    """Score design points with the surrogate: prediction, closeness and trust-guard flags."""
+    """Score design points with the surrogate: prediction, closeness and trust-guard flags.
+
+    A design the surrogate predicts not credible (``explore._objective.infeasibility`` with the
+    validity limits and tapping tolerances of ``options``, a ``SimOptions``, default the
+    defaults) is flagged with the reason, and its score and objectives carry the penalty
+    unless ``allow_untrusted``."""
+    from sim import SimOptions
+
+    options = SimOptions() if options is None else options
     pred = surrogate.predict(list(points))
     names = list(pred.metric_names)
     cols = {m: names.index(m) for m in names}
@@ -194,6 +264,11 @@ def predict_rows(
     metrics["wedge_peak_force_N"] = point[:, cols["wedge_peak_force_N"]]
     c = closeness(metrics, targets)
     obj = objectives(c)
+    judged = {m: (pred.mean if m in _YES_NO else point)[:, cols[m]] for m in _JUDGED if m in cols}
+    penalty, why = infeasibility(judged, targets, options.validity, options.tapping)
+    scores = c.score if allow_untrusted else c.score + penalty
+    if not allow_untrusted:
+        obj = obj + penalty[:, None]
     scored = [targets.metric(m) for m in SCORED]
     with np.errstate(divide="ignore", invalid="ignore"):
         spread = np.stack(
@@ -207,6 +282,8 @@ def predict_rows(
             flags.append(f"out of domain: {pred.reasons[i]}")
         if not dis <= max_disagreement:
             flags.append(f"high disagreement {dis:.3f} > {max_disagreement:g}")
+        if why[i]:
+            flags.append(f"predicted not credible: {why[i]}")
         predicted = {
             m: {
                 **{
@@ -223,7 +300,7 @@ def predict_rows(
                 trial=-1 if trials is None else int(trials[i]),
                 search=search,
                 point=dict(point),
-                score=float(c.score[i]),
+                score=float(scores[i]),
                 objectives=tuple(float(v) for v in obj[i]),
                 predicted=predicted,
                 in_domain=bool(pred.in_domain[i]),
@@ -303,6 +380,7 @@ def run_study(
         rows = predict_rows(
             surrogate, points, targets, round_=round_, trials=[t.number for t in batch],
             search=search, max_disagreement=settings.max_disagreement,
+            options=settings.options, allow_untrusted=settings.allow_untrusted,
         )  # fmt: skip
         new = 0
         for t, row in zip(batch, rows, strict=True):
@@ -322,7 +400,8 @@ def run_study(
         if progress is not None and new:
             progress(new)
     return rows_of(study, surrogate, space, targets, round_=round_, search=search,
-                   max_disagreement=settings.max_disagreement)  # fmt: skip
+                   max_disagreement=settings.max_disagreement, options=settings.options,
+                   allow_untrusted=settings.allow_untrusted)  # fmt: skip
 
 
 def _batch_seed(seed: int, done: int) -> int:
@@ -371,6 +450,8 @@ def rows_of(
     round_: int,
     search: str,
     max_disagreement: float = 0.10,
+    options=None,
+    allow_untrusted: bool = False,
 ) -> list[TrialRow]:
     """The complete trials of ``study`` as ``TrialRow``s, re-scored by ``surrogate``."""
     import optuna
@@ -381,7 +462,8 @@ def rows_of(
     points = [point_from_params(space, t.params) for t in trials]
     return predict_rows(
         surrogate, points, targets, round_=round_, trials=[t.number for t in trials],
-        search=search, max_disagreement=max_disagreement,
+        search=search, max_disagreement=max_disagreement, options=options,
+        allow_untrusted=allow_untrusted,
     )  # fmt: skip
 
 

@@ -347,6 +347,8 @@ def _optimize_config(args: argparse.Namespace):
         "dataset": str(args.dataset) if args.dataset else None,
         "catalogues": tuple(str(p) for p in args.catalogue) if args.catalogue else None,
         "buildable_fe": args.buildable_fe,
+        "family_trials": args.family_trials,
+        "allow_untrusted": True if args.allow_untrusted else None,
     }
     base = OptimizeConfig()
     return OptimizeConfig(
@@ -359,16 +361,28 @@ def _finish(out, progress: bool) -> int:
 
     summary = json.loads((out / "summary.json").read_text())
     report = write_report(out)
-    for kind, label in (("best", "best design"), ("buildable", "best buildable design")):
+    labels = {
+        "best": "best design",
+        "gel": "best gel-only design",
+        "foam": "best foam-core design",
+        "buildable": "best buildable design",
+    }
+    for kind, label in labels.items():
         a = summary["answers"].get(kind)
         if a is None:
-            print(f"{label}: none confirmed by FE")
+            print(f"{label}: none credible confirmed by FE")
             continue
         errs = ", ".join(
             f"{m} {100 * e:+.1f} %{'' if a['within_tolerance'][m] else ' (outside)'}"
             for m, e in a["errors_vs_targets"].items()
         )
-        print(f"{label} (FE): {errs}; wedge peak {a['fe_metrics']['wedge_peak_force_N']:.3g} N")
+        sag = a.get("readings", {}).get("sag_mm")
+        sag_text = "" if sag is None else f"; sag {sag:.3g} mm"
+        flag = "" if a.get("credible", True) else " [NOT CREDIBLE: --allow-untrusted]"
+        print(
+            f"{label} (FE){flag}: {errs}; wedge peak "
+            f"{a['fe_metrics']['wedge_peak_force_N']:.3g} N{sag_text}"
+        )
     for note in summary["notes"]:
         print(f"  {note}")
     print(f"report: {report}")
@@ -429,6 +443,18 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
         type=int,
         help="buildable stacks of catalogue materials the surrogate cannot predict, simulated by "
         f"FE only after the rounds, 0 = none (default {d.buildable_fe})",
+    )
+    p.add_argument(
+        "--family-trials",
+        type=int,
+        help="trials per round of each family's own search (gel only, foam core), whose best "
+        f"design is FE-confirmed too; 0 = none (default {d.family_trials})",
+    )
+    p.add_argument(
+        "--allow-untrusted",
+        action="store_true",
+        help="let designs that are not credible (beyond the validity limits, unsettled, or "
+        "sagging over the targets' limit) compete for the answers, flagged as such",
     )
     _add_catalogue_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")

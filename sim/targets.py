@@ -6,7 +6,8 @@ A targets TOML file (the shipped one is ``sim/data/human_targets.toml``)::
     disp_at_1N_mm = 1.83
     disp_at_4N_mm = 2.91
     hysteresis_Nmm = 2.26
-    displacement_reading = "from_undeformed_top"   # or "from_first_touch"
+    displacement_reading = "from_first_touch"   # or "from_undeformed_top"
+    max_sag_mm = 0.37               # optional: the skin must recover between taps
     source = "..."
     [conformance]
     wedge_peak_force_N = 0.0        # an ideal: lower is better
@@ -17,6 +18,11 @@ The displacement reading says how the target displacements were measured: from t
 undeformed top (as the paper reads its simulations) or from the first touch of each tap (as a
 tapping experiment on a finger measures them). ``Targets.metric`` maps each target to the
 simulator metric read the same way, so every comparison is like with like.
+
+``max_sag_mm`` (optional) bounds the sag, the displacement left at the start of the measured tap
+by the earlier ones (metric ``sag_mm``): a reading from first touch cannot see it, so without a
+limit a skin that never recovers (putty) could match the human values. A design whose sag
+exceeds it is not an answer (``Targets.sag_ok``).
 
 Descriptive keys may go with them (``source``, ``note``, ``displacement_reading_rationale``,
 ``loading_frequency_Hz``, ``inclination_deg``; ``surface_profile``, ``surface_profile_note``);
@@ -56,6 +62,8 @@ ALLOWED_KEYS = {
         *_TAPPING,
         "displacement_reading",
         "displacement_reading_rationale",
+        "max_sag_mm",
+        "max_sag_rationale",
         "loading_frequency_Hz",
         "inclination_deg",
         "source",
@@ -74,6 +82,7 @@ ALLOWED_KEYS = {
 _TEXT_KEYS = (
     "surface_profile_csv",
     "displacement_reading_rationale",
+    "max_sag_rationale",
     "source",
     "note",
     "surface_profile",
@@ -83,18 +92,27 @@ _TEXT_KEYS = (
 
 @dataclass(frozen=True)
 class Targets:
-    """Target values by name (mm, N mm, N), the displacement reading, the sources, and an
-    optional measured surface-deflection profile (distance_mm, deflection_mm arrays)."""
+    """Target values by name (mm, N mm, N), the displacement reading, the sag limit (mm, None:
+    no limit), the sources, and an optional measured surface-deflection profile (distance_mm,
+    deflection_mm arrays)."""
 
     values: dict[str, float]
     reading: str = "from_undeformed_top"
     wedge_force_N: float | None = 0.0
     profile: tuple[np.ndarray, np.ndarray] | None = field(default=None, compare=False)
     sources: dict[str, str] = field(default_factory=dict, compare=False)
+    max_sag_mm: float | None = None
 
     def metric(self, name: str) -> str:
         """The simulator metric that is compared with target ``name`` (like with like)."""
         return READINGS[self.reading].get(name, name)
+
+    def sag_ok(self, sag_mm: Any) -> Any:
+        """Whether a sag (mm; array or number) is within ``max_sag_mm`` (always, without a
+        limit; a missing sag, NaN, is not)."""
+        sag = np.asarray(sag_mm, dtype=float)
+        ok = np.ones(sag.shape, bool) if self.max_sag_mm is None else sag <= self.max_sag_mm
+        return bool(ok) if ok.ndim == 0 else ok
 
 
 def _number(value: Any, name: str) -> float:
@@ -123,6 +141,11 @@ def load_targets(path: str | Path | None = None) -> Targets:
         raise DesignError(
             "tapping.displacement_reading", f"must be one of {', '.join(READINGS)}, got {reading!r}"
         )
+    max_sag = tap.get("max_sag_mm")
+    if max_sag is not None:
+        max_sag = _number(max_sag, "tapping.max_sag_mm")
+        if max_sag < 0:
+            raise DesignError("tapping.max_sag_mm", f"must be >= 0, got {max_sag}")
     conf = data.get("conformance", {})
     wedge = conf.get("wedge_peak_force_N", 0.0)
     wedge = None if wedge is None else _number(wedge, "conformance.wedge_peak_force_N")
@@ -132,7 +155,7 @@ def load_targets(path: str | Path | None = None) -> Targets:
     if "surface_profile_csv" in conf:
         profile = _read_profile(path.parent / conf["surface_profile_csv"])
     sources = {k: v["source"] for k, v in data.items() if isinstance(v, dict) and "source" in v}
-    return Targets(values, reading, wedge, profile, sources)
+    return Targets(values, reading, wedge, profile, sources, max_sag)
 
 
 def _check_keys(data: dict[str, Any]) -> None:
@@ -153,7 +176,7 @@ def _check_keys(data: dict[str, Any]) -> None:
                 )
             if key in _TEXT_KEYS and not isinstance(value, str):
                 raise DesignError(f"{table}.{key}", f"must be text, got {value!r}")
-            if key in ("loading_frequency_Hz", "inclination_deg"):
+            if key in ("loading_frequency_Hz", "inclination_deg", "max_sag_mm"):
                 _number(value, f"{table}.{key}")
     direction = data.get("conformance", {}).get("direction", "lower_is_better")
     if direction != "lower_is_better":

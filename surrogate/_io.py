@@ -16,6 +16,7 @@ import numpy as np
 from sim.errors import DesignError, read_toml
 from sim.provenance import KINDS, folder_kind
 from sim.simulate import METRICS, diagnostic_names
+from sim.trust import TRUST_OUTPUTS, trust_values
 from sim.space import DesignSpace, space_from_dict
 
 __all__ = ["SweepData", "check_point", "read_points", "read_sweep", "sha256_file"]
@@ -163,8 +164,9 @@ class SweepData:
     """The usable designs of a sweep folder.
 
     ``points``: design points; ``targets`` (n, n_metrics): FE metrics in their units (NaN when
-    a protocol failed or did not reach the metric); ``index``: the table's design index;
-    ``table_sha256``: hash of table.csv (the training data).
+    a protocol failed or did not reach the metric), then the trust outputs of ``sim.trust``
+    when the table has its diagnostic columns (``metric_names`` says which); ``index``: the
+    table's design index; ``table_sha256``: hash of table.csv (the training data).
     """
 
     folder: Path
@@ -176,8 +178,9 @@ class SweepData:
     metric_names: tuple[str, ...]
     table_sha256: str
     n_rows: int
-    #: designs with FE results left out, by reason ("unsettled", "invalid"), and the designs
-    #: whose table does not say (a sweep made before the flags were recorded: kept)
+    #: designs whose FE metrics are left out, by reason ("unsettled", "invalid": they still
+    #: teach the trust outputs), and the designs whose table does not say (a sweep made before
+    #: the flags were recorded: kept)
     excluded: dict[str, int] = field(default_factory=dict)
     unchecked: int = 0
 
@@ -245,8 +248,12 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
         with table_path.open(newline="") as fh:
             reader = csv.DictReader(fh)
             header = reader.fieldnames or []
-            # the metrics the table has (a table from before a metric was added lacks it)
+            # the metrics the table has (a table from before a metric was added lacks it), then
+            # the trust outputs (sim.trust) when it has the diagnostic columns
             metric_names = tuple(m for m in METRICS if m in header)
+            n_fe = len(metric_names)
+            if "valid" in header:
+                metric_names += tuple(TRUST_OUTPUTS)
             missing = [c for c in ("index", *space.names) if c not in header]
             if missing or not metric_names:
                 what = missing[0] if missing else next(iter(METRICS))
@@ -260,13 +267,18 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
                         f"{where} does not have the {len(header)} cells of the header "
                         f"(a truncated or damaged table); {rebuild}",
                     )
-                y = [_number(row[m], f"{where}: {m}") for m in metric_names]
+                y = [_number(row[m], f"{where}: {m}") for m in metric_names[:n_fe]]
                 if not any(math.isfinite(v) for v in y):
                     continue
                 why = _untrusted(row)
                 if why is not None and trusted_only:
                     excluded[why] = excluded.get(why, 0) + 1
-                    continue
+                    if len(metric_names) == n_fe:
+                        continue
+                    # its metrics are not learnt, but what made it untrusted is
+                    y = [math.nan] * n_fe
+                if len(metric_names) > n_fe:
+                    y += list(trust_values(row).values())
                 unchecked += _flag(row.get("valid")) is None
                 points.append({n: _cell(space, n, row[n], where) for n in space.names})
                 targets.append(y)

@@ -21,6 +21,7 @@ import torch
 
 from sim.provenance import git_commit
 from sim.simulate import METRICS
+from sim.trust import TRUST_OUTPUTS
 
 from ._encoding import Encoder
 from ._io import SweepData
@@ -76,7 +77,8 @@ def metric_groups(metric_names: Sequence[str], grouping: str) -> tuple[int, ...]
         raise ValueError(f"groups must be one of {', '.join(GROUPINGS)}, got {grouping!r}")
     if grouping == "none":
         return tuple(0 for _ in metric_names)
-    kind = [0 if METRICS.get(m, ("",))[0] == "tapping" else 1 for m in metric_names]
+    protocol = {**{m: v[0] for m, v in METRICS.items()}, **TRUST_OUTPUTS}
+    kind = [0 if protocol.get(m) == "tapping" else 1 for m in metric_names]
     present = sorted(set(kind))
     return tuple(present.index(k) for k in kind)
 

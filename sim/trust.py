@@ -1,0 +1,113 @@
+"""What a surrogate learns of an FE result's trust, and the rule that turns it into flags.
+
+An FE result is trusted when its taps reached the periodic state (``settled``) and its
+deformation stayed within the validity limits (``valid``, :mod:`sim.validity`). The flags are
+yes/no answers to thresholds that are options, so a surrogate learns the continuous figures
+behind them instead (``TRUST_OUTPUTS``, read from the diagnostic columns of a sweep's
+``table.csv`` or from ``SimResult.diagnostics()``), and :func:`trust_flags` applies the same
+thresholds to its predictions as the solver and ``sim.validity.check`` apply to an FE result:
+
+- the largest compressive log strain in tapping and plate (the protocols the strain limit
+  applies to by default), and the smallest J of each protocol;
+- whether the free surface reached the base or folded, in any protocol (0/1: the mean of an
+  ensemble of such predictions reads as a probability, flagged at 0.5);
+- the tapping's periodic-state residual and largest estimated relative error (settled when
+  both are within ``TappingOptions.residual_tol`` / ``settle_tol``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+__all__ = ["TRUST_OUTPUTS", "trust_flags", "trust_values"]
+
+#: output name -> the protocol whose net learns it ("any": the plate/wedge net)
+TRUST_OUTPUTS: dict[str, str] = {
+    "tapping_max_compressive_log_strain": "tapping",
+    "plate_max_compressive_log_strain": "plate",
+    "tapping_min_J": "tapping",
+    "plate_min_J": "plate",
+    "wedge_min_J": "wedge",
+    "reached_base": "any",
+    "folded": "any",
+    "tapping_residual": "tapping",
+    "tapping_max_estimated_error": "tapping",
+}
+_PROTOCOLS = ("tapping", "plate", "wedge")
+
+
+def _float(v: Any) -> float:
+    if v is None or v == "" or isinstance(v, bool):
+        return float(v) if isinstance(v, bool) else np.nan
+    if isinstance(v, str):
+        low = v.strip().lower()
+        if low in ("true", "false"):
+            return float(low == "true")
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return np.nan
+
+
+def trust_values(diagnostics: Mapping[str, Any]) -> dict[str, float]:
+    """The ``TRUST_OUTPUTS`` of one FE result, from its diagnostics (``SimResult.diagnostics()``
+    or a ``table.csv`` row: text cells are parsed); NaN where the result does not have one."""
+    out = {
+        name: _float(diagnostics.get(name))
+        for name in TRUST_OUTPUTS
+        if name not in ("reached_base", "folded")
+    }
+    for flag in ("reached_base", "folded"):
+        seen = [_float(diagnostics.get(f"{p}_{flag}")) for p in _PROTOCOLS]
+        seen = [v for v in seen if np.isfinite(v)]
+        out[flag] = float(max(seen)) if seen else np.nan
+    return {name: out[name] for name in TRUST_OUTPUTS}
+
+
+def trust_flags(values: Mapping[str, Any], validity, tapping) -> dict[str, np.ndarray]:
+    """Predicted ``valid`` and ``settled`` (bool arrays) and the first reason a design fails
+    (``why``: text array, "" when it passes), from predicted ``TRUST_OUTPUTS`` (arrays; an
+    output the predictor does not have is not judged). ``validity``: ``ValidityOptions``;
+    ``tapping``: ``TappingOptions`` (its tolerances)."""
+    n = len(np.atleast_1d(next(iter(values.values()))))
+    why = np.full(n, "", dtype=object)
+    valid = np.ones(n, dtype=bool)
+    settled = np.ones(n, dtype=bool)
+
+    def fail(mask: np.ndarray, text: str, which: np.ndarray) -> None:
+        mask = np.asarray(mask, dtype=bool)  # NaN compares False: not judged
+        why[mask & (why == "")] = text
+        which &= ~mask
+
+    def get(name: str) -> np.ndarray | None:
+        v = values.get(name)
+        return None if v is None else np.asarray(v, dtype=float).reshape(n)
+
+    limits = [p.strip() for p in validity.strain_limit_protocols.split(",") if p.strip()]
+    for p in limits:
+        v = get(f"{p}_max_compressive_log_strain")
+        if v is not None:
+            with np.errstate(invalid="ignore"):
+                fail(v > validity.max_compressive_log_strain,
+                     f"{p} strain > {validity.max_compressive_log_strain:g}", valid)  # fmt: skip
+    for p in _PROTOCOLS:
+        v = get(f"{p}_min_J")
+        if v is not None:
+            with np.errstate(invalid="ignore"):
+                fail(v < validity.min_J, f"{p} J < {validity.min_J:g}", valid)
+    for flag, allowed in (("reached_base", validity.allow_base_contact),
+                          ("folded", validity.allow_folding)):  # fmt: skip
+        v = get(flag)
+        if v is not None and not allowed:
+            with np.errstate(invalid="ignore"):
+                fail(v > 0.5, flag.replace("_", " "), valid)
+    res, err = get("tapping_residual"), get("tapping_max_estimated_error")
+    with np.errstate(invalid="ignore"):
+        if res is not None:
+            fail(res > tapping.residual_tol, "unsettled (residual)", settled)
+        if err is not None:
+            fail(err > tapping.settle_tol, "unsettled (error estimate)", settled)
+    return {"valid": valid, "settled": settled, "why": why}
