@@ -352,16 +352,28 @@ def retrain(
 ):
     """Warm-started retraining on the training sweep plus the FE-confirmed designs;
     ``progress`` is called with the number of epochs done since its last call."""
+    from sim.trust import TRUST_OUTPUTS, trust_values
     from surrogate import SweepData, read_sweep
     from surrogate._train import Split, TrainConfig, fit
 
     data = read_sweep(dataset)
-    ok = [c for c in confirmed if c.trusted]  # an unsettled or invalid result teaches nothing
+    # an unsettled or invalid result teaches no metric, but it does teach what made it so
+    # (the trust outputs, when the surrogate learns them), as in ``read_sweep``
+    ok = [c for c in confirmed if c.trusted or (c.status == "ok" and TRUST_OUTPUTS.keys()
+                                                 & set(data.metric_names))]  # fmt: skip
     names = list(data.metric_names)
+
+    def target_row(c: Confirmation) -> list[float]:
+        trust = trust_values({**c.diagnostics, "status": c.status})
+        return [
+            trust[m] if m in trust else _nan(c.fe_metrics.get(m)) if c.trusted else math.nan
+            for m in names
+        ]
+
     new_points = [c.candidate.point for c in ok for _ in range(CONFIRMED_WEIGHT)]
-    new_targets = np.array(
-        [[_nan(c.fe_metrics.get(m)) for m in names] for c in ok for _ in range(CONFIRMED_WEIGHT)]
-    ).reshape(-1, len(names))
+    new_targets = np.array([target_row(c) for c in ok for _ in range(CONFIRMED_WEIGHT)]).reshape(
+        -1, len(names)
+    )
     base = len(data.points)
     aug = SweepData(
         folder=data.folder,

@@ -84,6 +84,19 @@ def sensitivities(surrogate, point: Mapping[str, Any], targets: Targets) -> list
     return out
 
 
+def _needed(surrogate, s: Sensitivity, error: float, d: float) -> tuple[float, bool]:
+    """The value of ``s``'s parameter at which the missed target's error would reach zero,
+    extrapolating the surrogate's change per step linearly (on the space's scale), and whether
+    it lies beyond the space's bounds."""
+    p = surrogate.space[s.name]
+    steps = abs(error / d)
+    if p.log:
+        v = math.exp(math.log(s.value) + s.direction * steps * STEP * math.log(p.high / p.low))
+    else:
+        v = s.value + s.direction * steps * STEP * (p.high - p.low)
+    return v, not p.low <= v <= p.high
+
+
 def sensitivity_notes(
     surrogate, point: Mapping[str, Any], targets: Targets, tol: float, top: int = 3
 ) -> list[str]:
@@ -110,6 +123,16 @@ def sensitivity_notes(
                 f"parameter moved by {100 * STEP:.0f} % of its range helps"
             )
             continue
+        first = next((s for s in helpful if not s.at_bound and s.credible), None)
+        reach = ""
+        if first is not None:
+            v, outside = _needed(surrogate, first, e, first.d_error[m])
+            bound = "beyond the space's bounds" if outside else "within the space"
+            sign = "<=" if first.direction < 0 else ">="
+            reach = (
+                f" Extrapolated linearly, {m} is met at {first.name} {sign} {v:.3g} ({bound}), "
+                "the others unchanged."
+            )
         parts = []
         for s in helpful[:top]:
             way = "higher" if s.direction > 0 else "lower"
@@ -123,6 +146,9 @@ def sensitivity_notes(
             )
         notes.append(
             f"to close {m} ({100 * e:+.0f} % by the surrogate at the best design), the surrogate's "
-            f"sensitivities ({100 * STEP:.0f} % of a parameter's range): " + "; ".join(parts)
+            f"sensitivities ({100 * STEP:.0f} % of a parameter's range): "
+            + "; ".join(parts)
+            + "."
+            + reach
         )
     return notes

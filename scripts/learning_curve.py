@@ -9,9 +9,13 @@ subset split 85/15 into training and early-stopping validation. Each size is tra
 ``--repeats`` times (repeat r: subset order and training seed ``seed + r``), in ``--jobs``
 processes, and the scores are averaged over the repeats (each repeat's value is kept in the
 JSON). Per size and metric: R², median and 95th-percentile relative error (over designs with
-|FE| >= 1 % of the median, as in the surrogate's report). A power law, error ~ n^-b, is
-fitted to the largest sizes with ``np.polyfit`` in log-log coordinates and extrapolated to the
-design count at which the targets (median relative error <= 3 %, R² >= 0.99) would be met.
+|FE| >= 1 % of the median, as in the surrogate's report) and the coverage of the 90 %
+interval, on the held-out designs whose FE result is trusted (settled and valid: the others'
+metrics are not read). A power law, error ~ n^-b, is fitted to the largest sizes with
+``np.polyfit`` in log-log coordinates and extrapolated to the design count at which each
+target would be met (``GOALS``: median relative error <= 2 % for every tapping metric in both
+displacement readings, 95th percentile <= 10 % for the hysteresis, R² >= 0.99; coverage of the
+90 % interval between 85 and 95 %, reported).
 Writes a Markdown section, a JSON file and a PNG beside ``--out``.
 """
 
@@ -29,9 +33,23 @@ from surrogate._evaluate import parity_data, score
 from surrogate._io import read_sweep
 from surrogate._train import Split, TrainConfig, fit, split_indices
 
-CHECKED = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm")
-TARGET_MEDIAN = 0.03
+CHECKED = (
+    "disp_at_1N_mm",
+    "disp_at_4N_mm",
+    "disp_at_1N_from_touch_mm",
+    "disp_at_4N_from_touch_mm",
+    "hysteresis_Nmm",
+)
+TARGET_MEDIAN = 0.02
+TARGET_P95_HYSTERESIS = 0.10
 TARGET_R2 = 0.99
+COVERAGE = (0.85, 0.95)
+#: (metric, score key, target, label) of every accuracy target (issue: credible answers)
+GOALS = (
+    *((m, "median_rel_error", TARGET_MEDIAN, "median error 2 %") for m in CHECKED),
+    ("hysteresis_Nmm", "p95_rel_error", TARGET_P95_HYSTERESIS, "95th pct error 10 %"),
+    *((m, "r2", TARGET_R2, "R² 0.99") for m in CHECKED),
+)
 
 
 SCORE_KEYS = ("r2", "median_rel_error", "p95_rel_error", "coverage_90")
@@ -136,7 +154,7 @@ def render(result: dict, png: Path) -> None:
     for m in (*CHECKED, "wedge_peak_force_N"):
         a.loglog(n, [100 * r[m]["median_rel_error"] for r in rows], "o-", label=m)
         b.loglog(n, [max(1 - r[m]["r2"], 1e-5) for r in rows], "o-", label=m)
-    a.axhline(100 * TARGET_MEDIAN, color="k", ls="--", lw=1, label="target 3 %")
+    a.axhline(100 * TARGET_MEDIAN, color="k", ls="--", lw=1, label="target 2 %")
     b.axhline(1 - TARGET_R2, color="k", ls="--", lw=1, label="target R² 0.99")
     a.set(xlabel="FE designs (train + validation)", ylabel="median relative error (%)")
     b.set(xlabel="FE designs (train + validation)", ylabel="1 - R² (test)")
@@ -166,33 +184,49 @@ def markdown(result: dict, png: Path, out: Path, command: str) -> str:
         "Designs = training + validation designs: `fingertip train` on a sweep of N designs "
         "uses 0.85 N of them (70/15/15 split).",
         "",
-        "| designs | " + " | ".join(f"{m} R² / median err" for m in CHECKED) + " | train time |",
+        "| designs | "
+        + " | ".join(f"{m} R² / median / p95 err / in 90 %" for m in CHECKED)
+        + " | train time |",
         "|---|" + "---|" * (len(CHECKED) + 1),
     ]
     for r in rows:
-        cells = [f"{r[m]['r2']:.4f} / {100 * r[m]['median_rel_error']:.2f} %" for m in CHECKED]
+        cells = [
+            f"{r[m]['r2']:.4f} / {100 * r[m]['median_rel_error']:.2f} % / "
+            f"{100 * r[m]['p95_rel_error']:.1f} % / {100 * r[m]['coverage_90']:.0f} %"
+            for m in CHECKED
+        ]
         lines.append(
             f"| {r['n_designs']} | " + " | ".join(cells) + f" | {r['train_seconds']:.0f} s |"
         )
-    lines += ["", "Targets (median relative error <= 3 %, R² >= 0.99):", ""]
-    for m in CHECKED:
-        for key, _target, label in (
-            ("median_rel_error", TARGET_MEDIAN, "median error 3 %"),
-            ("r2", TARGET_R2, "R² 0.99"),
-        ):
-            e = result["extrapolation"][m][key]
-            if e["met_at"] is not None:
-                text = f"met with {e['met_at']} designs"
-            elif e["needed"] is None:
-                text = "too few sizes to extrapolate"
-            elif math.isfinite(e["needed"]):
-                text = (
-                    f"not met; the power law (slope {e['slope']:.2f}) reaches it at "
-                    f"~{e['needed']:,.0f} designs"
-                )
-            else:
-                text = "not met; the error does not fall with more designs"
-            lines.append(f"- {m}, {label}: {text}")
+    lo, hi = COVERAGE
+    last = rows[-1]
+    lines += [
+        "",
+        "Targets (median relative error <= 2 % for every tapping metric in both readings, "
+        "95th percentile <= 10 % for the hysteresis, R² >= 0.99; 85-95 % of the FE values "
+        f"inside the 90 % interval: at {last['n_designs']} designs "
+        + ", ".join(
+            f"{m} {100 * last[m]['coverage_90']:.0f} %"
+            + ("" if lo <= last[m]["coverage_90"] <= hi else " (outside)")
+            for m in CHECKED
+        )
+        + "):",
+        "",
+    ]
+    for m, key, _target, label in GOALS:
+        e = result["extrapolation"][m][key]
+        if e["met_at"] is not None:
+            text = f"met with {e['met_at']} designs"
+        elif e["needed"] is None:
+            text = "too few sizes to extrapolate"
+        elif math.isfinite(e["needed"]):
+            text = (
+                f"not met; the power law (slope {e['slope']:.2f}) reaches it at "
+                f"~{e['needed']:,.0f} designs"
+            )
+        else:
+            text = "not met; the error does not fall with more designs"
+        lines.append(f"- {m}, {label}: {text}")
     lines += ["", f"![learning curve]({png.relative_to(out.parent).as_posix()})", ""]
     return "\n".join(lines)
 
@@ -207,13 +241,9 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=Path("docs/learning_curve.md"))
     args = ap.parse_args()
     result = curve(args.sweep, sorted(args.sizes), args.seed, args.repeats, args.jobs)
-    result["extrapolation"] = {
-        m: {
-            "median_rel_error": extrapolate(result["rows"], m, "median_rel_error", TARGET_MEDIAN),
-            "r2": extrapolate(result["rows"], m, "r2", TARGET_R2),
-        }
-        for m in CHECKED
-    }
+    result["extrapolation"] = {}
+    for m, key, target, _ in GOALS:
+        result["extrapolation"].setdefault(m, {})[key] = extrapolate(result["rows"], m, key, target)
     png = args.out.parent / "figures" / "learning_curve.png"
     render(result, png)
     command = "python scripts/learning_curve.py " + " ".join(

@@ -116,25 +116,54 @@ def run() -> dict[str, dict[str, Any]]:
 
 
 def _in_space(space: Any, label: str) -> str:
-    """Why the variant is (not) a point of today's default space (label-based: only the gel
-    variant can be one, the other two use the retired "param" family)."""
+    """Whether the variant is a point of today's default space, and if not why (only the gel
+    variant can be one: the other two use the retired "param" family)."""
     if not label.startswith("3."):
-        return 'no: the "param" family is not in the default space'
-    point = {
-        "geometry.half_width_mm": GEOMETRY.half_width_mm,
-        "geometry.height_mm": GEOMETRY.height_mm,
-        "geometry.exponent": GEOMETRY.exponent,
-        "layers.count": 2,
-        "skin.material": SKIN,
-        "skin.thickness_mm": SKIN_MM,
-        "core.material": "gel",
-        **{f"core.{k}": v for k, v in CORE.items() if k != "nu"},
-    }
-    try:
-        space.check(point)
-    except Exception as exc:  # DesignError: the first parameter outside the space
-        return f"no: {exc}"
-    return "yes"
+        return 'no: the "param" family is not in it'
+    outside = []
+    for key, value in CORE.items():
+        if key == "nu":
+            continue
+        p = space[f"core.{key}"]
+        if not p.low <= value <= p.high:
+            outside.append(f"core {key} = {value:g} outside {p.low:g}-{p.high:g}")
+    p = space["skin.thickness_mm"]
+    if not p.low <= SKIN_MM <= p.high:
+        outside.append(f"skin thickness {SKIN_MM:g} mm outside {p.low:g}-{p.high:g}")
+    return "no: " + "; ".join(outside) if outside else "yes"
+
+
+def _vs(r: dict, human: dict) -> str:
+    """'a / b mm and c N mm (+x %, +y %, +z %)' of a result against the human targets."""
+    pairs = [
+        (r.get("disp_at_1N_from_touch_mm"), human["disp_at_1N_mm"]),
+        (r.get("disp_at_4N_from_touch_mm"), human["disp_at_4N_mm"]),
+        (r.get("hysteresis_Nmm"), human["hysteresis_Nmm"]),
+    ]
+    if any(v is None for v, _ in pairs):
+        return "(a protocol failed)"
+    (d1, _), (d4, _), (h, _) = pairs
+    dev = ", ".join(f"{100 * (v / t - 1):+.1f} %" for v, t in pairs)
+    return f"{d1:.2f} / {d4:.2f} mm and {h:.2f} N mm ({dev})"
+
+
+def _sag_bullet(r1: dict, r2: dict, r3: dict, limit: float | None) -> str:
+    sags = [r.get("sag_mm") for r in (r1, r2, r3)]
+    text = (
+        f"- **Sag.** The answer was read from the undeformed top, which also counts what earlier "
+        f"taps left behind (`sag_mm`). Its sag is {_fmt('{:.3f}', sags[0])} mm as it was "
+        f"({_fmt('{:.3f}', sags[1])} and {_fmt('{:.3f}', sags[2])} mm in versions 2 and 3), "
+        f"against the limit of {limit} mm. "
+    )
+    if all(s is not None and limit is not None and s <= limit for s in sags):
+        return text + (
+            "So sag is *not* what disqualifies this design: it recovers between taps, and its "
+            "two readings agree. The sag limit is aimed at other near-human designs of the old "
+            "space, which did not recover (in the solver-1.3 sweep, 12 of the 19 designs within "
+            "25 % of all three human values owed more than 20 % of their 1 N displacement to "
+            "sag: `sim/data/human_targets.toml`)."
+        )
+    return text + "A design beyond the limit does not recover between taps: not finger-like."
 
 
 def page(results: dict[str, dict[str, Any]]) -> str:
@@ -213,29 +242,26 @@ def page(results: dict[str, dict[str, Any]]) -> str:
             f"volume instead of bulging: min J = {_fmt('{:.3f}', r1.get('tapping_min_J'))} in "
             f"tapping, against {_fmt('{:.3f}', r2.get('tapping_min_J'))} with nu = 0.499 and "
             f"{_fmt('{:.3f}', r3.get('tapping_min_J'))} as a gel.",
-            f"- **Its match depended on that compressibility.** From touch, version 1 gives "
-            f"{_fmt('{:.2f}', r1.get('disp_at_1N_from_touch_mm'))} / "
-            f"{_fmt('{:.2f}', r1.get('disp_at_4N_from_touch_mm'))} mm and "
-            f"{_fmt('{:.2f}', r1.get('hysteresis_Nmm'))} N mm; with nu = 0.499 "
-            f"{_fmt('{:.2f}', r2.get('disp_at_1N_from_touch_mm'))} / "
-            f"{_fmt('{:.2f}', r2.get('disp_at_4N_from_touch_mm'))} mm and "
-            f"{_fmt('{:.2f}', r2.get('hysteresis_Nmm'))} N mm; as a gel "
-            f"{_fmt('{:.2f}', r3.get('disp_at_1N_from_touch_mm'))} / "
-            f"{_fmt('{:.2f}', r3.get('disp_at_4N_from_touch_mm'))} mm and "
-            f"{_fmt('{:.2f}', r3.get('hysteresis_Nmm'))} N mm (human 1.83 / 2.91 mm, "
-            "2.26 N mm).",
-            f"- **Sag.** The answer was read from the undeformed top, which counts the "
-            f"displacement left by earlier taps. Its sag is "
-            f"{_fmt('{:.2f}', r1.get('sag_mm'))} mm as it was "
-            f"({_fmt('{:.2f}', r2.get('sag_mm'))} and {_fmt('{:.2f}', r3.get('sag_mm'))} mm in "
-            f"versions 2 and 3), against the limit of {targets.max_sag_mm} mm.",
+            "- **Its match depended on that compressibility.** From touch against the human "
+            "1.83 / 2.91 mm and 2.26 N mm: "
+            + "; ".join(
+                f"{name} {_vs(r, targets.values)}"
+                for name, r in (("as it was", r1), ("with nu = 0.499", r2), ("as a gel", r3))
+            )
+            + ". Made of materials that exist (version 3), the design falls well short of the "
+            "human values: the shear-only relaxation of a real gel dissipates less than a "
+            "whole stress that relaxes (its Prony terms are also spread wider, tau/10 to "
+            "10 tau), and the incompressible core bulges instead of giving way.",
+            _sag_bullet(r1, r2, r3, targets.max_sag_mm),
             f"- **Beyond the validity limits.** The largest local compressive log strain in "
             f"tapping is {_fmt('{:.2f}', r1.get('tapping_max_compressive_log_strain'))} "
             f"(versions 2 and 3: "
             f"{_fmt('{:.2f}', r2.get('tapping_max_compressive_log_strain'))} and "
             f"{_fmt('{:.2f}', r3.get('tapping_max_compressive_log_strain'))}) against the "
             "limit of 0.60, the strain to which the paper's materials were characterised (45 % "
-            "nominal compression). Solver 1.3, which produced the answer, did not check this.",
+            "nominal compression), and in every version the side of the pulp is pressed onto "
+            "the base beside the bone (`reached_base`). Solver 1.3, which produced the answer, "
+            "did not check either.",
             "- **It sat on the edges of its space.** mu0 = 1.5 kPa, tau = 0.023 s and "
             "nu = 0.454 were at or next to the lower bounds of the old space's core "
             "(1 kPa, 0.02 s, 0.45): the search pushed towards ever softer, faster-relaxing, "

@@ -47,9 +47,10 @@ FAMILY_KEYS = ("mu0_MPa", "alpha", "nu", "g_total", "tau_s")
 #: Poisson's ratio of the gel family. Silicone gels and elastomers have a bulk modulus of about
 #: 1 GPa against shear moduli of kPa to a fraction of a MPa, so their true nu exceeds 0.4999.
 #: The displacement-based FE needs nu < 0.5; at 0.499 a soft two-layer gel design's tapping
-#: displacements are within 2 % of their incompressible limit (linear in 1 - 2 nu between
-#: 0.495, 0.499 and 0.4995; mesh refinement x2 moves them by 0.3 %: docs/design_space.md,
-#: "Gel compressibility"), while 0.4995 costs about 20 % more Newton work.
+#: displacements are within 2-3 % of their incompressible limit (+1.9 % from the top, +2.3 %
+#: from touch, plate force -2.9 %; linear in 1 - 2 nu between 0.495, 0.499 and 0.4995; mesh
+#: refinement x2 moves them by 0.3 %: docs/design_space.md, "Gel compressibility"), while
+#: 0.4995 gains about 1 % for about 20 % more Newton work.
 GEL_NU = 0.499
 
 

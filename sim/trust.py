@@ -9,8 +9,9 @@ thresholds to its predictions as the solver and ``sim.validity.check`` apply to 
 
 - the largest compressive log strain in tapping and plate (the protocols the strain limit
   applies to by default), and the smallest J of each protocol;
-- whether the free surface reached the base or folded, in any protocol (0/1: the mean of an
-  ensemble of such predictions reads as a probability, flagged at 0.5);
+- whether the free surface reached the base or folded, in any protocol, and whether the FE
+  failed to converge in any protocol (0/1: the mean of an ensemble of such predictions reads
+  as a probability, flagged at 0.5; a design the FE cannot simulate is no answer either);
 - the tapping's periodic-state residual and largest estimated relative error (settled when
   both are within ``TappingOptions.residual_tol`` / ``settle_tol``).
 """
@@ -33,6 +34,7 @@ TRUST_OUTPUTS: dict[str, str] = {
     "wedge_min_J": "wedge",
     "reached_base": "any",
     "folded": "any",
+    "failed": "any",
     "tapping_residual": "tapping",
     "tapping_max_estimated_error": "tapping",
 }
@@ -54,12 +56,15 @@ def _float(v: Any) -> float:
 
 def trust_values(diagnostics: Mapping[str, Any]) -> dict[str, float]:
     """The ``TRUST_OUTPUTS`` of one FE result, from its diagnostics (``SimResult.diagnostics()``
-    or a ``table.csv`` row: text cells are parsed); NaN where the result does not have one."""
+    or a ``table.csv`` row: text cells are parsed; ``failed`` from a row's ``status``); NaN
+    where the result does not have one."""
     out = {
         name: _float(diagnostics.get(name))
         for name in TRUST_OUTPUTS
-        if name not in ("reached_base", "folded")
+        if name not in ("reached_base", "folded", "failed")
     }
+    status = diagnostics.get("status")  # a table row's: "ok" or "failed"
+    out["failed"] = np.nan if status in (None, "") else float(status != "ok")
     for flag in ("reached_base", "folded"):
         seen = [_float(diagnostics.get(f"{p}_{flag}")) for p in _PROTOCOLS]
         seen = [v for v in seen if np.isfinite(v)]
@@ -99,7 +104,7 @@ def trust_flags(values: Mapping[str, Any], validity, tapping) -> dict[str, np.nd
             with np.errstate(invalid="ignore"):
                 fail(v < validity.min_J, f"{p} J < {validity.min_J:g}", valid)
     for flag, allowed in (("reached_base", validity.allow_base_contact),
-                          ("folded", validity.allow_folding)):  # fmt: skip
+                          ("folded", validity.allow_folding), ("failed", False)):  # fmt: skip
         v = get(flag)
         if v is not None and not allowed:
             with np.errstate(invalid="ignore"):

@@ -11,6 +11,7 @@ import math
 import os
 import platform
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -27,6 +28,7 @@ __all__ = [
     "ParityData",
     "Report",
     "Speed",
+    "TrustScore",
     "evaluate",
     "inference_speed",
     "parity_data",
@@ -97,6 +99,22 @@ class Speed:
     load_average_1min: float
 
 
+@dataclass(frozen=True)
+class TrustScore:
+    """How well the surrogate's trust outputs (``sim.trust``) tell a credible FE result from
+    one that is not, on the ``n`` test designs where FE says either: ``accuracy`` of the
+    predicted flag (valid and settled, the default limits), the fraction of FE-untrusted
+    designs predicted trusted (``false_trusted``: the costly mistake, a search would go there)
+    and of FE-trusted ones predicted untrusted (``false_untrusted``: the search would miss
+    them), and the FE-untrusted fraction (``untrusted_fraction``)."""
+
+    n: int
+    accuracy: float
+    false_trusted: float
+    false_untrusted: float
+    untrusted_fraction: float
+
+
 @dataclass(frozen=True, eq=False)
 class Report:
     scores: tuple[MetricScore, ...]
@@ -104,6 +122,7 @@ class Report:
     speed: Speed
     n_test: int
     in_domain_fraction: float
+    trust: TrustScore | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return _clean(
@@ -111,6 +130,7 @@ class Report:
                 "n_test": self.n_test,
                 "in_domain_fraction": self.in_domain_fraction,
                 "metrics": {s.name: asdict(s) for s in self.scores},
+                "trust": None if self.trust is None else asdict(self.trust),
                 "speed": asdict(self.speed),
             }
         )
@@ -220,6 +240,39 @@ def parity_data(
     )
 
 
+def trust_score(parity: Sequence[ParityData]) -> TrustScore | None:
+    """The ``TrustScore`` of the trust outputs' parity data (None without trust outputs)."""
+    from sim.protocols import TappingOptions
+    from sim.trust import TRUST_OUTPUTS, trust_flags
+    from sim.validity import ValidityOptions
+
+    by_name = {p.metric: p for p in parity if p.metric in TRUST_OUTPUTS}
+    if not by_name:
+        return None
+
+    def flags(field: str) -> np.ndarray:
+        values = {m: getattr(p, field) for m, p in by_name.items()}
+        f = trust_flags(values, ValidityOptions(), TappingOptions())
+        return f["valid"] & f["settled"]
+
+    fe_known = np.any([np.isfinite(p.fe) for p in by_name.values()], axis=0)
+    fe_ok, pred_ok = flags("fe")[fe_known], flags("mean")[fe_known]
+    n = int(fe_known.sum())
+    if n == 0:
+        return TrustScore(0, math.nan, math.nan, math.nan, math.nan)
+
+    def frac(mask: np.ndarray) -> float:
+        return float(mask.mean()) if mask.size else math.nan
+
+    return TrustScore(
+        n,
+        frac(fe_ok == pred_ok),
+        frac(pred_ok[~fe_ok]),
+        frac(~pred_ok[fe_ok]),
+        frac(~fe_ok),
+    )
+
+
 def evaluate(
     surrogate: Surrogate, points: list[dict], targets: np.ndarray, *, speed_n: int = 65536
 ) -> Report:
@@ -231,6 +284,7 @@ def evaluate(
         inference_speed(surrogate, points, speed_n),
         len(points),
         float(parity[0].in_domain.mean()) if len(points) and parity else math.nan,
+        trust_score(parity),
     )
 
 
@@ -288,6 +342,8 @@ def _excluded_line(info: dict[str, Any]) -> str:
         else "Left out: none (every design with FE results reached its periodic state and "
         "stayed within the validity limits)."
     )
+    if parts:
+        text += " Their trust outputs (why they are not trusted) are learnt all the same."
     if info.get("unchecked"):
         text += (
             f" {info['unchecked']} designs come from a sweep that did not record these flags "
@@ -326,6 +382,17 @@ def write_report(report: Report, folder: Path, info: dict[str, Any]) -> None:
             f"{_fmt(100 * sc.median_rel_error, '.2f')} % | {_fmt(100 * sc.p95_rel_error, '.2f')} % "
             f"| {sc.n_rule} | {_fmt(100 * sc.coverage_90, '.0f')} % |"
         )
+    t = report.trust
+    if t is not None:
+        lines += [
+            "",
+            f"Credibility (valid and settled at the default limits, from the trust outputs) on "
+            f"{t.n} test designs, {_fmt(100 * t.untrusted_fraction, '.0f')} % of them not "
+            f"credible by FE: {_fmt(100 * t.accuracy, '.1f')} % predicted right; "
+            f"{_fmt(100 * t.false_trusted, '.1f')} % of the FE-untrusted designs predicted "
+            f"credible, {_fmt(100 * t.false_untrusted, '.1f')} % of the FE-credible ones "
+            "predicted not.",
+        ]
     lines += [
         "",
         f"Inference ({s.n_designs} designs batched, {s.torch_threads} torch threads, "

@@ -16,8 +16,8 @@ import numpy as np
 from sim.errors import DesignError, read_toml
 from sim.provenance import KINDS, folder_kind
 from sim.simulate import METRICS, diagnostic_names
-from sim.trust import TRUST_OUTPUTS, trust_values
 from sim.space import DesignSpace, space_from_dict
+from sim.trust import TRUST_OUTPUTS, trust_values
 
 __all__ = ["SweepData", "check_point", "read_points", "read_sweep", "sha256_file"]
 
@@ -218,7 +218,8 @@ def _untrusted(row: dict[str, str]) -> str | None:
 
 
 def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
-    """Designs with at least one finite metric (failed protocols leave NaN, masked in training).
+    """Designs with at least one finite metric (failed protocols leave NaN, masked in training),
+    and, when the table has the trust columns, every design (a failed one teaches ``failed``).
 
     ``trusted_only``: leave out the designs whose tapping did not reach its periodic state
     (``settled`` false) or whose deformation went beyond the validity limits (``valid`` false);
@@ -268,7 +269,7 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
                         f"(a truncated or damaged table); {rebuild}",
                     )
                 y = [_number(row[m], f"{where}: {m}") for m in metric_names[:n_fe]]
-                if not any(math.isfinite(v) for v in y):
+                if not any(math.isfinite(v) for v in y) and len(metric_names) == n_fe:
                     continue
                 why = _untrusted(row)
                 if why is not None and trusted_only:
@@ -279,7 +280,7 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
                     y = [math.nan] * n_fe
                 if len(metric_names) > n_fe:
                     y += list(trust_values(row).values())
-                unchecked += _flag(row.get("valid")) is None
+                unchecked += "valid" not in header
                 points.append({n: _cell(space, n, row[n], where) for n in space.names})
                 targets.append(y)
                 index.append(int(_number(row["index"], f"{where}: index", integer=True)))

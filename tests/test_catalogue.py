@@ -140,7 +140,7 @@ def test_human_targets_have_the_published_values() -> None:
     assert tapping["disp_at_1N_mm"] == 1.83
     assert tapping["disp_at_4N_mm"] == 2.91
     assert tapping["hysteresis_Nmm"] == 2.26
-    assert tapping["displacement_reading"] == "from_undeformed_top"
+    assert tapping["displacement_reading"] == "from_first_touch"
     assert "Serina" in tapping["source"] and "1997" in tapping["source"]
     assert tapping["loading_frequency_Hz"] == 0.5 and tapping["inclination_deg"] == 0.0
     conformance = targets["conformance"]
@@ -203,12 +203,12 @@ def _user(tmp_path: Path, name: str, text: str) -> Path:
 
 
 GEL = """
-[gel]
+[labgel]
 source = "our lab"
 model = "neo_hookean"
 mu_MPa = 0.01
 nu = 0.49
-[gel.provenance]
+[labgel.provenance]
 tests = ["uniaxial"]
 uniaxial_r2 = 0.99
 """
@@ -217,11 +217,11 @@ uniaxial_r2 = 0.99
 def test_user_catalogues_merge_and_refuse_clashes(tmp_path: Path) -> None:
     gel = _user(tmp_path, "gel.toml", GEL)
     user, merged = load_user_catalogues([gel])
-    assert set(merged) == set(CATALOGUE) | {"gel"} and user[0].names == ["gel"]
-    assert merged["gel"].provenance_dict == {"tests": ["uniaxial"], "uniaxial_r2": 0.99}
+    assert set(merged) == set(CATALOGUE) | {"labgel"} and user[0].names == ["labgel"]
+    assert merged["labgel"].provenance_dict == {"tests": ["uniaxial"], "uniaxial_r2": 0.99}
     assert user[0].record()["sha256"] == hashlib.sha256(gel.read_bytes()).hexdigest()
     assert set(CATALOGUE) == set(RAW)  # the module's catalogue stays the shipped one
-    shipped = _user(tmp_path, "s.toml", GEL.replace("gel", "silicone_gls40"))
+    shipped = _user(tmp_path, "s.toml", GEL.replace("[labgel", "[silicone_gls40"))
     for files, words in (([gel, gel], "gel.toml"), ([shipped], "shipped catalogue")):
         with pytest.raises(DesignError) as info:
             load_user_catalogues(files)
@@ -234,11 +234,11 @@ def test_user_catalogues_merge_and_refuse_clashes(tmp_path: Path) -> None:
     [
         ("[gel\nmodel = 1", "--catalogue", "malformed TOML"),
         ("", "--catalogue", "no material"),
-        (GEL.replace('source = "our lab"\n', ""), "gel.toml:gel.source", "required"),
-        (GEL.replace("nu = 0.49", "nu = 0.5"), "gel.toml:gel.nu", "(-1, 0.5)"),
+        (GEL.replace('source = "our lab"\n', ""), "gel.toml:labgel.source", "required"),
+        (GEL.replace("nu = 0.49", "nu = 0.5"), "gel.toml:labgel.nu", "(-1, 0.5)"),
         (
             GEL.replace("uniaxial_r2 = 0.99", "fit = { r2 = 1 }"),
-            "gel.toml:gel.provenance.fit",
+            "gel.toml:labgel.provenance.fit",
             "text, a number",
         ),
     ],
@@ -258,11 +258,17 @@ SPACE_WITH_GEL = {
         "count": {"choice": [1, 2]},
         "skin": {
             "thickness_mm": {"low": 0.3, "high": 1.0},
-            "material": {"choice": ["gel", "silicone_gls40"]},
+            "material": {"choice": ["labgel", "silicone_gls40"]},
         },
-        "core": {"material": {"choice": ["gel", "polyurethane_74_45"]}},
+        "core": {"material": {"choice": ["labgel", "polyurethane_74_45"]}},
     },
 }
+
+
+def test_a_user_material_may_not_take_a_family_name(tmp_path: Path) -> None:
+    with pytest.raises(DesignError) as info:
+        load_user_catalogues([_user(tmp_path, "gel.toml", GEL.replace("[labgel", "[gel"))])
+    assert info.value.field == "gel.toml:gel" and "family" in info.value.message
 
 
 def test_a_space_lists_user_materials_and_keeps_them(tmp_path: Path) -> None:
@@ -271,19 +277,21 @@ def test_a_space_lists_user_materials_and_keeps_them(tmp_path: Path) -> None:
         space_from_dict(SPACE_WITH_GEL)  # without the catalogue
     assert info.value.field == "skin.material" and "--catalogue" in info.value.message
     space = space_from_dict(SPACE_WITH_GEL, merged)
-    assert [m.name for m in space.materials] == ["gel"]
+    assert [m.name for m in space.materials] == ["labgel"]
     data = space.to_dict()
-    assert set(data["materials"]) == {"gel"} and data["materials"]["gel"]["source"] == "our lab"
+    assert (
+        set(data["materials"]) == {"labgel"} and data["materials"]["labgel"]["source"] == "our lab"
+    )
     again = space_from_dict(json.loads(json.dumps(data)))  # from a run folder, no catalogue
     assert again == space
-    point = space.check({"layers.count": 2, "skin.material": "gel", "skin.thickness_mm": 0.5,
+    point = space.check({"layers.count": 2, "skin.material": "labgel", "skin.thickness_mm": 0.5,
                          "core.material": "polyurethane_74_45"})  # fmt: skip
     design = space.design(point)
-    assert design.layers[0].material == merged["gel"]
+    assert design.layers[0].material == merged["labgel"]
     # the design file form holds the user material in full; its record key follows its table
     assert design.to_dict()["layers"][0]["material"]["mu_MPa"] == 0.01
     stiffer = space_from_dict(
-        {**data, "materials": {"gel": {**data["materials"]["gel"], "mu_MPa": 0.02}}}
+        {**data, "materials": {"labgel": {**data["materials"]["labgel"], "mu_MPa": 0.02}}}
     )
     options = SimOptions()
     assert record_key(point, options, space.catalogue) != record_key(
@@ -291,9 +299,9 @@ def test_a_space_lists_user_materials_and_keeps_them(tmp_path: Path) -> None:
     )
     # the same name meaning another material than the --catalogue's is refused
     with pytest.raises(DesignError) as info:
-        space_from_dict({**data, "materials": {"gel": {**data["materials"]["gel"],
+        space_from_dict({**data, "materials": {"labgel": {**data["materials"]["labgel"],
                                                        "mu_MPa": 0.02}}}, merged)  # fmt: skip
-    assert info.value.field == "materials.gel"
+    assert info.value.field == "materials.labgel"
     # the worker side: the tables alone rebuild the catalogue
-    tables = material_tables({"gel": merged["gel"]})
-    assert catalogue_from_tables(tables)["gel"] == merged["gel"]
+    tables = material_tables({"labgel": merged["labgel"]})
+    assert catalogue_from_tables(tables)["labgel"] == merged["labgel"]

@@ -37,9 +37,11 @@ from explore._search import (
 )
 from explore._types import Candidate, Confirmation
 from sim import METRICS, SimOptions
+from sim.families import is_family
 from sim.space import load_space, space_from_dict
 from sim.sweep import record_key
 from sim.targets import load_targets
+from sim.trust import TRUST_OUTPUTS
 
 REPO = Path(explore.cli.__file__).resolve().parents[1]
 
@@ -82,10 +84,13 @@ def test_suggestions_are_conditional_like_the_design_space():
         # only what the design uses was suggested: one layer never asks for a skin
         assert ("skin.material" in trial.params) == (count == 2)
         for role in ("skin", "core"):
-            used = point[f"{role}.material"] == "param"
+            used = is_family(point[f"{role}.material"])
             seen_param |= used
             assert (f"{role}.mu0_MPa" in trial.params) == used
             assert math.isnan(point[f"{role}.mu0_MPa"]) != used
+            # a foam has a Poisson's ratio of its own, a gel none (fixed, nearly incompressible)
+            foam = point[f"{role}.material"] == "foam"
+            assert (f"{role}.nu" in trial.params) == foam
         assert point_from_params(space, trial.params) == point or _same(
             point_from_params(space, trial.params), point
         )
@@ -152,7 +157,7 @@ def test_candidates_are_distinct_trusted_best_then_flagged_promising():
 
 
 def test_confirmation_bookkeeping_compares_prediction_with_fe():
-    targets = load_targets()
+    targets = dataclasses.replace(load_targets(), reading="from_undeformed_top")
     pred = {
         "disp_at_1N_mm": {"mean": 2.0, "std": 0.1, "lower_90": 1.8, "upper_90": 2.2},
         "disp_at_4N_mm": {"mean": 3.0, "std": 0.1, "lower_90": 2.95, "upper_90": 3.05},
@@ -197,9 +202,10 @@ def test_rounds_stop_only_when_an_fe_design_meets_every_tapping_target():
     cand = Candidate({"x": 1.0}, "best", 0, 7, "continuous", 0.1, {}, True, 0.05)
     human = {targets.metric(m): targets.values[m] for m in TAPPING}
 
-    def conf(scale: dict, status: str = "ok") -> Confirmation:
+    def conf(scale: dict, status: str = "ok", sag: float = 0.1) -> Confirmation:
         fe = {k: v * scale.get(k, 1.0) for k, v in human.items()}
-        return Confirmation(cand, "k", status, "", {**fe, "wedge_peak_force_N": 0.1}, 0.0)
+        fe |= {"wedge_peak_force_N": 0.1, "sag_mm": sag}
+        return Confirmation(cand, "k", status, "", fe, 0.0)
 
     near = conf({targets.metric("hysteresis_Nmm"): 1.04})
     far = conf({targets.metric("disp_at_1N_mm"): 1.06})
@@ -211,6 +217,9 @@ def test_rounds_stop_only_when_an_fe_design_meets_every_tapping_target():
     for flag in ("settled", "valid"):
         untrusted = dataclasses.replace(near, diagnostics={flag: False})
         assert not untrusted.trusted and not _target_met([untrusted], targets, 0.05)
+    # nor does a skin that does not recover between taps (sag over the targets' limit)
+    putty = conf({targets.metric("hysteresis_Nmm"): 1.04}, sag=2 * targets.max_sag_mm)
+    assert putty.trusted and not _target_met([putty], targets, 0.05)
 
 
 def test_an_untrusted_fe_result_is_never_an_answer():
@@ -223,7 +232,8 @@ def test_an_untrusted_fe_result_is_never_an_answer():
 
     def conf(key: str, score: float, **diagnostics) -> Confirmation:
         cand = Candidate(point, "best", 0, 7, "continuous", score, {}, True, score)
-        return Confirmation(cand, key, "ok", "", dict(human), score, diagnostics=diagnostics)
+        fe = {**human, "sag_mm": 0.1}
+        return Confirmation(cand, key, "ok", "", fe, score, diagnostics=diagnostics)
 
     perfect_but_unsettled = conf("a", 0.0, settled=False, valid=True)
     perfect_but_invalid = conf("b", 0.0, settled=True, valid=False)
@@ -236,7 +246,7 @@ def test_an_untrusted_fe_result_is_never_an_answer():
     # with no trusted result there is no answer, and the note says why
     none = summarise([perfect_but_unsettled, perfect_but_invalid], targets, 0.05, [], [], space)
     assert none.answers["best"] is None
-    assert "1 went beyond the validity limits and 1 did not reach" in none.notes[0]
+    assert "1 went beyond the validity limits, 1 did not reach" in none.notes[0]
 
 
 def test_confirm_reuses_existing_fe_records(tmp_path, monkeypatch):
@@ -326,7 +336,13 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     # the answers are FE results under the metric names of `fingertip simulate --json`
     record = json.loads((out / best["fe_record"]).read_text())
     assert best["fe_metrics"] == record["metrics"] and set(best["fe_metrics"]) == set(METRICS)
-    assert set(best["predicted"]) == set(METRICS)
+    # the prediction of every metric, and of what would make the FE result untrusted
+    assert set(best["predicted"]) == set(METRICS) | set(TRUST_OUTPUTS)
+    # both readings and the sag between them
+    r = best["readings"]
+    assert r["from_first_touch"]["disp_at_1N_mm"] == best["fe_metrics"]["disp_at_1N_from_touch_mm"]
+    assert r["from_undeformed_top"]["disp_at_4N_mm"] == best["fe_metrics"]["disp_at_4N_mm"]
+    assert r["sag_mm"] == best["fe_metrics"]["sag_mm"] <= 0.37 and best["credible"]
     assert {"median", "mean", "std", "lower_90", "upper_90", "by_rule"} == set(
         best["predicted"]["disp_at_1N_mm"]
     )
@@ -338,7 +354,11 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     design_from_dict(build["design"])
     # the best is the lowest FE score of all confirmations; two rounds ran (tolerance 1 %)
     confs = json.loads((out / "confirmations.json").read_text())
-    scores = [c["fe_score"] for c in confs if c["status"] == "ok"]
+    scores = [
+        c["fe_score"]
+        for c in confs
+        if c["trusted"] and c["fe_metrics"]["sag_mm"] <= 0.37  # credible ones only
+    ]
     assert best["fe_score"] == pytest.approx(min(scores))
     assert len(summary["rounds"]) == 2 and (out / "surrogates" / "round-1.safetensors").exists()
     assert {c["candidate"]["round"] for c in confs} == {0, 1}

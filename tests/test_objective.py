@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 from explore._objective import WEDGE_REFERENCE_N, WEDGE_WEIGHT, closeness, objectives
-from sim.targets import Targets, load_targets
+from sim.targets import Targets
 
 HUMAN = {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
 
 
 def test_meeting_every_target_with_no_wedge_force_scores_zero():
-    c = closeness({**HUMAN, "wedge_peak_force_N": 0.0}, load_targets())
+    c = closeness({**HUMAN, "wedge_peak_force_N": 0.0}, Targets(dict(HUMAN)))
     assert float(c.score) == 0.0
     np.testing.assert_allclose(objectives(c), [0.0, 0.0, 0.0])
 
@@ -24,7 +24,7 @@ def test_score_is_rms_relative_error_plus_weighted_wedge_effort():
         "hysteresis_Nmm": 2.26 * 1.3,
         "wedge_peak_force_N": 1.175,
     }
-    c = closeness(m, load_targets())
+    c = closeness(m, Targets(dict(HUMAN)))
     rms = np.sqrt((0.1**2 + 0.2**2 + 0.3**2) / 3)
     assert float(c.score) == pytest.approx(rms + WEDGE_WEIGHT * 1.175 / WEDGE_REFERENCE_N)
     np.testing.assert_allclose(
@@ -47,11 +47,11 @@ def test_first_touch_targets_compare_with_first_touch_metrics():
 
 def test_missing_metric_is_never_a_good_score():
     m = {**HUMAN, "hysteresis_Nmm": None, "wedge_peak_force_N": 0.1}
-    assert np.isinf(closeness(m, load_targets()).score)
+    assert np.isinf(closeness(m, Targets(dict(HUMAN))).score)
 
 
 def test_vectorised_over_designs():
     m = {k: np.array([v, 2 * v]) for k, v in HUMAN.items()}
     m["wedge_peak_force_N"] = np.array([0.0, np.nan])
-    c = closeness(m, load_targets())
+    c = closeness(m, Targets(dict(HUMAN)))
     assert c.score.shape == (2,) and c.score[0] == 0.0 and np.isinf(c.score[1])

@@ -417,7 +417,7 @@ def test_report_writes_every_figure_and_links_it(run_dir: Path) -> None:
     for name in FIGURES:
         png = (run_dir / "figures" / f"{name}.png").read_bytes()
         assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 5000
-    assert "Best design" in text and "Best buildable design" in text
+    assert "Best credible design" in text and "Best buildable design" in text
     assert "silicone_gls40" in text and "ecoflex_0010_dawood" in text
     assert "| `hysteresis_Nmm` | 2.26 | 2.71 | +20.0 % | ✗ |" in text
     for name in FIGURES:

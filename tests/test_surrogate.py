@@ -23,9 +23,11 @@ from sweep_fixtures import FAST, TINY
 import explore.cli
 from sim import METRICS, SOLVER_VERSION
 from sim.errors import DesignError
+from sim.families import is_family
 from sim.materials import CATALOGUE
 from sim.space import load_space, param_material
 from sim.sweep import sample_points
+from sim.trust import TRUST_OUTPUTS
 from surrogate import (
     CheckpointError,
     Encoder,
@@ -241,7 +243,7 @@ def test_an_elastic_designs_hysteresis_is_exactly_zero_by_rule():
     model = EnsembleMLP(enc.n_features, len(names), members=5, seed=0)
     sur = Surrogate(model, enc, norm, names)
     pts = [
-        {**p, "core.g_total": 0.0} if p.get("core.material") == "param" else p
+        {**p, "core.g_total": 0.0} if is_family(p.get("core.material")) else p
         for p in sample_points(space, 32, 0)
     ]
     elastic = enc.encode(pts).features[:, enc.feature_names.index(ELASTIC_FEATURE)] > 0.5
@@ -311,6 +313,10 @@ def test_the_tapping_metrics_have_nets_of_their_own():
     groups = metric_groups(names, "tapping")
     for name, g in zip(names, groups, strict=True):
         assert g == (0 if METRICS[name][0] == "tapping" else 1), name
+    # the trust outputs go with their protocol's net ("any": the plate/wedge one)
+    trust = metric_groups([*names, *TRUST_OUTPUTS], "tapping")[len(names) :]
+    for name, g in zip(TRUST_OUTPUTS, trust, strict=True):
+        assert g == (0 if TRUST_OUTPUTS[name] == "tapping" else 1), name
     assert set(metric_groups(names, "none")) == {0}
     assert metric_groups(["wedge_peak_force_N", "plate_force_at_1mm_N"], "tapping") == (0, 0)
     with pytest.raises(ValueError, match="groups"):
@@ -357,8 +363,9 @@ def test_checkpoint_round_trip_gives_identical_predictions(data, sweep, tmp_path
     h = loaded.header
     assert h["schema_version"] == SCHEMA_VERSION and h["solver_version"] == SOLVER_VERSION
     assert h["training_data"]["table_sha256"] == sha256_file(sweep / "table.csv")
-    assert [m["name"] for m in h["metrics"]] == list(METRICS)
-    assert {m["name"]: m["unit"] for m in h["metrics"]} == {k: v[1] for k, v in METRICS.items()}
+    assert [m["name"] for m in h["metrics"]] == [*METRICS, *TRUST_OUTPUTS]
+    units = {m["name"]: m["unit"] for m in h["metrics"]}
+    assert units == {k: v[1] for k, v in METRICS.items()} | dict.fromkeys(TRUST_OUTPUTS, "")
     assert h["space"] == data.space.to_dict() and h["git_commit"]
     assert {"ensemble_nll", "r2", "member_nll"} <= set(h["validation"])
     assert {p["name"]: p["unit"] for p in h["parameters"]}["core.mu0_MPa"] == "MPa"
@@ -527,9 +534,11 @@ def test_cli_predict_bad_designs_in_process(ckpt, tmp_path, capsys, text, field)
 
 
 def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
-    """A copy of the sweep whose table marks one design unsettled and one invalid: both are
-    left out by default and counted; ``trusted_only=False`` keeps them; a table without the
-    flags (a sweep made before they were recorded) is used whole and counted as unchecked."""
+    """A copy of the sweep whose table marks one design unsettled and one invalid: their FE
+    metrics are left out by default and counted, while what made them untrusted (the trust
+    outputs of ``sim.trust``) is still learnt; ``trusted_only=False`` keeps their metrics; a
+    table without the flags (a sweep made before they were recorded) is used whole and
+    counted as unchecked, with no trust outputs."""
     import csv
     import shutil
 
@@ -547,12 +556,19 @@ def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
         writer.writeheader()
         writer.writerows(rows)
     data = read_sweep(copy)
-    assert len(data.points) == len(full.points) - 2
+    assert len(data.points) == len(full.points)  # kept, for their trust outputs
+    n_fe = sum(m in METRICS for m in data.metric_names)
+    assert data.metric_names[n_fe:] == tuple(TRUST_OUTPUTS)
+    for row in usable[:2]:
+        pos = data.index.tolist().index(int(row["index"]))
+        assert np.isnan(data.targets[pos, :n_fe]).all()
+        assert np.isfinite(data.targets[pos, n_fe:]).all()
     for why in ("unsettled", "invalid"):
         assert data.excluded.get(why, 0) == full.excluded.get(why, 0) + 1
     assert data.unchecked == 0
     everything = read_sweep(copy, trusted_only=False)
-    assert len(everything.points) == len(full.points) + sum(full.excluded.values())
+    assert len(everything.points) == len(full.points)
+    assert np.isfinite(everything.targets[:, :n_fe]).any(axis=1).all()
     old = [f for f in fields if f not in ("settled", "valid")]
     with (copy / "table.csv").open("w", newline="") as fh:
         writer = csv.DictWriter(fh, old, extrasaction="ignore")
@@ -560,3 +576,4 @@ def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
         writer.writerows(rows)
     legacy = read_sweep(copy)
     assert len(legacy.points) == len(everything.points) == legacy.unchecked
+    assert not set(TRUST_OUTPUTS) & set(legacy.metric_names)

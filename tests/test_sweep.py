@@ -59,7 +59,9 @@ def test_default_space_loads_and_samples_valid_designs():
             mat = p[f"{role}.material"]
             assert (mat != "") == (role in roles)  # inactive layers are recorded as such
             mu = p[f"{role}.mu0_MPa"]
-            assert (not math.isnan(mu)) == (role in roles and mat == "param")
+            assert (not math.isnan(mu)) == (role in roles and mat in ("gel", "foam"))
+            nu = p.get(f"{role}.nu", math.nan)
+            assert (not math.isnan(nu)) == (role in roles and mat == "foam")  # a gel's is fixed
 
 
 def test_wide_space_adds_a_middle_layer():
@@ -86,10 +88,11 @@ def test_log_bounds_cover_decades_evenly():
     space = load_space()
     mus = [p["core.mu0_MPa"] for p in sample_points(space, 256, seed=0)]
     mus = np.log10([m for m in mus if not math.isnan(m)])
-    lo, hi = math.log10(0.001), math.log10(0.3)
+    lo, hi = math.log10(space["core.mu0_MPa"].low), math.log10(space["core.mu0_MPa"].high)
     assert mus.min() >= lo and mus.max() <= hi
-    # each decade gets its share (a linear draw would put ~0.3 % below 0.01 MPa)
-    assert np.mean(mus < -2) > 0.25
+    # each decade gets its share: below 0.025 MPa is half the log range (a linear draw would
+    # put ~6 % there)
+    assert np.mean(mus < math.log10(0.025)) > 0.4
 
 
 def test_param_material_is_valid_and_documented():

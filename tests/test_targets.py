@@ -29,10 +29,23 @@ def _write(tmp_path, extra="", conf=""):
 def test_human_targets_are_the_published_values():
     t = load_targets()
     assert t.values == {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
-    assert t.reading == "from_undeformed_top"
-    assert t.metric("disp_at_1N_mm") == "disp_at_1N_mm"
+    # a living finger's displacement is read from contact: compared like with like
+    assert t.reading == "from_first_touch"
+    assert t.metric("disp_at_1N_mm") == "disp_at_1N_from_touch_mm"
     assert "Serina" in t.sources["tapping"]
     assert t.wedge_force_N == 0.0
+    # a skin must recover between taps: at most a fifth of the human 1 N travel is sag
+    assert t.max_sag_mm == pytest.approx(0.2 * 1.83, abs=0.005)
+    assert t.sag_ok(0.2) and not t.sag_ok(0.5) and not t.sag_ok(float("nan"))
+
+
+def test_sag_limit_is_optional_and_checked(tmp_path):
+    assert load_targets(_write(tmp_path)).max_sag_mm is None
+    assert load_targets(_write(tmp_path)).sag_ok(5.0)  # no limit: any sag
+    assert load_targets(_write(tmp_path, "max_sag_mm = 0.2")).max_sag_mm == 0.2
+    with pytest.raises(DesignError) as exc:
+        load_targets(_write(tmp_path, "max_sag_mm = -1"))
+    assert exc.value.field == "tapping.max_sag_mm"
 
 
 def test_first_touch_reading_compares_like_with_like(tmp_path):

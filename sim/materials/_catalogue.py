@@ -94,6 +94,14 @@ def read_user_catalogue(path: str | Path, option: str = "--catalogue") -> UserCa
         raise DesignError(option, f"malformed TOML in {path}: {exc}") from None
     if not data:
         raise DesignError(option, f"{path} defines no material")
+    from sim.families import FAMILIES  # here: sim.families builds on this package
+
+    for name in data:
+        if name in FAMILIES:
+            raise DesignError(
+                f"{path.name}:{name}",
+                f"the name of a material family ({', '.join(FAMILIES)}); rename the material",
+            )
     materials = _entries(data, path.name)
     return UserCatalogue(str(path), hashlib.sha256(raw).hexdigest(), tuple(materials.values()))
 
