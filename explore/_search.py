@@ -136,28 +136,38 @@ FAMILY_SEARCHES = ("gel", "foam")
 def family_space(space: DesignSpace, family: str) -> DesignSpace | None:
     """The space restricted to one family's designs, None when the space has none: "gel",
     every layer a gel; "foam", a foam core under any other layers the space allows (no foam
-    outside the core)."""
+    outside the core). A layer that cannot be of the family is left out by restricting the
+    layer counts to those without it (a space whose skin is a catalogue material has one-layer
+    gel designs)."""
+    from sim.space import active_roles
+
+    allowed: dict[str, tuple] = {}
+    for p in space.parameters:
+        if p.name.endswith(".material"):
+            role = p.name.split(".")[0]
+            choices = p.choices if p.kind == "choice" else (p.value,)
+            if family == "gel" or (family == "foam" and role == "core"):
+                keep = {family}
+            else:
+                keep = {c for c in choices if c != "foam"}
+            allowed[role] = tuple(c for c in choices if c in keep)
+    count = space["layers.count"]
+    counts = count.choices if count.kind == "choice" else (count.value,)
+    counts = tuple(c for c in counts if all(allowed.get(r) for r in active_roles(c)))
+    if not counts:
+        return None
     params = []
     for p in space.parameters:
-        if p.name.endswith(".material") and p.kind == "choice":
-            core = p.name.startswith("core.")
-            if family == "gel" or (family == "foam" and core):
-                allowed = {family}
-            else:
-                allowed = {c for c in p.choices if c != "foam"}
-            keep = [
-                (c, w)
-                for c, w in zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True)
-                if c in allowed
-            ]
-            if not keep:
-                return None
-            p = Parameter(
-                p.name,
-                "choice",
-                choices=tuple(c for c, _ in keep),
-                weights=tuple(w for _, w in keep) if p.weights else (),
-            )
+        if p.name == "layers.count" and p.kind == "choice":
+            w = dict(zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True))
+            p = Parameter(p.name, "choice", choices=counts,
+                          weights=tuple(w[c] for c in counts) if p.weights else ())  # fmt: skip
+        elif p.name.endswith(".material") and p.kind == "choice":
+            role = p.name.split(".")[0]
+            keep = allowed[role] or p.choices  # a layer no design uses keeps its choices
+            w = dict(zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True))
+            p = Parameter(p.name, "choice", choices=keep,
+                          weights=tuple(w[c] for c in keep) if p.weights else ())  # fmt: skip
         params.append(p)
     return DesignSpace(tuple(params), space.materials)
 

@@ -229,6 +229,26 @@ def test_answers_are_credible_per_family_with_both_readings():
     assert point_to_design(gel, space.catalogue).layers[0].material.law.nu >= 0.495
 
 
+def test_a_family_space_drops_the_layers_that_cannot_be_of_the_family():
+    from sim.space import space_from_dict
+
+    space = space_from_dict(
+        {
+            "layers": {
+                "count": {"choice": [1, 2]},
+                "skin": {"thickness_mm": {"low": 0.3, "high": 1.0},
+                         "material": {"choice": ["silicone_gls40"]}},
+                "core": {"material": {"choice": ["gel", "polyurethane_74_45"]},
+                         "mu0_MPa": {"low": 0.01, "high": 0.1}, "alpha": {"value": 2.0},
+                         "g_total": {"value": 0.3}, "tau_s": {"value": 0.1}},
+            }
+        }
+    )  # fmt: skip
+    gel = family_space(space, "gel")
+    assert gel["layers.count"].choices == (1,) and gel["core.material"].choices == ("gel",)
+    assert family_space(space, "foam") is None  # no foam in this space
+
+
 def test_family_spaces_hold_one_family():
     space = load_space()
     gel, foam = family_space(space, "gel"), family_space(space, "foam")

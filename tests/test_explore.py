@@ -31,6 +31,7 @@ from explore._search import (
     catalogue_only,
     check_subspace,
     create_study,
+    design_family,
     point_from_params,
     select_candidates,
     suggest_point,
@@ -57,10 +58,9 @@ count = { choice = [1, 2] }
 thickness_mm = { low = 0.3, high = 1.0 }
 material = { choice = ["silicone_gls40", "polyurethane_74_45"] }
 [layers.core]
-material = { choice = ["param", "silicone_gls40"] }
+material = { choice = ["gel", "silicone_gls40"] }
 mu0_MPa = { low = 0.01, high = 0.1, log = true }
-alpha = { low = 2.0, high = 6.0 }
-nu = { value = 0.47 }
+alpha = { low = 2.0, high = 4.0 }
 g_total = { low = 0.1, high = 0.6 }
 tau_s = { low = 0.05, high = 1.0, log = true }
 """
@@ -109,7 +109,7 @@ def test_catalogue_only_space_and_subspace_check():
     space = load_space()
     build = catalogue_only(space)
     for role in ("skin", "core"):
-        assert "param" not in build[f"{role}.material"].choices
+        assert not any(is_family(c) for c in build[f"{role}.material"].choices)
         assert set(build[f"{role}.material"].choices) < set(space[f"{role}.material"].choices)
     check_subspace(build, space)  # a restriction of the trained space is fine
     wide = space_from_dict({**space.to_dict(), "geometry": {
@@ -117,7 +117,7 @@ def test_catalogue_only_space_and_subspace_check():
     with pytest.raises(ValueError, match=r"geometry\.height_mm"):
         check_subspace(wide, space)
     with pytest.raises(ValueError, match=r"skin\.material"):
-        check_subspace(space, build)  # "param" is not in the catalogue-only space
+        check_subspace(space, build)  # "gel" is not in the catalogue-only space
 
 
 # ----------------------------------------------------------------------------- candidates
@@ -322,6 +322,7 @@ def _optimize_args(ckpt: Path, out: Path, trials: int, rounds: int = 2) -> list[
         "--buildable-trials", "20" if rounds > 1 else "0", "--rounds", str(rounds),
         "--confirm", "1", "--uncertain", "1" if rounds > 1 else "0",
         "--tolerance", "0.01", "--workers", "2", "--no-progress",
+        "--family-trials", "20" if rounds > 1 else "0",
     ]  # fmt: skip
 
 
@@ -348,7 +349,7 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     )
     assert best["predicted"]["disp_at_1N_mm"]["by_rule"] is False  # learnt, not by rule
     # the best buildable design uses catalogue materials only, and is a loadable design file
-    assert all(layer["material"] != "param" for layer in _layers(build["design"]))
+    assert design_family(build["point"]) == "catalogue" and build["family"] == "catalogue"
     from sim.design import design_from_dict
 
     design_from_dict(build["design"])
@@ -365,7 +366,7 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     # the study opens in Optuna (what optuna-dashboard reads)
     cfg = json.loads((out / "config.json").read_text())
     names = [s["name"] for s in cfg["studies"]]
-    assert len(names) == 4
+    assert len(names) == 6  # per round: continuous, gel (one-layer gel cores), buildable
     study = optuna.load_study(study_name=names[0], storage=cfg["storage"])
     assert len(study.trials) == 60
     report = (out / "report.md").read_text()

@@ -110,3 +110,21 @@ def test_every_family_is_registered_with_its_keys():
     for name, fam in FAMILIES.items():
         assert fam.name == name and set(fam.keys) <= set(fam.limits)
         assert len(fam.time_ratios) == 3 and fam.time_ratios[1] == 1.0
+
+
+def test_every_bound_of_the_default_space_is_argued_in_the_docs():
+    """docs/design_space.md's "Bounds" table has a row, with its source or argument, for every
+    parameter of the default space, and the bounds it states are the file's."""
+    doc = (DEFAULT_SPACE_PATH.parents[2] / "docs" / "design_space.md").read_text()
+    rows = {
+        line.split("|")[1].strip().strip("`"): line.split("|")[2:4]
+        for line in doc.split("## Bounds", 1)[1].split("\n## ", 1)[0].splitlines()
+        if line.startswith("| `")
+    }
+    space = load_space()
+    for p in space.parameters:
+        assert p.name in rows, p.name
+        bound, argument = (cell.strip() for cell in rows[p.name])
+        assert len(argument) > 40, p.name  # a source or an argument, not a placeholder
+        if p.kind == "float":
+            assert bound.startswith(f"{p.low:g}-{p.high:g}"), (p.name, bound)

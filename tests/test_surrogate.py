@@ -455,7 +455,8 @@ def test_predict_flags_designs_outside_the_training_domain(ckpt, data):
 def test_report_has_accuracy_calibration_parity_plots_and_speed(ckpt):
     run = ckpt.parent
     report = json.loads((run / "report.json").read_text())
-    assert set(report["metrics"]) == set(METRICS)
+    assert set(report["metrics"]) == set(METRICS) | set(TRUST_OUTPUTS)
+    assert 0 <= report["trust"]["accuracy"] <= 1 and report["trust"]["n"] > 0
     for s in report["metrics"].values():
         assert set(s) >= {"r2", "median_rel_error", "p95_rel_error", "coverage_90", "n"}
         assert s["coverage_90"] is None or 0 <= s["coverage_90"] <= 1
@@ -494,7 +495,7 @@ def test_cli_train_and_predict(cli_train, ckpt, data, sweep, tmp_path):
         "in_domain", "domain_note", "median", "mean", "std", "lower_90", "upper_90", "by_rule"
     }  # fmt: skip
     assert d["by_rule"] == []  # the tiny space has no elastic design
-    assert set(d["mean"]) == set(METRICS)
+    assert set(d["mean"]) == set(METRICS) | set(TRUST_OUTPUTS)
     expected = load_checkpoint(ckpt).predict([point])
     assert d["mean"]["disp_at_1N_mm"] == pytest.approx(expected.metric("disp_at_1N_mm")[0][0])
     # a CSV (the sweep's own table works) gives a table with mean ± std and the domain flag
