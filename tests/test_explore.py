@@ -550,8 +550,10 @@ def test_search_resumes_after_kill(tiny_model, tmp_path):
     assert len(after) == n
     for old, new in zip(before, after, strict=False):
         assert old.params == new.params and old.values == new.values
-    assert json.loads((out / "summary.json").read_text())["answers"]["best"] is not None
-    assert json.loads((out / "summary.json").read_text())["answers"]["buildable"] is None
+    summary = json.loads((out / "summary.json").read_text())
+    # one confirmation with the fast options: a credible answer, or a note saying why not
+    assert summary["answers"]["best"] is not None or "no credible answer" in summary["notes"][0]
+    assert summary["answers"]["buildable"] is None
 
 
 def test_optimize_bad_input_is_one_line(tiny_model, tmp_path, capsys):

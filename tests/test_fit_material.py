@@ -249,14 +249,14 @@ def test_fit_material_writes_a_catalogue_entry_report_and_figure(tests_dir, caps
     code, stdout, err = _cli(
         ["fit-material", "--model", "yeoh", "--uniaxial", tests_dir / "u.csv", "--compression",
          tests_dir / "c.csv", "--relaxation", tests_dir / "r.csv", "--prony", "2", "--nu", "0.48",
-         "--rate-per-s", "0.05", "--name", "gel", "--out", out, "--source", "our lab, 2026"],
+         "--rate-per-s", "0.05", "--name", "labgel", "--out", out, "--source", "our lab, 2026"],
         capsys,
     )  # fmt: skip
     assert code == 0, err
     assert "R2" in stdout and "Drucker-stable" in stdout and "--catalogue" in stdout
     for suffix in (".toml", ".fit.md", ".fit.json", ".fit.png"):
         assert (tests_dir / f"gel{suffix}").stat().st_size > 0
-    raw = tomllib.loads(out.read_text())["gel"]
+    raw = tomllib.loads(out.read_text())["labgel"]
     assert raw["model"] == "yeoh" and raw["nu"] == 0.48 and len(raw["prony_g"]) == 2
     assert raw["moduli"] == "instantaneous"  # fitted through the Prony terms at the rate
     assert raw["source"].startswith("our lab, 2026")
@@ -269,13 +269,13 @@ def test_fit_material_writes_a_catalogue_entry_report_and_figure(tests_dir, caps
     # the loader keeps the provenance, and the entry round-trips through the design form
     cat = read_user_catalogue(out)
     mat = cat.materials[0]
-    assert mat.name == "gel" and mat.provenance_dict == prov
+    assert mat.name == "labgel" and mat.provenance_dict == prov
     assert mat.to_dict()["provenance"] == prov
     report = json.loads((tests_dir / "gel.fit.json").read_text())
     assert report["stable_everywhere"] is True and len(report["tests"]) == 2
     # nothing is overwritten
     code, _, err = _cli(["fit-material", "--model", "neo_hookean", "--uniaxial",
-                         tests_dir / "u.csv", "--name", "gel", "--out", out], capsys)  # fmt: skip
+                         tests_dir / "u.csv", "--name", "labgel", "--out", out], capsys)  # fmt: skip
     assert code == 2 and "exists" in err and err.count("\n") == 1
 
 
@@ -350,22 +350,22 @@ def test_bad_options_are_one_line(tests_dir, capsys) -> None:
 def test_a_fitted_entry_simulates_end_to_end(tests_dir, capsys) -> None:
     out = tests_dir / "gel.toml"
     code, _, err = _cli(["fit-material", "--model", "yeoh", "--uniaxial", tests_dir / "u.csv",
-                         "--relaxation", tests_dir / "r.csv", "--name", "gel", "--out", out],
+                         "--relaxation", tests_dir / "r.csv", "--name", "labgel", "--out", out],
                         capsys)  # fmt: skip
     assert code == 0, err
-    code, stdout, err = _cli(["simulate", "--catalogue", out, "--material", "gel", "--protocol",
+    code, stdout, err = _cli(["simulate", "--catalogue", out, "--material", "labgel", "--protocol",
                               "plate", "--json"], capsys)  # fmt: skip
     assert code == 0, err
     result = json.loads(stdout)
     assert result["ok"] and result["plate_force_at_1mm_N"] > 0
-    assert result["design"]["layers"][0]["material"]["name"] == "gel"  # written in full
+    assert result["design"]["layers"][0]["material"]["name"] == "labgel"  # written in full
     # a name clash with the shipped catalogue, or between two files, is refused in one line
     clash = tests_dir / "clash.toml"
-    clash.write_text(out.read_text().replace("[gel]", "[ecoflex_0030_marechal]").replace(
-        "[gel.provenance]", "[ecoflex_0030_marechal.provenance]"))  # fmt: skip
+    clash.write_text(out.read_text().replace("[labgel]", "[ecoflex_0030_marechal]").replace(
+        "[labgel.provenance]", "[ecoflex_0030_marechal.provenance]"))  # fmt: skip
     for files in ([clash], [out, out]):
         args = [a for f in files for a in ("--catalogue", f)]
-        code, _, err = _cli(["simulate", *args, "--material", "gel", "--protocol", "plate"],
+        code, _, err = _cli(["simulate", *args, "--material", "labgel", "--protocol", "plate"],
                             capsys)  # fmt: skip
         assert code == 2 and err.count("\n") == 1 and "--catalogue" in err and "rename" in err
 
@@ -384,9 +384,9 @@ exponent = { value = 1.5 }
 count = { choice = [1, 2] }
 [layers.skin]
 thickness_mm = { low = 0.3, high = 1.0 }
-material = { choice = ["gel", "silicone_gls40"] }
+material = { choice = ["labgel", "silicone_gls40"] }
 [layers.core]
-material = { choice = ["param", "gel"] }
+material = { choice = ["param", "labgel"] }
 mu0_MPa = { low = 0.01, high = 0.1, log = true }
 alpha = { low = 2.0, high = 6.0 }
 nu = { value = 0.47 }
@@ -413,7 +413,7 @@ def user_sweep(tmp_path_factory) -> Path:
     g = Prony((0.4, 0.3), (0.02, 0.5)).relaxation(t)
     _write_csv(root / "r.csv", "time_s,g_R", zip(t, g, strict=True))
     fit = ["fit-material", "--model", "yeoh", "--uniaxial", root / "u.csv", "--relaxation",
-           root / "r.csv", "--prony", "2", "--name", "gel", "--out", root / "gel.toml"]  # fmt: skip
+           root / "r.csv", "--prony", "2", "--name", "labgel", "--out", root / "gel.toml"]  # fmt: skip
     assert explore.cli.main([str(a) for a in fit]) == 0
     (root / "space.toml").write_text(TINY_USER)
     sweep = ["sweep", root / "space.toml", "--catalogue", root / "gel.toml", "--n", "6", "--out",
@@ -432,12 +432,12 @@ def test_a_user_catalogue_round_trips_through_sweep(user_sweep) -> None:
     config = json.loads((root / "sweep" / "config.json").read_text())
     sha = read_user_catalogue(root / "gel.toml").sha256
     assert config["catalogues"] == [
-        {"path": str(root / "gel.toml"), "sha256": sha, "materials": ["gel"]}
+        {"path": str(root / "gel.toml"), "sha256": sha, "materials": ["labgel"]}
     ]
-    gel = config["space"]["materials"]["gel"]  # the space keeps the material it used
+    gel = config["space"]["materials"]["labgel"]  # the space keeps the material it used
     assert gel["model"] == "yeoh" and gel["provenance"]["tests"] == ["uniaxial"]
     records = [json.loads(p.read_text()) for p in (root / "sweep" / "records").glob("*.json")]
-    with_gel = [r for r in records if "gel" in (r["params"].get("skin.material"),
+    with_gel = [r for r in records if "labgel" in (r["params"].get("skin.material"),
                                                 r["params"].get("core.material"))]  # fmt: skip
     assert with_gel and all(r["status"] == "ok" for r in with_gel)
     base = ["sweep", root / "space.toml", "--n", "6", "--out", root / "sweep", "--no-progress",
@@ -445,9 +445,9 @@ def test_a_user_catalogue_round_trips_through_sweep(user_sweep) -> None:
     # resumed with the same file: nothing to compute
     proc = _run([*base, "--catalogue", root / "gel.toml"])
     assert proc.returncode == 0 and "0 computed now" in proc.stdout, proc.stderr
-    # without it, the space's "gel" is unknown; with another file, refused: one line each
+    # without it, the space's "labgel" is unknown; with another file, refused: one line each
     proc = _run(base)
-    assert proc.returncode == 2 and "--catalogue" in proc.stderr and "gel" in proc.stderr
+    assert proc.returncode == 2 and "--catalogue" in proc.stderr and "labgel" in proc.stderr
     other = root / "other.toml"
     other.write_text((root / "gel.toml").read_text().replace("nu = 0.49", "nu = 0.48"))
     proc = _run([*base, "--catalogue", other])
@@ -468,12 +468,12 @@ def test_a_user_catalogue_round_trips_through_optimize(user_sweep) -> None:
     proc = _run(args)
     assert proc.returncode == 0, proc.stderr
     config = json.loads((out / "config.json").read_text())
-    assert [c["materials"] for c in config["catalogues"]] == [["gel"]]
+    assert [c["materials"] for c in config["catalogues"]] == [["labgel"]]
     summary = json.loads((out / "summary.json").read_text())
     build = summary["answers"]["buildable"]
     names = [layer["material"] if isinstance(layer["material"], str) else
              layer["material"]["name"] for layer in build["design"]["layers"]]  # fmt: skip
-    assert "gel" in names or build["search"] == "buildable-fe"
+    assert "labgel" in names or build["search"] == "buildable-fe"
     from sim.design import design_from_dict
     from sim.materials import load_user_catalogues
 
@@ -482,7 +482,7 @@ def test_a_user_catalogue_round_trips_through_optimize(user_sweep) -> None:
     assert len(screen) == 2 and all(c["candidate"]["search"] == "buildable-fe" for c in screen)
     assert any("simulated by FE only" in n for n in summary["notes"])
     confs = json.loads((out / "confirmations.json").read_text())
-    assert any(c["status"] == "ok" and "gel" in c["candidate"]["point"].values() for c in confs)
+    assert any(c["status"] == "ok" and "labgel" in c["candidate"]["point"].values() for c in confs)
     proc = _run([a for a in args if a not in ("--catalogue", root / "gel.toml")])
     assert proc.returncode == 2 and "catalogues" in proc.stderr and proc.stderr.count("\n") == 1
 
@@ -533,12 +533,13 @@ def test_notes_name_the_material_a_missed_target_needs() -> None:
 
 def test_the_buildable_screen_covers_the_whole_catalogue() -> None:
     from explore._buildable import predictable_materials, screen_space
+    from sim.families import is_family
     from sim.materials import CATALOGUE
     from sim.space import load_space
 
     space = load_space()
     known = predictable_materials(space)
-    assert known == set(space["core.material"].choices) - {"param"}
+    assert known == {c for c in space["core.material"].choices if not is_family(c)}
     screen = screen_space(space, CATALOGUE)
     assert set(screen["core.material"].choices) == set(CATALOGUE)
     assert len(set(CATALOGUE) - known) >= 19  # the fitted entries: FE only
