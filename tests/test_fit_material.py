@@ -275,7 +275,8 @@ def test_fit_material_writes_a_catalogue_entry_report_and_figure(tests_dir, caps
     assert report["stable_everywhere"] is True and len(report["tests"]) == 2
     # nothing is overwritten
     code, _, err = _cli(["fit-material", "--model", "neo_hookean", "--uniaxial",
-                         tests_dir / "u.csv", "--name", "labgel", "--out", out], capsys)  # fmt: skip
+                         tests_dir / "u.csv", "--name", "labgel", "--out", out],
+                        capsys)  # fmt: skip
     assert code == 2 and "exists" in err and err.count("\n") == 1
 
 
@@ -413,7 +414,8 @@ def user_sweep(tmp_path_factory) -> Path:
     g = Prony((0.4, 0.3), (0.02, 0.5)).relaxation(t)
     _write_csv(root / "r.csv", "time_s,g_R", zip(t, g, strict=True))
     fit = ["fit-material", "--model", "yeoh", "--uniaxial", root / "u.csv", "--relaxation",
-           root / "r.csv", "--prony", "2", "--name", "labgel", "--out", root / "gel.toml"]  # fmt: skip
+           root / "r.csv", "--prony", "2", "--name", "labgel", "--out",
+           root / "gel.toml"]  # fmt: skip
     assert explore.cli.main([str(a) for a in fit]) == 0
     (root / "space.toml").write_text(TINY_USER)
     sweep = ["sweep", root / "space.toml", "--catalogue", root / "gel.toml", "--n", "6", "--out",
