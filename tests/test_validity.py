@@ -309,10 +309,12 @@ def test_overriding_the_limits_changes_the_verdict(
 
 
 def test_options_of_a_sweep_made_before_the_validity_section_load() -> None:
-    """The shipped surrogate's sweep config has no ``validity`` section: it gets the defaults
-    (``fingertip run`` reads it to confirm designs with the training sweep's options)."""
+    """A sweep config from before the ``validity`` section (solver < 2.0: the shipped sweep's
+    options without it) gets the defaults (``fingertip run`` reads it to confirm designs with
+    the training sweep's options)."""
     from sim.sweep import options_from_dict
 
     config = json.loads((REPO / "surrogate/pretrained/default/config.json").read_text())
-    assert "validity" not in config["options"]
+    old = {k: v for k, v in config["options"].items() if k != "validity"}
+    assert options_from_dict(old).validity == ValidityOptions()
     assert options_from_dict(config["options"]).validity == ValidityOptions()
