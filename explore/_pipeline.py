@@ -353,7 +353,7 @@ def retrain(
     """Warm-started retraining on the training sweep plus the FE-confirmed designs;
     ``progress`` is called with the number of epochs done since its last call."""
     from sim.trust import TRUST_OUTPUTS, trust_values
-    from surrogate import SweepData, read_sweep
+    from surrogate import read_sweep
     from surrogate._train import Split, TrainConfig, fit
 
     data = read_sweep(dataset)
@@ -375,15 +375,11 @@ def retrain(
         -1, len(names)
     )
     base = len(data.points)
-    aug = SweepData(
-        folder=data.folder,
-        space=data.space,
-        solver_version=data.solver_version,
+    aug = dataclasses.replace(  # the sweep's own fields (its space, solver, tap frequency...)
+        data,
         points=[*data.points, *new_points],
         targets=np.vstack([data.targets, new_targets]),
         index=np.concatenate([data.index, -1 - np.arange(len(new_points))]),
-        metric_names=data.metric_names,
-        table_sha256=data.table_sha256,
         n_rows=data.n_rows + len(new_points),
     )
     split_idx = surrogate.header.get("training_data", {}).get("split_table_index", {})

@@ -25,7 +25,6 @@ from sim.simulate import METRICS, SOLVER_VERSION
 from sim.space import space_from_dict
 
 from ._encoding import (
-    DESCRIPTOR_OMEGA_RAD_S,
     ELASTIC_FEATURE,
     Encoder,
     is_optional,
@@ -89,7 +88,7 @@ def describe(surrogate) -> dict[str, Any]:
         "parameters": params,
         "features": enc.feature_names,
         "material_descriptors": {
-            "omega_rad_s": DESCRIPTOR_OMEGA_RAD_S,
+            "omega_rad_s": enc.omega_rad_s,
             "definition": " ".join((material_descriptors.__doc__ or "").split()),
         },
         "exact_by_rule": {

@@ -50,7 +50,8 @@ __all__ = [
     "to_columns",
 ]
 
-#: angular frequency of the default tap (a half-sine loaded for 1 / (2 f) s): 2 pi f
+#: angular frequency of the default tap (a half-sine loaded for 1 / (2 f) s): 2 pi f; an encoder
+#: of a sweep made at another frequency uses that sweep's (``Encoder.omega_rad_s``)
 DESCRIPTOR_OMEGA_RAD_S = 2.0 * math.pi * TappingOptions().frequency_Hz
 #: the loss tangent is given at these multiples of ``DESCRIPTOR_OMEGA_RAD_S``
 _OMEGA_RATIOS = (1.0 / 3.0, 1.0, 3.0)
@@ -188,11 +189,14 @@ class Encoder:
     ``ranges``: for each float parameter, the [min, max] of its active training values (NaN
     when never active); ``seen``: for each choice parameter, the choices seen in training.
     An encoder without a training domain (``fit_domain`` not called) checks the bounds only.
+    ``omega_rad_s``: the angular frequency of the taps of the training sweep, 2 pi f, at which
+    the material descriptors are taken (``material_descriptors``).
     """
 
     space: DesignSpace
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     seen: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    omega_rad_s: float = DESCRIPTOR_OMEGA_RAD_S
 
     # ------------------------------------------------------------------ layout
     @property
@@ -224,14 +228,18 @@ class Encoder:
         return {
             "ranges": {k: [_none(a), _none(b)] for k, (a, b) in self.ranges.items()},
             "seen": {k: list(v) for k, v in self.seen.items()},
+            "omega_rad_s": self.omega_rad_s,
         }
 
     @classmethod
     def from_dict(cls, space: DesignSpace, d: Mapping[str, Any]) -> Encoder:
+        """The encoder of a checkpoint's ``domain`` entry (one written before ``omega_rad_s``
+        was recorded encodes at the default tap's frequency, as it was trained)."""
         return cls(
             space,
             {k: (_nan(a), _nan(b)) for k, (a, b) in d["ranges"].items()},
             {k: tuple(v) for k, v in d["seen"].items()},
+            float(d.get("omega_rad_s", DESCRIPTOR_OMEGA_RAD_S)),
         )
 
     # ------------------------------------------------------------------ masking
@@ -347,7 +355,9 @@ class Encoder:
                     unseen = np.asarray([v != "" and v not in seen for v in col], dtype=bool)
                     flag(unseen, f"{p.name}: choice never seen in training")
                 blocks.append(onehot)
-        desc, elastic = material_descriptors(cols, n, self.material_roles, self.space.catalogue)
+        desc, elastic = material_descriptors(
+            cols, n, self.material_roles, self.space.catalogue, self.omega_rad_s
+        )
         blocks += [desc, elastic[:, None].astype(float)]
         features = np.concatenate(blocks, axis=1)
         return Encoded(features.astype(np.float32), in_domain, tuple(reasons))
@@ -366,7 +376,7 @@ class Encoder:
                 )
             elif p.kind == "choice":
                 seen[p.name] = tuple(sorted({v for v in col if v != ""}))
-        return Encoder(self.space, ranges, seen)
+        return Encoder(self.space, ranges, seen, self.omega_rad_s)
 
     # ------------------------------------------------------------------ decoding
     def decode(self, features: np.ndarray) -> list[dict[str, Any]]:
@@ -431,12 +441,13 @@ def material_descriptors(
     n: int,
     roles: Sequence[str],
     catalogue: Mapping[str, Any] | None = None,
+    omega_rad_s: float = DESCRIPTOR_OMEGA_RAD_S,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Linear-viscoelastic descriptors of each layer's material, and the elastic-design flag.
 
     ``cols``: masked columns (``Encoder.columns``). For each role, five features (zeros when
     the layer is inactive): the long-term small-strain shear modulus mu, the storage modulus
-    G'(w) and the loss tangent G''/G' at w/3, w, 3w (w = ``DESCRIPTOR_OMEGA_RAD_S``) of the
+    G'(w) and the loss tangent G''/G' at w/3, w, 3w (w = ``omega_rad_s``, the taps') of the
     Prony series g_i, tau_i in relative (Abaqus) form, with G0 = mu / (1 - sum g):
     G'(w) = G0 [1 - sum g_i / (1 + (w tau_i)^2)], G''(w) = G0 sum g_i w tau_i / (1 + (w tau_i)^2).
     Returns ``(features (n, 5 len(roles)), elastic (n,) bool)``; a design is elastic when no
@@ -484,7 +495,7 @@ def material_descriptors(
         g0 = mu / (1.0 - g_sum)
         moduli, tangents = [mu], []
         for r in _OMEGA_RATIOS:
-            wt = DESCRIPTOR_OMEGA_RAD_S * r * tau
+            wt = omega_rad_s * r * tau
             storage = g0 * (1.0 - (g / (1.0 + wt**2)).sum(axis=1))
             loss = g0 * (g * wt / (1.0 + wt**2)).sum(axis=1)
             if r == 1.0:

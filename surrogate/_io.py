@@ -183,6 +183,8 @@ class SweepData:
     #: the flags were recorded: kept)
     excluded: dict[str, int] = field(default_factory=dict)
     unchecked: int = 0
+    #: the tapping frequency the sweep was made at (its recorded options; default if absent)
+    tapping_frequency_Hz: float = 0.5
 
 
 def _number(text: str, field_name: str, *, integer: bool = False) -> float:
@@ -300,4 +302,13 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
         n_rows=n_rows,
         excluded=excluded,
         unchecked=unchecked,
+        tapping_frequency_Hz=_frequency(config),
     )
+
+
+def _frequency(config: Mapping[str, Any]) -> float:
+    """The tapping frequency of a sweep's recorded options (the default when it has none)."""
+    from sim.protocols import TappingOptions
+
+    tap = (config.get("options") or {}).get("tapping") or {}
+    return float(tap.get("frequency_Hz", TappingOptions().frequency_Hz))

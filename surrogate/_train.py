@@ -165,7 +165,8 @@ def fit(
         split = split_indices(len(data.points), config.seed, config.fractions)
     _, init_seed, order_seed = _seeds(config.seed)
     train_points = [data.points[i] for i in split.train]
-    encoder = Encoder(data.space).fit_domain(train_points)
+    omega = 2.0 * math.pi * data.tapping_frequency_Hz  # the taps the sweep was made with
+    encoder = Encoder(data.space, omega_rad_s=omega).fit_domain(train_points)
     x_all = encoder.encode(data.points).features
     # values known by rule (an elastic design's hysteresis is 0) are not learnt
     targets = np.where(rule_mask(encoder, x_all, data.metric_names), np.nan, data.targets)

@@ -578,3 +578,37 @@ def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
     legacy = read_sweep(copy)
     assert len(legacy.points) == len(everything.points) == legacy.unchecked
     assert not set(TRUST_OUTPUTS) & set(legacy.metric_names)
+
+
+def test_the_encoding_takes_the_tap_frequency_of_the_sweep(tmp_path):
+    """A sweep made with ``--set tapping.frequency_Hz=1`` is encoded at 1 Hz: the loss tangents
+    of its relaxing materials are taken at the taps' frequency, in training, in prediction and
+    after a checkpoint round trip; the other features do not depend on it."""
+    import dataclasses
+    import math
+
+    from surrogate._io import SweepData
+
+    space = load_space()
+    rng = np.random.default_rng(0)
+    pts = [space.point(rng.random(len(space.sampled))) for _ in range(40)]
+    slow = Encoder(space)
+    fast = Encoder(space, omega_rad_s=2 * math.pi * 1.0)
+    a, b = slow.encode(pts).features, fast.encode(pts).features
+    tan = [j for j, f in enumerate(slow.feature_names) if "tan_delta" in f or "storage" in f]
+    rest = [j for j in range(a.shape[1]) if j not in tan]
+    np.testing.assert_array_equal(a[:, rest], b[:, rest])
+    assert np.abs(a[:, tan] - b[:, tan]).max() > 0.01  # relaxing materials: they differ
+    names = ("disp_at_1N_mm", "hysteresis_Nmm")
+    data = SweepData(
+        folder=tmp_path, space=space, solver_version=SOLVER_VERSION, points=pts,
+        targets=rng.lognormal(size=(40, 2)), index=np.arange(40), metric_names=names,
+        table_sha256="", n_rows=40, tapping_frequency_Hz=1.0,
+    )  # fmt: skip
+    config = dataclasses.replace(SHORT, max_epochs=2, patience=2)
+    trained = fit(data, config, progress=False).surrogate
+    assert trained.encoder.omega_rad_s == pytest.approx(2 * math.pi)
+    loaded = load_checkpoint(save_checkpoint(trained, tmp_path / "m.safetensors"))
+    assert loaded.encoder.omega_rad_s == pytest.approx(2 * math.pi)
+    assert loaded.header["material_descriptors"]["omega_rad_s"] == pytest.approx(2 * math.pi)
+    np.testing.assert_array_equal(loaded.encoder.encode(pts).features, b)
