@@ -60,6 +60,7 @@ __all__ = [
     "Parameter",
     "load_space",
     "param_material",
+    "point_from_design",
     "space_from_dict",
 ]
 
@@ -261,6 +262,81 @@ def point_to_design(
         thickness = None if role == "core" else float(point[f"{role}.thickness_mm"])
         layers.append(Layer(mat, thickness))
     return Design(tuple(layers), geometry)
+
+
+def _family_values(mat: Material, family: str) -> dict[str, float] | None:
+    """The parameters of ``family`` that rebuild ``mat`` (to round-off), or None when ``mat`` is
+    not a member of that family (another law, Prony times or shares, Poisson's ratio...)."""
+    law, g, tau = mat.law, mat.prony.g, mat.prony.tau_s
+    fam = FAMILIES[family]
+    try:
+        values = {
+            "mu0_MPa": float(law.mu_MPa[0]),
+            "alpha": float(law.alpha[0]),
+            "nu": float(law.nu),
+            "g_total": float(sum(g)),
+            "tau_s": float(tau[list(fam.time_ratios).index(1.0)]) if tau else 1.0,
+        }
+        built = family_material(family, values)
+    except (AttributeError, IndexError, TypeError, ValueError, DesignError):
+        return None
+    same = (
+        built.law.model == law.model
+        and built.law.to_dict().keys() == law.to_dict().keys()
+        and all(
+            np.allclose(np.atleast_1d(built.law.to_dict()[k]), np.atleast_1d(v), rtol=1e-9)
+            for k, v in law.to_dict().items()
+            if k != "model"
+        )
+        and len(built.prony.g) == len(g)
+        and np.allclose(built.prony.g, g, rtol=1e-9)
+        and np.allclose(built.prony.tau_s, tau, rtol=1e-9)
+        and built.prony_k == mat.prony_k
+        and built.moduli == mat.moduli
+    )
+    return {k: values[k] for k in fam.keys} if same else None
+
+
+def point_from_design(design: Design, space: DesignSpace) -> dict[str, Any]:
+    """The point of ``space`` whose design is ``design`` (the inverse of ``point_to_design``):
+    each layer's material is a catalogue material the space names or a member of one of its
+    families (rebuilt from the family's parameters to round-off); a ``DesignError`` names the
+    layer that is neither. The point is checked against the space's bounds by the caller
+    (``DesignSpace.check``)."""
+    roles = active_roles(len(design.layers))
+    point: dict[str, Any] = {
+        **{f"geometry.{k}": v for k, v in design.geometry.to_dict().items()},
+        "layers.count": len(design.layers),
+    }
+    catalogue = space.catalogue
+    for k, (role, layer) in enumerate(zip(roles, design.layers, strict=True)):
+        name = f"{role}.material"
+        if name not in space.names:
+            raise DesignError(f"layers[{k}]", f"the space has no {role} layer")
+        p = space[name]
+        choices = p.choices if p.kind == "choice" else (p.value,)
+        mat = layer.material
+        named = [c for c in choices if not is_family(c) and catalogue.get(c) == mat]
+        if named:
+            point[name] = named[0]
+        else:
+            for fam in (c for c in choices if is_family(c)):
+                values = _family_values(mat, fam)
+                if values is not None:
+                    point[name] = fam
+                    point.update({f"{role}.{key}": v for key, v in values.items()})
+                    break
+            else:
+                raise DesignError(
+                    f"layers[{k}].material",
+                    f"not a material of the space's {role}: one of its catalogue choices or a "
+                    "member of its families ("
+                    + ", ".join(f"{c}: {FAMILIES[c].description}" for c in choices if is_family(c))
+                    + ")",
+                )
+        if role != "core":
+            point[f"{role}.thickness_mm"] = layer.thickness_mm
+    return point
 
 
 # ---------------------------------------------------------------------------- parsing

@@ -93,13 +93,18 @@ def _flatten(d: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def read_points(path: str | Path, space: DesignSpace) -> list[dict[str, Any]]:
-    """Checked design points (``check_point``) from a TOML file (one flat table ``name =
-    value``; dotted keys such as ``core.mu0_MPa = 0.05`` work too) or a CSV file (one point per
+    """Checked design points (``check_point``) from a TOML file (a design file, as
+    ``fingertip simulate`` reads it, whose layers are catalogue materials or family members of
+    the space; or one flat table ``name = value``, dotted keys such as ``core.mu0_MPa = 0.05``
+    work too) or a CSV file (one point per
     row, columns = point names, empty cell = inactive; a sweep's table.csv works, its
     non-parameter columns are ignored)."""
     path = Path(path)
     if path.suffix.lower() != ".csv":
-        return [check_point(space, _flatten(read_toml(path, "DESIGNS")))]
+        data = read_toml(path, "DESIGNS")
+        if isinstance(data.get("layers"), list):  # a design file, as `fingertip simulate` reads
+            return [check_point(space, _design_point(data, space))]
+        return [check_point(space, _flatten(data))]
     try:
         return _read_csv(path, space)
     except FileNotFoundError:
@@ -112,6 +117,14 @@ def read_points(path: str | Path, space: DesignSpace) -> list[dict[str, Any]]:
         raise DesignError("DESIGNS", f"{path} is not UTF-8 text") from None
     except csv.Error as exc:
         raise DesignError("DESIGNS", f"malformed CSV in {path}: {exc}") from None
+
+
+def _design_point(data: Mapping[str, Any], space: DesignSpace) -> dict[str, Any]:
+    """The point of a design file (``[geometry]``, ``[[layers]]``) in ``space``."""
+    from sim.design import design_from_dict
+    from sim.space import point_from_design
+
+    return point_from_design(design_from_dict(data, space.catalogue), space)
 
 
 def check_point(space: DesignSpace, point: Mapping[str, Any]) -> dict[str, Any]:

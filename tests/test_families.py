@@ -128,3 +128,32 @@ def test_every_bound_of_the_default_space_is_argued_in_the_docs():
         assert len(argument) > 40, p.name  # a source or an argument, not a placeholder
         if p.kind == "float":
             assert bound.startswith(f"{p.low:g}-{p.high:g}"), (p.name, bound)
+
+
+@pytest.mark.parametrize("path", [DEFAULT_SPACE_PATH, WIDE])
+def test_a_design_maps_back_to_its_point(path):
+    """point_from_design inverts point_to_design on the space's own samples (catalogue names and
+    family members alike), so a design file names one point of the space."""
+    from sim.space import point_from_design, point_to_design
+
+    space = load_space(path)
+    rng = np.random.default_rng(3)
+    for _ in range(60):
+        p = space.point(rng.random(len(space.sampled)))
+        back = space.check(point_from_design(point_to_design(p, space.catalogue), space))
+        assert back.keys() == p.keys()
+        for k, v in p.items():
+            if isinstance(v, float):
+                assert (math.isnan(v) and math.isnan(back[k])) or back[k] == pytest.approx(v)
+            else:
+                assert back[k] == v, k
+
+
+def test_a_material_outside_the_families_is_named():
+    from sim.design import Design, Layer
+    from sim.space import point_from_design
+
+    compressible = family_material("param", {**FOAM, "nu": 0.45})  # the old "gel"
+    with pytest.raises(DesignError) as exc:
+        point_from_design(Design((Layer(compressible),)), load_space())
+    assert exc.value.field == "layers[0].material" and "gel" in str(exc.value)

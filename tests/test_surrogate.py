@@ -612,3 +612,46 @@ def test_the_encoding_takes_the_tap_frequency_of_the_sweep(tmp_path):
     assert loaded.encoder.omega_rad_s == pytest.approx(2 * math.pi)
     assert loaded.header["material_descriptors"]["omega_rad_s"] == pytest.approx(2 * math.pi)
     np.testing.assert_array_equal(loaded.encoder.encode(pts).features, b)
+
+
+def test_predict_reads_the_design_file_of_simulate(tmp_path, capsys):
+    """``fingertip predict`` takes the design TOML ``fingertip simulate`` takes: the same
+    prediction as the design's point; outside the space, one line naming the parameter and its
+    bounds; a material of no family of the space, one line naming the layer."""
+    import math
+
+    from sim.space import point_to_design
+
+    ckpt = REPO / "surrogate" / "pretrained" / "default" / "model.safetensors"
+    model = load_checkpoint(ckpt, allow_solver_mismatch=True)
+    space = model.space
+    point = space.check(
+        {"geometry.half_width_mm": 5.8, "geometry.height_mm": 6.3, "geometry.exponent": 1.6,
+         "layers.count": 1, "core.material": "gel", "core.mu0_MPa": 0.02, "core.alpha": 2.1,
+         "core.g_total": 0.5, "core.tau_s": 0.05}
+    )  # fmt: skip
+    mat = point_to_design(point, space.catalogue).layers[0].material.to_dict()
+    text = "[geometry]\nhalf_width_mm = 5.8\nheight_mm = 6.3\nexponent = 1.6\n[[layers]]\n"
+    text += "[layers.material]\n" + "".join(
+        f"{k} = {json.dumps(v)}\n" for k, v in mat.items() if v is not None
+    )
+    design = tmp_path / "d.toml"
+    design.write_text(text)
+    from_file = read_points(design, space)[0]
+    assert all(
+        (isinstance(v, float) and math.isnan(v) and math.isnan(from_file[k]))
+        or from_file[k] == pytest.approx(v)
+        for k, v in point.items()
+    )
+    p0, p1 = model.predict([point]), model.predict([from_file])
+    np.testing.assert_allclose(p0.median, p1.median, rtol=1e-6)
+    soft = tmp_path / "soft.toml"
+    soft.write_text(text.replace("mu_MPa = [0.02]", "mu_MPa = [0.001]"))
+    for path, field in ((soft, "core.mu0_MPa"), (None, "layers[0].material")):
+        if path is None:
+            path = tmp_path / "compressible.toml"
+            path.write_text(text.replace("nu = 0.499", "nu = 0.45"))
+        code = explore.cli.main(["predict", str(ckpt), str(path)])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and field in err, err
+        assert field != "core.mu0_MPa" or "0.0025" in err  # the bound it breaks
