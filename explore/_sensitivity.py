@@ -127,12 +127,19 @@ def sensitivity_notes(
         reach = ""
         if first is not None:
             v, outside = _needed(surrogate, first, e, first.d_error[m])
-            bound = "beyond the space's bounds" if outside else "within the space"
             sign = "<=" if first.direction < 0 else ">="
-            reach = (
-                f" Extrapolated linearly, {m} is met at {first.name} {sign} {v:.3g} ({bound}), "
-                "the others unchanged."
-            )
+            if outside:
+                p = surrogate.space[first.name]
+                stop = p.low if first.direction < 0 else p.high
+                reach = (
+                    f" Extrapolated linearly, {first.name} alone cannot meet {m}: the space "
+                    f"stops at {stop:.3g}, short of what it would take (the others unchanged)."
+                )
+            else:
+                reach = (
+                    f" Extrapolated linearly, {m} is met at {first.name} {sign} {v:.3g} (within "
+                    "the space), the others unchanged."
+                )
         parts = []
         for s in helpful[:top]:
             way = "higher" if s.direction > 0 else "lower"

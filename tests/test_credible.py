@@ -180,6 +180,9 @@ def test_sensitivities_name_the_parameter_that_closes_the_gap():
     # d1 = 1.83 (0.01 / mu)^0.5: linearised on log(mu), the target is met near mu = 0.01
     needed = float(notes[0].split("core.mu0_MPa <= ")[1].split(" ")[0])
     assert 0.006 < needed < 0.012 and "within the space" in notes[0]
+    # from the stiffest core, linear in log(mu) the target lies beyond the space's lower bound
+    far = sensitivity_notes(sur, _gel_point(0.35, 0.2), TARGETS, 0.05)[0]
+    assert "core.mu0_MPa alone cannot meet" in far and "stops at 0.0025" in far
 
 
 # ----------------------------------------------------------------------------- answers
