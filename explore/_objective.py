@@ -119,9 +119,8 @@ def infeasibility(
         bad = ~(flags["valid"] & flags["settled"])
         why = np.where(bad, flags["why"], why)
         excess += bad.astype(float)
-        limits = [p.strip() for p in validity.strain_limit_protocols.split(",") if p.strip()]
         with np.errstate(invalid="ignore", divide="ignore"):
-            for p in limits:
+            for p in validity.strain_limited:
                 if (v := trust.get(f"{p}_max_compressive_log_strain")) is not None:
                     excess += np.nan_to_num(
                         np.maximum(v / validity.max_compressive_log_strain - 1, 0)

@@ -357,11 +357,11 @@ def retrain(
     from surrogate._train import Split, TrainConfig, fit
 
     data = read_sweep(dataset)
+    names = list(data.metric_names)
     # an unsettled or invalid result teaches no metric, but it does teach what made it so
     # (the trust outputs, when the surrogate learns them), as in ``read_sweep``
-    ok = [c for c in confirmed if c.trusted or (c.status == "ok" and TRUST_OUTPUTS.keys()
-                                                 & set(data.metric_names))]  # fmt: skip
-    names = list(data.metric_names)
+    learns_trust = set(TRUST_OUTPUTS) <= set(names)
+    ok = [c for c in confirmed if c.trusted or (learns_trust and c.status == "ok")]
 
     def target_row(c: Confirmation) -> list[float]:
         trust = trust_values({**c.diagnostics, "status": c.status})

@@ -107,24 +107,23 @@ class TrialRow:
 
 
 # ----------------------------------------------------------------------------- spaces
+def _restricted(p: Parameter, keep) -> Parameter:
+    """Choice parameter ``p`` with only the choices of ``keep`` (in ``p``'s order), each keeping
+    its weight."""
+    w = dict(zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True))
+    choices = tuple(c for c in p.choices if c in keep)
+    return Parameter(p.name, "choice", choices=choices,
+                     weights=tuple(w[c] for c in choices) if p.weights else ())  # fmt: skip
+
+
 def catalogue_only(space: DesignSpace) -> DesignSpace:
     """The space restricted to catalogue materials (no family): what can be bought today."""
     params = []
     for p in space.parameters:
         if p.name.endswith(".material") and p.kind == "choice":
-            keep = [
-                (c, w)
-                for c, w in zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True)
-                if not is_family(c)
-            ]
-            if not keep:
+            p = _restricted(p, {c for c in p.choices if not is_family(c)})
+            if not p.choices:
                 raise ValueError(f"{p.name}: the space has no catalogue material")
-            p = Parameter(
-                p.name,
-                "choice",
-                choices=tuple(c for c, _ in keep),
-                weights=tuple(w for _, w in keep) if p.weights else (),
-            )
         params.append(p)
     return DesignSpace(tuple(params), space.materials)
 
@@ -159,15 +158,10 @@ def family_space(space: DesignSpace, family: str) -> DesignSpace | None:
     params = []
     for p in space.parameters:
         if p.name == "layers.count" and p.kind == "choice":
-            w = dict(zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True))
-            p = Parameter(p.name, "choice", choices=counts,
-                          weights=tuple(w[c] for c in counts) if p.weights else ())  # fmt: skip
+            p = _restricted(p, counts)
         elif p.name.endswith(".material") and p.kind == "choice":
-            role = p.name.split(".")[0]
-            keep = allowed[role] or p.choices  # a layer no design uses keeps its choices
-            w = dict(zip(p.choices, p.weights or [1.0] * len(p.choices), strict=True))
-            p = Parameter(p.name, "choice", choices=keep,
-                          weights=tuple(w[c] for c in keep) if p.weights else ())  # fmt: skip
+            # a layer no design of the family uses keeps its choices
+            p = _restricted(p, allowed[p.name.split(".")[0]] or p.choices)
         params.append(p)
     return DesignSpace(tuple(params), space.materials)
 

@@ -26,7 +26,9 @@ from ._objective import TAPPING, closeness
 
 __all__ = ["STEP", "Sensitivity", "sensitivities", "sensitivity_notes"]
 
-#: the move of a parameter, as a fraction of its range on the space's scale
+#: the move of a parameter, as a fraction of its range on the space's scale: a local, first-
+#: order probe (small next to the range), yet a move whose predicted effect stands above the
+#: ensemble's noise (a designer's "a bit softer", not a derivative)
 STEP = 0.10
 
 
@@ -58,6 +60,14 @@ def _moved(p, value: float, direction: int) -> tuple[float, bool]:
 
 def sensitivities(surrogate, point: Mapping[str, Any], targets: Targets) -> list[Sensitivity]:
     """The ``Sensitivity`` of every float parameter ``point`` uses, both directions."""
+    return _scan(surrogate, point, targets)[1]
+
+
+def _scan(
+    surrogate, point: Mapping[str, Any], targets: Targets
+) -> tuple[dict[str, float], list[Sensitivity]]:
+    """The predicted relative error of each tapping target at ``point``, and the
+    ``sensitivities`` around it (one batch through the surrogate)."""
     from ._search import predict_rows
 
     space = surrogate.space
@@ -71,8 +81,6 @@ def sensitivities(surrogate, point: Mapping[str, Any], targets: Targets) -> list
             w, stuck = _moved(p, float(v), direction)
             moves.append((p.name, float(v), w, direction, stuck))
             points.append({**base, p.name: w})
-    if not points:
-        return []
     rows = predict_rows(surrogate, [base, *points], targets, allow_untrusted=True)
     preds = [{m: r.predicted[m]["median"] for m in r.predicted} for r in rows]
     errs = [closeness(pr, targets).errors for pr in preds]
@@ -81,7 +89,7 @@ def sensitivities(surrogate, point: Mapping[str, Any], targets: Targets) -> list
         d = {m: float(err[m] - errs[0][m]) for m in TAPPING}
         ok = not any(f.startswith("predicted not credible") for f in row.flags)
         out.append(Sensitivity(name, v, w, direction, stuck, d, ok))
-    return out
+    return {m: float(errs[0][m]) for m in TAPPING}, out
 
 
 def _needed(surrogate, s: Sensitivity, error: float, d: float) -> tuple[float, bool]:
@@ -103,12 +111,7 @@ def sensitivity_notes(
     """One note per missed tapping target: the ``top`` parameter moves that bring it closest
     to its value while staying credible, with the predicted change per step, and the moves a
     bound stops."""
-    from ._search import predict_rows
-
-    base = {k: (math.nan if v is None else v) for k, v in point.items()}
-    row = predict_rows(surrogate, [base], targets, allow_untrusted=True)[0]
-    error = closeness({m: row.predicted[m]["median"] for m in row.predicted}, targets).errors
-    sens = sensitivities(surrogate, point, targets)
+    error, sens = _scan(surrogate, point, targets)
     notes = []
     for m in TAPPING:
         e = float(error[m])

@@ -50,18 +50,10 @@ def read_toml(path, field: str) -> dict:
     """Parse a TOML file; any failure (missing, a directory, unreadable, not UTF-8, malformed)
     becomes one ``DesignError`` naming ``field`` (e.g. "DESIGN", "SPACE", "TARGETS")."""
     import tomllib
-    from pathlib import Path
 
-    path = Path(path)
+    raw = read_bytes(path, field, "TOML file")
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise DesignError(field, f"no such file: {path}") from None
-    except IsADirectoryError:
-        raise DesignError(field, f"{path} is a directory, not a TOML file") from None
-    except OSError as exc:
-        raise DesignError(field, f"cannot read {path}: {exc.strerror}") from None
+        return tomllib.loads(raw.decode("utf-8"))
     except UnicodeDecodeError:
         raise DesignError(field, f"{path} is not UTF-8 text (TOML files must be)") from None
     except tomllib.TOMLDecodeError as exc:

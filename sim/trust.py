@@ -91,8 +91,7 @@ def trust_flags(values: Mapping[str, Any], validity, tapping) -> dict[str, np.nd
         v = values.get(name)
         return None if v is None else np.asarray(v, dtype=float).reshape(n)
 
-    limits = [p.strip() for p in validity.strain_limit_protocols.split(",") if p.strip()]
-    for p in limits:
+    for p in validity.strain_limited:
         v = get(f"{p}_max_compressive_log_strain")
         if v is not None:
             with np.errstate(invalid="ignore"):

@@ -79,6 +79,11 @@ class ValidityOptions:
     # the design; its J, base contact and folding still are.
     strain_limit_protocols: str = "tapping,plate"
 
+    @property
+    def strain_limited(self) -> tuple[str, ...]:
+        """The protocols of ``strain_limit_protocols``, parsed (the one place that does)."""
+        return tuple(p.strip() for p in self.strain_limit_protocols.split(",") if p.strip())
+
 
 # ---------------------------------------------------------------------------- kinematics
 def _smallest_stretch_sq(F: np.ndarray, J: np.ndarray) -> np.ndarray:
@@ -321,8 +326,8 @@ def check(
     None)."""
     out = []
     strain, J = summary["max_compressive_log_strain"], summary["min_J"]
-    limited = {p.strip() for p in options.strain_limit_protocols.split(",")}
-    if (protocol is None or protocol in limited) and strain > options.max_compressive_log_strain:
+    limited = protocol is None or protocol in options.strain_limited
+    if limited and strain > options.max_compressive_log_strain:
         out.append(
             Violation(
                 "max_compressive_log_strain",

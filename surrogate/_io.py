@@ -268,7 +268,8 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
             # the trust outputs (sim.trust) when it has the diagnostic columns
             metric_names = tuple(m for m in METRICS if m in header)
             n_fe = len(metric_names)
-            if "valid" in header:
+            learns_trust = "valid" in header
+            if learns_trust:
                 metric_names += tuple(TRUST_OUTPUTS)
             missing = [c for c in ("index", *space.names) if c not in header]
             if missing or not metric_names:
@@ -284,18 +285,17 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
                         f"(a truncated or damaged table); {rebuild}",
                     )
                 y = [_number(row[m], f"{where}: {m}") for m in metric_names[:n_fe]]
-                if not any(math.isfinite(v) for v in y) and len(metric_names) == n_fe:
+                if not (learns_trust or any(math.isfinite(v) for v in y)):
                     continue
                 why = _untrusted(row)
                 if why is not None and trusted_only:
                     excluded[why] = excluded.get(why, 0) + 1
-                    if len(metric_names) == n_fe:
+                    if not learns_trust:
                         continue
-                    # its metrics are not learnt, but what made it untrusted is
-                    y = [math.nan] * n_fe
-                if len(metric_names) > n_fe:
+                    y = [math.nan] * n_fe  # its metrics are not learnt, what made it so is
+                if learns_trust:
                     y += list(trust_values(row).values())
-                unchecked += "valid" not in header
+                unchecked += not learns_trust
                 points.append({n: _cell(space, n, row[n], where) for n in space.names})
                 targets.append(y)
                 index.append(int(_number(row["index"], f"{where}: index", integer=True)))
