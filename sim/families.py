@@ -94,6 +94,11 @@ class Family:
         return self.build(values, self.time_ratios)
 
 
+#: what the laws admit (not what is realistic: the spaces' bounds, argued in
+#: docs/design_space.md, are that): moduli and times positive; alpha != 0 for an Ogden-type
+#: term, capped at 50 as the space parser did before this module (a guard against typos, far
+#: above any fitted value: the catalogue's largest is 15.5, silicone_gls40); g_total < 1 keeps
+#: a solid, and 0.95 keeps the instantaneous modulus within 20x the long-term one.
 _COMMON_LIMITS = {
     "mu0_MPa": (0.0, float("inf"), "> 0"),
     "alpha": (0.0, 50.0, "in (0, 50]"),
