@@ -210,3 +210,16 @@ def test_a_design_on_the_space_bound_is_inside_the_training_range():
     assert coded.in_domain.tolist() == [False, True]
     assert f"outside the training range [{far:.6g}, 6.5]" in coded.reasons[0]
     assert not math.isclose(far, p.low)
+
+
+def test_newton_abandons_a_stalled_step_but_never_a_converging_one():
+    from sim.solver import NewtonOptions, _stalled
+
+    opts = NewtonOptions()  # not halved over 6 iterations, judged from iteration 8
+    quadratic = [1.0, 1e-1, 1e-3, 1e-7]
+    creeping = [1.0, 0.9, 0.85, 0.8, 0.78, 0.75, 0.7, 0.68]
+    slow_but_steady = [1.0 * 0.85**k for k in range(20)]  # halves every ~4.3 iterations
+    assert not any(_stalled(quadratic[: k + 1], opts) for k in range(len(quadratic)))
+    assert not any(_stalled(creeping[: k + 1], opts) for k in range(7))
+    assert _stalled(creeping, opts)
+    assert not any(_stalled(slow_but_steady[: k + 1], opts) for k in range(20))
