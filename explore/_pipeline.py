@@ -88,14 +88,17 @@ class OptimizeConfig:
     surrogate evaluations per round of each family's own study (gel only, foam core:
     ``explore._search.family_space``), whose best design is confirmed too; ``allow_untrusted``:
     let designs that are not credible (an FE result beyond the validity limits or unsettled,
-    or a sag over the targets' limit) compete for the answers, flagged as such.
+    or a sag over the targets' limit) compete for the answers, flagged as such; ``screen``:
+    designs of a quasi-random sample the surrogate scores at the start of every study, whose
+    best (``SearchSettings.screen_keep``) seed the sampler (``explore._search.screen``), so
+    ``trials`` counts the sampler's trials after them.
     """
 
     surrogate: str = str(DEFAULT_CHECKPOINT)
     space: str | None = None
     targets: str | None = None
-    trials: int = 1000
-    buildable_trials: int = 300
+    trials: int = 128
+    buildable_trials: int = 64
     confirm: int = 3
     uncertain: int = 1
     rounds: int = 3
@@ -110,8 +113,9 @@ class OptimizeConfig:
     retrain_epochs: int = 150
     catalogues: tuple[str, ...] = ()
     buildable_fe: int = DEFAULT_FE_BUDGET
-    family_trials: int = 300
+    family_trials: int = 64
     allow_untrusted: bool = False
+    screen: int = 65536
 
     def check(self) -> None:
         def at_least(name: str, value: int, low: int) -> None:
@@ -127,6 +131,7 @@ class OptimizeConfig:
         at_least("retrain_epochs", self.retrain_epochs, 1)
         at_least("buildable_fe", self.buildable_fe, 0)
         at_least("family_trials", self.family_trials, 0)
+        at_least("screen", self.screen, 0)
         if self.mode not in ("single", "multi"):
             raise DesignError("--mode", f"must be single or multi, got {self.mode!r}")
         for name in ("tolerance", "max_disagreement"):
@@ -538,6 +543,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             max_disagreement=config.max_disagreement,
             allow_untrusted=config.allow_untrusted,
             options=options,
+            screen=config.screen,
         )
         searches = [("continuous", space, config.trials)]
         for fam in FAMILY_SEARCHES if config.family_trials else ():
@@ -551,9 +557,10 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             name = f"{config.study}-r{r}-{search}"
             _add_study(out, name, search, r, config.mode)
             study = create_study(storage, name, dataclasses.replace(settings, trials=n))
-            bar = tqdm(total=n, desc=f"round {r + 1}: search {search}", unit="trial",
+            total = n + (settings.screen_keep if settings.screen else 0)  # seeds + sampled
+            bar = tqdm(total=total, desc=f"round {r + 1}: search {search}", unit="trial",
                        disable=not progress)  # fmt: skip
-            bar.update(min(n, _finished(study)))
+            bar.update(min(total, _finished(study)))
             tic = time.perf_counter()
             round_rows[search] = run_study(
                 study, surrogate, sp, targets, dataclasses.replace(settings, trials=n),

@@ -46,6 +46,7 @@ __all__ = [
     "predict_rows",
     "rows_of",
     "run_study",
+    "screen",
     "select_candidates",
     "suggest_point",
 ]
@@ -74,6 +75,10 @@ class SearchSettings:
     allow_untrusted: bool = False
     #: the simulation options whose validity limits and tapping tolerances judge credibility
     options: Any = None
+    #: designs of a scrambled Sobol sample the surrogate scores before the sampler starts
+    #: (0: none), and how many of the best of them seed the study as its first trials
+    screen: int = 0
+    screen_keep: int = 64
 
 
 @dataclass(frozen=True)
@@ -239,6 +244,28 @@ def _used(space: DesignSpace, point: dict[str, Any], p: Parameter) -> bool:
 
 
 # ----------------------------------------------------------------------------- scoring
+def _scores(pred, targets: Targets, options=None, allow_untrusted: bool = False):
+    """(score, objectives, why-not-credible) of a surrogate ``Prediction``, vectorised: the
+    closeness of the median prediction, plus the credibility penalty unless
+    ``allow_untrusted`` (``explore._objective.infeasibility``, judged with the validity limits
+    and tapping tolerances of ``options``, a ``SimOptions``, default the defaults)."""
+    from sim import SimOptions
+
+    options = SimOptions() if options is None else options
+    names = list(pred.metric_names)
+    cols = {m: names.index(m) for m in names}
+    point = pred.median
+    metrics = {targets.metric(m): point[:, cols[targets.metric(m)]] for m in SCORED}
+    metrics["wedge_peak_force_N"] = point[:, cols["wedge_peak_force_N"]]
+    c = closeness(metrics, targets)
+    obj = objectives(c)
+    judged = {m: (pred.mean if m in _YES_NO else point)[:, cols[m]] for m in _JUDGED if m in cols}
+    penalty, why = infeasibility(judged, targets, options.validity, options.tapping)
+    if allow_untrusted:
+        return c.score, obj, why
+    return c.score + penalty, obj + penalty[:, None], why
+
+
 def predict_rows(
     surrogate,
     points: Sequence[dict[str, Any]],
@@ -257,22 +284,11 @@ def predict_rows(
     validity limits and tapping tolerances of ``options``, a ``SimOptions``, default the
     defaults) is flagged with the reason, and its score and objectives carry the penalty
     unless ``allow_untrusted``."""
-    from sim import SimOptions
-
-    options = SimOptions() if options is None else options
     pred = surrogate.predict(list(points))
     names = list(pred.metric_names)
     cols = {m: names.index(m) for m in names}
     point = pred.median  # the robust point prediction (see surrogate.Prediction)
-    metrics = {targets.metric(m): point[:, cols[targets.metric(m)]] for m in SCORED}
-    metrics["wedge_peak_force_N"] = point[:, cols["wedge_peak_force_N"]]
-    c = closeness(metrics, targets)
-    obj = objectives(c)
-    judged = {m: (pred.mean if m in _YES_NO else point)[:, cols[m]] for m in _JUDGED if m in cols}
-    penalty, why = infeasibility(judged, targets, options.validity, options.tapping)
-    scores = c.score if allow_untrusted else c.score + penalty
-    if not allow_untrusted:
-        obj = obj + penalty[:, None]
+    scores, obj, why = _scores(pred, targets, options, allow_untrusted)
     scored = [targets.metric(m) for m in SCORED]
     with np.errstate(divide="ignore", invalid="ignore"):
         spread = np.stack(
@@ -367,19 +383,27 @@ def run_study(
     import optuna
 
     multi = settings.mode == "multi"
+    seeds = _seed_trials(surrogate, space, targets, settings, round_, search)
+    total = len(seeds) + settings.trials
     if shared:
+        if _finished(study) == 0:  # the first worker seeds the study
+            study.add_trials(seeds)
         target, done, n_stored = study, _finished(study), None
     else:
         states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
         stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
+        if len(stored) < len(seeds):  # the seeds are the first trials; a kill may cut them
+            study.add_trials(seeds[len(stored) :])
+            stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
         n_stored = len(stored)
-        done = min(n_stored - n_stored % settings.batch, settings.trials)
+        sampled = n_stored - len(seeds)
+        done = len(seeds) + min(sampled - sampled % settings.batch, settings.trials)
         target = _twin(study, settings, stored[:done])
     pending: list = []
-    while done < settings.trials:
+    while done < total:
         if not shared:  # a fresh sampler per batch, seeded by the trials before it
             target.sampler = _sampler(settings, _batch_seed(settings.seed, done))
-        batch = [target.ask() for _ in range(min(settings.batch, settings.trials - done))]
+        batch = [target.ask() for _ in range(min(settings.batch, total - done))]
         points = [suggest_point(t, space) for t in batch]
         rows = predict_rows(
             surrogate, points, targets, round_=round_, trials=[t.number for t in batch],
@@ -398,7 +422,7 @@ def run_study(
                 pending.append(frozen)
                 new += 1
         done += len(batch)
-        if not shared and pending and (len(pending) >= flush or done >= settings.trials):
+        if not shared and pending and (len(pending) >= flush or done >= total):
             study.add_trials(pending)
             pending = []
         if progress is not None and new:
@@ -406,6 +430,79 @@ def run_study(
     return rows_of(study, surrogate, space, targets, round_=round_, search=search,
                    max_disagreement=settings.max_disagreement, options=settings.options,
                    allow_untrusted=settings.allow_untrusted)  # fmt: skip
+
+
+def screen(
+    surrogate, space: DesignSpace, targets: Targets, settings: SearchSettings, chunk: int = 16384
+) -> list[dict[str, Any]]:
+    """The ``settings.screen_keep`` best-scored points (``_scores``, lowest first) of a scrambled
+    Sobol sample of ``settings.screen`` designs of ``space`` (seeded by ``settings.seed``),
+    scored by the surrogate in batches of ``chunk``: what a sampler would need tens of thousands
+    of trials to find, at the surrogate's own speed."""
+    from scipy.stats import qmc
+
+    d, n = len(space.sampled), settings.screen
+    if n <= 0 or d == 0 or settings.screen_keep <= 0:
+        return []
+    unit = qmc.Sobol(d, scramble=True, seed=settings.seed).random_base2(math.ceil(math.log2(n)))
+    unit = unit[:n]
+    keep_scores: list[float] = []
+    keep_points: list[dict[str, Any]] = []
+    for start in range(0, n, chunk):
+        points = space.points(unit[start : start + chunk])
+        score, _, _ = _scores(surrogate.predict(points), targets, settings.options,
+                              settings.allow_untrusted)  # fmt: skip
+        score = np.where(np.isfinite(score), score, np.inf)
+        best = np.argsort(score, kind="stable")[: settings.screen_keep]
+        keep_scores += score[best].tolist()
+        keep_points += [points[i] for i in best]
+    order = np.argsort(keep_scores, kind="stable")[: settings.screen_keep]
+    return [keep_points[i] for i in order if math.isfinite(keep_scores[i])]
+
+
+def _seed_trials(
+    surrogate,
+    space: DesignSpace,
+    targets: Targets,
+    settings: SearchSettings,
+    round_: int,
+    search: str,
+) -> list:
+    """The screen's best designs (``screen``) as finished Optuna trials, in score order, with
+    the distributions ``suggest_point`` gives the same parameters (so the sampler learns from
+    them) and the user attributes every trial carries, plus ``source = "screen"``."""
+    import optuna
+
+    points = screen(surrogate, space, targets, settings)
+    if not points:
+        return []
+    rows = predict_rows(
+        surrogate, points, targets, round_=round_, search=search,
+        max_disagreement=settings.max_disagreement, options=settings.options,
+        allow_untrusted=settings.allow_untrusted,
+    )  # fmt: skip
+    trials = []
+    for row in rows:
+        params, dists = {}, {}
+        for p in space.sampled:
+            v = row.point[p.name]
+            if v == "" or (isinstance(v, float) and math.isnan(v)):
+                continue  # unused by this design: never suggested either
+            params[p.name] = v
+            dists[p.name] = (
+                optuna.distributions.CategoricalDistribution(list(p.choices))
+                if p.kind == "choice"
+                else optuna.distributions.FloatDistribution(p.low, p.high, log=p.log)
+            )
+        trial = optuna.trial.create_trial(
+            params=params,
+            distributions=dists,
+            values=list(row.objectives) if settings.mode == "multi" else [row.score],
+            user_attrs={"source": "screen"},
+        )
+        _store(trial, row)
+        trials.append(trial)
+    return trials
 
 
 def _batch_seed(seed: int, done: int) -> int:

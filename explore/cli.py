@@ -349,6 +349,7 @@ def _optimize_config(args: argparse.Namespace):
         "buildable_fe": args.buildable_fe,
         "family_trials": args.family_trials,
         "allow_untrusted": True if args.allow_untrusted else None,
+        "screen": args.screen,
     }
     base = OptimizeConfig()
     return OptimizeConfig(
@@ -449,6 +450,12 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
         type=int,
         help="trials per round of each family's own search (gel only, foam core), whose best "
         f"design is FE-confirmed too; 0 = none (default {d.family_trials})",
+    )
+    p.add_argument(
+        "--screen",
+        type=int,
+        help="designs of a quasi-random sample the surrogate scores at the start of each search; "
+        f"the best seed the sampler, 0 = none (default {d.screen})",
     )
     p.add_argument(
         "--allow-untrusted",

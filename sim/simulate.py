@@ -295,6 +295,7 @@ def simulate(
             "newton_iterations": res.newton_iterations,
             "steps": res.steps,
             "factorizations": body.factorizations,
+            "evaluations": body.evaluations,
             "timings_s": dict(body.timings),
             "wall_time_s": res.wall_time_s,
             **res.info,

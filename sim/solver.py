@@ -142,6 +142,7 @@ class Body:
         self.force = 0.0
         self.newton_iterations = 0
         self.factorizations = 0
+        self.evaluations = 0  # residual evaluations, line-search trials included
 
     # ------------------------------------------------------------------ contact
     def _contact(self, u: np.ndarray, control: Control, d: float):
@@ -212,6 +213,7 @@ class Body:
     # ------------------------------------------------------------------ evaluation
     def _evaluate(self, u, control, d, dt, tangent, frozen=False):
         t0 = time.perf_counter()
+        self.evaluations += 1
         ev = self.disc.evaluate(u, self.states, dt, tangent=tangent, frozen_history=frozen)
         self.timings["residual+material"] += time.perf_counter() - t0
         if not ev.ok:

@@ -128,6 +128,20 @@ class Parameter:
             )
         return float(self.low + u * (self.high - self.low))
 
+    def from_units(self, u: np.ndarray) -> np.ndarray:
+        """``from_unit`` of every element of ``u`` (an object array for choices)."""
+        u = np.asarray(u, dtype=float)
+        if self.kind == "fixed":
+            return np.full(len(u), self.value, dtype=object)
+        if self.kind == "choice":
+            w = np.asarray(self.weights or [1.0] * len(self.choices), dtype=float)
+            k = np.searchsorted(np.cumsum(w) / w.sum(), u, side="right")
+            return np.asarray(self.choices, dtype=object)[np.minimum(k, len(self.choices) - 1)]
+        if self.log:
+            lo, hi = math.log(self.low), math.log(self.high)
+            return np.exp(lo + u * (hi - lo))
+        return self.low + u * (self.high - self.low)
+
     def to_dict(self) -> dict[str, Any]:
         if self.kind == "fixed":
             return {"value": self.value}
@@ -192,6 +206,32 @@ class DesignSpace:
         for p in self.parameters:
             values[p.name] = p.from_unit(next(it)) if p.sampled else p.from_unit(0.0)
         return mask_inactive(values)
+
+    def points(self, unit: np.ndarray) -> list[dict[str, Any]]:
+        """``point`` for every row of ``unit`` (n, number of sampled parameters), vectorised: the
+        screen of a search draws 10^5 designs. Which parameters a row uses is decided once per
+        combination of layer count and materials, by ``mask_inactive`` itself. Values agree with
+        ``point`` to round-off (numpy's exp/log against math's); sweeps keep ``point``, whose
+        values key their records."""
+        unit = np.asarray(unit, dtype=float).reshape(len(unit), len(self.sampled))
+        columns: dict[str, np.ndarray] = {}
+        cols = iter(unit.T)
+        for p in self.parameters:
+            columns[p.name] = p.from_units(next(cols) if p.sampled else np.zeros(len(unit)))
+        switches = [n for n in self.names if n == "layers.count" or n.endswith(".material")]
+        combos = list(zip(*(columns[n].tolist() for n in switches), strict=True))
+        unused: dict[tuple, list[str]] = {}
+        for combo in dict.fromkeys(combos):
+            probe = mask_inactive(
+                {**{n: 0.0 for n in self.names}, **dict(zip(switches, combo, strict=True))}
+            )
+            unused[combo] = [n for n, v in probe.items() if v == "" or v != v]  # masked
+        lists = {n: c.tolist() for n, c in columns.items()}
+        out = [dict(zip(lists, row, strict=True)) for row in zip(*lists.values(), strict=True)]
+        for point, combo in zip(out, combos, strict=True):
+            for name in unused[combo]:
+                point[name] = "" if name.endswith(".material") else math.nan
+        return out
 
     def check(self, point: Mapping[str, Any]) -> dict[str, Any]:
         """Validate a hand-written point (active values inside the bounds or choices) and return

@@ -322,7 +322,7 @@ def _optimize_args(ckpt: Path, out: Path, trials: int, rounds: int = 2) -> list[
         "--buildable-trials", "20" if rounds > 1 else "0", "--rounds", str(rounds),
         "--confirm", "1", "--uncertain", "1" if rounds > 1 else "0",
         "--tolerance", "0.01", "--workers", "2", "--no-progress",
-        "--family-trials", "20" if rounds > 1 else "0",
+        "--family-trials", "20" if rounds > 1 else "0", "--screen", "2048",
     ]  # fmt: skip
 
 
@@ -368,7 +368,8 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     names = [s["name"] for s in cfg["studies"]]
     assert len(names) == 6  # per round: continuous, gel (one-layer gel cores), buildable
     study = optuna.load_study(study_name=names[0], storage=cfg["storage"])
-    assert len(study.trials) == 60
+    assert len(study.trials) == SearchSettings().screen_keep + 60  # the screen's seeds first
+    assert study.trials[0].user_attrs["source"] == "screen"
     report = (out / "report.md").read_text()
     assert "figures/loops.png" in report or "figures/" in report
     assert (out / "figures").is_dir() and any((out / "figures").glob("*.png"))

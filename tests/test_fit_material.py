@@ -466,7 +466,7 @@ def test_a_user_catalogue_round_trips_through_optimize(user_sweep) -> None:
     args = ["optimize", "--surrogate", root / "model" / "model.safetensors", "--catalogue",
             root / "gel.toml", "--out", out, "--trials", "32", "--buildable-trials", "16",
             "--rounds", "1", "--confirm", "1", "--uncertain", "0", "--buildable-fe", "2",
-            "--workers", "2", "--no-progress"]  # fmt: skip
+            "--workers", "2", "--no-progress", "--screen", "1024"]  # fmt: skip
     proc = _run(args)
     assert proc.returncode == 0, proc.stderr
     config = json.loads((out / "config.json").read_text())
