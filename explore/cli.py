@@ -667,14 +667,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _input_errors() -> tuple[type[Exception], ...]:
+    """The errors printed as one line. ``CheckpointError`` only when the surrogate package was
+    loaded (only it raises one): ``fingertip simulate`` never imports the surrogate."""
+    errors: tuple[type[Exception], ...] = (DesignError, UsageError, FileExistsError)
+    loaded = sys.modules.get("surrogate._errors")
+    return errors if loaded is None else (*errors, loaded.CheckpointError)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    from surrogate import CheckpointError  # cheap: torch is imported only when needed
-
     try:
         return args.func(args)
-    except (DesignError, UsageError, FileExistsError, CheckpointError) as exc:
+    except _input_errors() as exc:  # evaluated once something is raised
         print(f"fingertip: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

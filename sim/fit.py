@@ -65,9 +65,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.special import exprel
 
+from ._lazy import exprel
 from .errors import DesignError, read_bytes
 from .materials import LAWS, MAX_PRONY_TERMS, Material, Prony
 from .materials._law import MAX_TERMS
@@ -613,6 +612,8 @@ def _fit_law(
         r = np.concatenate(parts)
         return np.where(np.isfinite(r), r, 1e6)
 
+    from scipy.optimize import least_squares  # scipy only when fitting, not for the CLI parser
+
     best = None
     for start in spec.starts:
         lo, hi = _bounds_for(spec, start, terms)
@@ -659,6 +660,8 @@ def fit_prony(data: RelaxationData, n_terms: int) -> PronyFit:
         r = (model(x, t) - g_R) / g_R / math.sqrt(len(t))
         excess = max(0.0, float(x[:n].sum()) - (1.0 - 1e-6))
         return np.append(r, 1e3 * excess)
+
+    from scipy.optimize import least_squares
 
     best = None
     span = np.linspace(math.log10(positive.min()), math.log10(t.max()), n + 2)[1:-1]

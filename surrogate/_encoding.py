@@ -21,7 +21,7 @@ not use never reach the network.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -124,6 +124,33 @@ def _choice_key(v: Any) -> str:
         if v.is_integer():
             return str(int(v))
     return str(v)
+
+
+def _factorize(values: Iterable[Any]) -> tuple[np.ndarray, list[Any]]:
+    """``(codes, distinct)`` with ``values[i] == distinct[codes[i]]``: a column of many designs
+    holds a few distinct names and choices, so a rule is applied to ``distinct`` only (the hot
+    path of encoding). A ``TypeError`` for an unhashable value."""
+    values = list(values)
+    typed = len(set(map(type, values))) > 1  # 1 == 1.0 == True as dict keys, not as choices
+    keys = list(zip(map(type, values), values, strict=True)) if typed else values
+    index = {k: i for i, k in enumerate(dict.fromkeys(keys))}
+    codes = np.fromiter(map(index.__getitem__, keys), dtype=np.intp, count=len(keys))
+    return codes, [k[1] for k in index] if typed else list(index)
+
+
+def _per_value(fn: Callable[[Any], Any], values: Iterable[Any], dtype: Any = None) -> Any:
+    """``[fn(v) for v in values]`` (a list, or an array of ``dtype``), ``fn`` called once per
+    distinct value (``_factorize``)."""
+    values = list(values)
+    try:
+        codes, distinct = _factorize(values)
+    except TypeError:  # an unhashable value
+        out = [fn(v) for v in values]
+        return out if dtype is None else np.asarray(out, dtype=dtype)
+    table = [fn(v) for v in distinct]
+    if dtype is not None:
+        return np.asarray(table, dtype=dtype)[codes]
+    return list(map(table.__getitem__, codes.tolist()))
 
 
 def to_columns(points: Sequence[Mapping[str, Any]] | Mapping[str, Sequence], names: list[str]):
@@ -252,13 +279,13 @@ class Encoder:
             values = raw[p.name]
             if not p.sampled:  # a fixed parameter or a single choice: may be left out
                 default = p.from_unit(0.0)
-                values = [default if _blank(v) else v for v in values]
+                values = _per_value(lambda v, d=default: d if _blank(v) else v, values)
                 raw[p.name] = values
             numeric = p.kind == "float" or (p.kind == "fixed" and not isinstance(p.value, str))
             if numeric:
                 cols[p.name] = _float_column(p.name, values)
             else:
-                cols[p.name] = [_choice_key(v) for v in values]
+                cols[p.name] = _per_value(_choice_key, values)
         count = _float_column("layers.count", raw["layers.count"])
         bad = ~np.isin(count, (1.0, 2.0, 3.0))
         if bad.any():
@@ -269,7 +296,7 @@ class Encoder:
             mat_name = f"{role}.material"
             if mat_name not in cols:
                 continue
-            mats = np.asarray(cols[mat_name], dtype=object)
+            codes, mats = _factorize(cols[mat_name])  # choice keys: text
             for key in ("material", "thickness_mm", *PARAM_MATERIAL_KEYS):
                 name = f"{role}.{key}"
                 if name not in cols:
@@ -279,14 +306,14 @@ class Encoder:
                 elif key == "thickness_mm":
                     on = role_on & (role != "core")
                 else:
-                    on = role_on & np.asarray([family_uses(m, key) for m in mats], dtype=bool)
+                    on = role_on & np.asarray([family_uses(m, key) for m in mats], bool)[codes]
                 col = cols[name]
                 if isinstance(col, np.ndarray):
                     col = np.where(on, col, np.nan)
                     missing = on & np.isnan(col)
                 else:
                     col = [v if o else "" for v, o in zip(col, on, strict=True)]
-                    missing = on & np.asarray([v == "" for v in col], dtype=bool)
+                    missing = on & _per_value(_is_empty, col, bool)
                 if missing.any():
                     i = int(np.argmax(missing))
                     raise DesignError(name, f"missing for design {i}, which uses it")
@@ -314,15 +341,12 @@ class Encoder:
         for p in self.space.parameters:
             col = cols[p.name]
             if p.kind == "fixed":
-                active = (
-                    ~np.isnan(col)
-                    if isinstance(col, np.ndarray)
-                    else np.asarray([v != "" for v in col])
-                )
                 if isinstance(col, np.ndarray):
+                    active = ~np.isnan(col)
                     differs = active & (col != float(p.value))
                 else:
-                    differs = active & np.asarray([v != _choice_key(p.value) for v in col])
+                    value = _choice_key(p.value)
+                    differs = _per_value(lambda v, x=value: v not in ("", x), col, bool)
                 flag(differs, f"{p.name} differs from the training value {p.value!r}")
             elif p.kind == "float":
                 active = ~np.isnan(col)
@@ -345,14 +369,14 @@ class Encoder:
             else:
                 keys = [_choice_key(c) for c in p.choices]
                 index = {k: j for j, k in enumerate(keys)}
-                idx = np.asarray([index.get(v, -1) if v != "" else -2 for v in col], dtype=int)
+                idx = _per_value(lambda v, i=index: i.get(v, -1) if v != "" else -2, col, int)
                 onehot = np.zeros((n, len(keys)))
                 known = idx >= 0
                 onehot[np.flatnonzero(known), idx[known]] = 1.0
                 flag(idx == -1, f"{p.name}: unknown choice")
                 seen = self.seen.get(p.name)
                 if seen is not None:
-                    unseen = np.asarray([v != "" and v not in seen for v in col], dtype=bool)
+                    unseen = _per_value(lambda v, s=seen: v != "" and v not in s, col, bool)
                     flag(unseen, f"{p.name}: choice never seen in training")
                 blocks.append(onehot)
         desc, elastic = material_descriptors(
@@ -465,9 +489,9 @@ def material_descriptors(
         mu = np.ones(n)
         g = np.zeros((n, k))
         tau = np.ones((n, k))
-        param = np.asarray([is_family(m) for m in names], dtype=bool)
+        param = _per_value(is_family, names, bool)
         # an unknown name (flagged out of domain by ``encode``): no descriptors, and not elastic
-        unknown = on & ~param & ~np.isin(names, list(known))
+        unknown = on & ~param & ~_per_value(known.__contains__, names, bool)
         elastic &= ~unknown
         on &= ~unknown
         for fam in FAMILIES.values():
@@ -505,6 +529,10 @@ def material_descriptors(
         block = np.concatenate([log_moduli, np.stack(tangents, axis=1)], axis=1)
         blocks.append(np.where(on[:, None], block, 0.0))
     return np.concatenate(blocks, axis=1) if blocks else np.zeros((n, 0)), elastic
+
+
+def _is_empty(v: Any) -> bool:
+    return v == ""
 
 
 def _blank(v: Any) -> bool:

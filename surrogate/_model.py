@@ -19,7 +19,7 @@ from collections.abc import Sequence
 import torch
 from torch import nn
 
-__all__ = ["MODELS", "EnsembleMLP", "gaussian_nll", "mixture"]
+__all__ = ["MODELS", "EnsembleMLP", "FrozenEnsemble", "gaussian_nll", "mixture"]
 
 #: log-variance bounds in normalised units (a softly clipped head keeps the NLL finite)
 LOGVAR_MIN, LOGVAR_MAX = -12.0, 4.0
@@ -112,10 +112,7 @@ class EnsembleMLP(nn.Module):
 
     @staticmethod
     def _head(out: torch.Tensor, n_outputs: int) -> tuple[torch.Tensor, torch.Tensor]:
-        mean, raw = out[..., :n_outputs], out[..., n_outputs:]
-        logvar = LOGVAR_MAX - nn.functional.softplus(LOGVAR_MAX - raw)
-        logvar = LOGVAR_MIN + nn.functional.softplus(logvar - LOGVAR_MIN)
-        return mean, logvar
+        return out[..., :n_outputs], bounded_logvar(out[..., n_outputs:])
 
     def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """``x``: (n, n_inputs) shared by every member, or (M, n, n_inputs) one batch per
@@ -141,6 +138,96 @@ class EnsembleMLP(nn.Module):
             mu, lv = self._head(h, self.n_outputs)
             mean[:, cols], logvar[:, cols] = mu[:, cols], lv[:, cols]
         return mean, logvar
+
+
+class FrozenEnsemble:
+    """An ``EnsembleMLP``'s weights laid out for prediction only (no autograd), from design
+    features to the members' mixture: ``mixture(*model(x))`` (bit for bit on this machine's
+    kernels, in any case to float32 round-off), faster:
+
+    - the first layer of every net is one matrix product (all nets read the same features);
+    - the last layer of a group's nets computes only the group's outputs (a net computes all
+      ``2 n_outputs`` outputs in ``forward``; the other group's are discarded), and the
+      the log-variance head only those;
+    - the head and the mixture take every metric at once, in the metrics' order.
+
+    A snapshot: made again when the model's weights change (``matches``).
+    """
+
+    def __init__(self, model: EnsembleMLP) -> None:
+        self.members, self.n_outputs = model.members, model.n_outputs
+        self.n_groups, self.nets = model.n_groups, model.nets
+        self._key = _weights_key(model)
+        w = [p.detach() for p in model.weights]
+        b = [p.detach() for p in model.biases]
+        # (in, nets * h): column block s is net s's first layer (absent without hidden layers)
+        self.first = None
+        if len(w) > 1:
+            self.first = (
+                w[0].permute(1, 0, 2).reshape(w[0].shape[1], -1).contiguous(),
+                b[0].reshape(1, -1).contiguous(),
+            )
+        self.middle = list(zip(w[1:-1], b[1:-1], strict=True)) if len(w) > 2 else []
+        groups = torch.tensor(model.groups)
+        self.columns = [torch.nonzero(groups == g).flatten() for g in range(self.n_groups)]
+        self.last = [self._last_layer(w[-1], b[-1], g) for g in range(self.n_groups)]
+        # the outputs come group after group: this index puts them back in the metrics' order
+        order = torch.cat(self.columns)
+        identity = torch.equal(order, torch.arange(self.n_outputs))
+        self.unorder = None if identity else torch.argsort(order)
+
+    def _last_layer(
+        self, w: torch.Tensor, b: torch.Tensor, g: int
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """Group ``g``'s nets' last layer, its outputs only: (M, h, 2 k) and (M, 1, 2 k)."""
+        cols = torch.cat([self.columns[g], self.n_outputs + self.columns[g]])
+        nets = torch.arange(self.members) * self.n_groups + g
+        return w[nets][:, :, cols].contiguous(), b[nets][:, :, cols].contiguous()
+
+    def matches(self, model: EnsembleMLP) -> bool:
+        """Whether ``model``'s weights are still those of this snapshot."""
+        return self._key == _weights_key(model)
+
+    def __call__(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The mixture's mean and std (each (n, n_outputs)) of features ``x`` (n, n_inputs).
+        Call under ``torch.inference_mode()``."""
+        n = len(x)
+        if self.first is None:
+            h = x.unsqueeze(0).expand(self.nets, -1, -1)
+        else:
+            h = nn.functional.silu(torch.addmm(self.first[1], x, self.first[0]), inplace=True)
+            h = h.view(n, self.nets, -1).transpose(0, 1)  # (nets, n, h), a view
+        for w, b in self.middle:
+            h = nn.functional.silu(torch.baddbmm(b, h, w), inplace=True)
+        h = h.reshape(self.members, self.n_groups, n, h.shape[-1])
+        out = [torch.baddbmm(b, h[:, g], w) for g, (w, b) in enumerate(self.last)]
+        mean = self._in_order([o[..., : len(c)] for o, c in zip(out, self.columns, strict=True)])
+        raw = self._in_order([o[..., len(c) :] for o, c in zip(out, self.columns, strict=True)])
+        return mixture(mean, bounded_logvar(raw))  # all columns at once: as ``forward``'s
+
+    def _in_order(self, parts: list[torch.Tensor]) -> torch.Tensor:
+        """The groups' outputs (M, n, k_g) -> (M, n, n_outputs) in the metrics' order."""
+        t = parts[0] if len(parts) == 1 else torch.cat(parts, dim=2)
+        return t if self.unorder is None else t.index_select(2, self.unorder)
+
+
+def _weights_key(model: EnsembleMLP) -> tuple:
+    """Changes whenever a weight tensor is replaced or modified in place."""
+    return tuple((id(p), _version(p)) for p in (*model.weights, *model.biases))
+
+
+def _version(t: torch.Tensor) -> int:
+    """The in-place modification counter (-1 for a tensor made in inference mode: none)."""
+    try:
+        return t._version
+    except RuntimeError:
+        return -1
+
+
+def bounded_logvar(raw: torch.Tensor) -> torch.Tensor:
+    """A net's raw log-variance outputs, softly clipped to [``LOGVAR_MIN``, ``LOGVAR_MAX``]."""
+    logvar = LOGVAR_MAX - nn.functional.softplus(LOGVAR_MAX - raw)
+    return LOGVAR_MIN + nn.functional.softplus(logvar - LOGVAR_MIN)
 
 
 #: architectures by name (the checkpoint records the name and ``config()``)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -14,7 +14,7 @@ from sim.simulate import METRICS
 from sim.space import DesignSpace
 
 from ._encoding import ELASTIC_FEATURE, Encoder
-from ._model import EnsembleMLP, mixture
+from ._model import EnsembleMLP, FrozenEnsemble
 from ._normalise import OutputNormaliser
 
 __all__ = ["ZERO_IF_ELASTIC", "Prediction", "Surrogate", "rule_mask"]
@@ -32,6 +32,9 @@ def rule_mask(encoder: Encoder, features: np.ndarray, metric_names: Sequence[str
     zero = np.asarray([m in ZERO_IF_ELASTIC for m in metric_names], dtype=bool)
     return elastic[:, None] & zero[None, :]
 
+
+#: the predictions in metric units (``OutputNormaliser.to_physical``)
+PHYSICAL = ("mean", "median", "std", "lower_90", "upper_90")
 
 #: designs per forward pass: small enough that a layer's activations (nets x batch x hidden
 #: floats, ~4 MB) stay in cache, large enough to amortise per-operation overhead (2-core
@@ -127,6 +130,7 @@ class Surrogate:
         self.metric_names = tuple(metric_names)
         self.units = tuple(METRICS[m][1] if m in METRICS else "" for m in self.metric_names)
         self.header = dict(header or {})
+        self._fast: FrozenEnsemble | None = None
 
     @property
     def space(self) -> DesignSpace:
@@ -161,31 +165,44 @@ class Surrogate:
         """Predict already encoded designs (n, n_features): ``mean``, ``median``, ``std``,
         ``lower_90``, ``upper_90`` in metric units, each (n, n_metrics), and ``by_rule`` (the
         entries set by ``ZERO_IF_ELASTIC``: exactly 0 with std 0)."""
-        mean_z, std_z = self.predict_normalised(features)
-        out = self.normaliser.to_physical(mean_z, std_z)
+        n, m = len(features), len(self.metric_names)
+        out = {key: np.empty((n, m)) for key in PHYSICAL}
+        for rows, mean_z, std_z in self._batches(features):  # each batch's arrays stay in cache
+            for key, value in self.normaliser.to_physical(mean_z, std_z).items():
+                out[key][rows] = value
         rule = rule_mask(self.encoder, np.asarray(features), self.metric_names)
-        for key in ("mean", "median", "std", "lower_90", "upper_90"):
+        for key in PHYSICAL:
             out[key][rule] = 0.0
         out["by_rule"] = rule
         return out
 
     def predict_normalised(self, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The ensemble mixture's mean and std in normalised units (float64, (n, n_metrics))."""
+        n, m = len(features), len(self.metric_names)
+        mean, std = np.empty((n, m)), np.empty((n, m))
+        for rows, mean_z, std_z in self._batches(features):
+            mean[rows], std[rows] = mean_z, std_z
+        return mean, std
+
+    def _batches(self, features: np.ndarray) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
+        """``(rows, mean_z, std_z)`` (float64) of ``BATCH`` designs at a time, on one thread."""
         x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
-        means, stds = [], []
+        net = self._frozen()
         threads = torch.get_num_threads()
         # small matrices: one thread is several times faster than torch's default pool (and
         # does not fight other work for the cores); restored afterwards for training
         torch.set_num_threads(1)
         try:
             with torch.inference_mode():
-                for s in range(0, max(len(x), 1), BATCH):
-                    mu, sd = mixture(*self.model(x[s : s + BATCH]))
-                    means.append(mu.numpy())
-                    stds.append(sd.numpy())
+                for s in range(0, len(x), BATCH):
+                    mu, sd = net(x[s : s + BATCH])
+                    rows = slice(s, s + len(mu))
+                    yield rows, mu.numpy().astype(np.float64), sd.numpy().astype(np.float64)
         finally:
             torch.set_num_threads(threads)
-        return (
-            np.concatenate(means).astype(np.float64),
-            np.concatenate(stds).astype(np.float64),
-        )
+
+    def _frozen(self) -> FrozenEnsemble:
+        """The model laid out for prediction, made again if its weights changed."""
+        if self._fast is None or not self._fast.matches(self.model):
+            self._fast = FrozenEnsemble(self.model)
+        return self._fast

@@ -29,3 +29,52 @@ def test_reading_a_design_and_the_default_space_stays_light():
     )
     heavy = sorted({m.split(".")[0] for m in loaded} & set(HEAVY))
     assert heavy == [], heavy
+
+
+#: what the CLI's parser and ``--help`` must not pay for (issue 15: instant start)
+NOT_FOR_THE_PARSER = ("torch", "matplotlib", "optuna", "scipy", "skfem", "surrogate")
+
+
+def _loaded_after_cli(*runs: list[str]) -> set[str]:
+    """Top-level packages loaded by ``fingertip ARGV`` for each ARGV of ``runs`` in turn, in
+    one fresh process (the output swallowed)."""
+    statement = (
+        "import contextlib, io; from explore.cli import main\n"
+        f"for argv in {[list(r) for r in runs]!r}:\n"
+        "    with contextlib.redirect_stdout(io.StringIO()):\n"
+        "        try:\n"
+        "            main(argv)\n"
+        "        except SystemExit:\n"
+        "            pass\n"
+    )
+    code = f"import sys, json\n{statement}print(json.dumps(sorted(sys.modules)))"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    return {m.split(".")[0] for m in json.loads(out.stdout)}
+
+
+def test_cli_parser_builds_without_heavy_packages():
+    loaded = _loaded_after("from explore.cli import build_parser; build_parser()")
+    assert sorted({m.split(".")[0] for m in loaded} & set(NOT_FOR_THE_PARSER)) == []
+
+
+def test_help_of_fingertip_and_every_subcommand_stays_light():
+    from explore.cli import _SUBCOMMANDS
+
+    commands = [add.__name__.removeprefix("_add_").replace("_", "-") for add in _SUBCOMMANDS]
+    loaded = _loaded_after_cli(["--help"], *([c, "--help"] for c in commands))
+    assert sorted(loaded & set(NOT_FOR_THE_PARSER)) == []
+
+
+def test_fingertip_help_runs_and_lists_every_subcommand():
+    out = subprocess.run(
+        [sys.executable, "-m", "explore.cli", "--help"], capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    for command in ("simulate", "sweep", "train", "predict", "optimize", "run", "report"):
+        assert command in out.stdout
+
+
+def test_simulate_never_loads_the_surrogate_or_torch():
+    loaded = _loaded_after_cli(["simulate", "--material", "silicone_gls40", "--protocol", "plate"])
+    assert "skfem" in loaded  # it did simulate
+    assert sorted(loaded & {"torch", "surrogate", "optuna", "matplotlib"}) == []
