@@ -334,11 +334,12 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
 def _sim_options(dataset: Path | None) -> SimOptions:
     """The FE options of the surrogate's training sweep (so FE confirms like with like), else
     the defaults."""
+    from sim._sweep_folder import read_config
     from sim.sweep import options_from_dict
 
     if dataset is None:
         return SimOptions()
-    cfg = json.loads((dataset / "config.json").read_text())
+    cfg = read_config(dataset)
     return options_from_dict(cfg["options"]) if "options" in cfg else SimOptions()
 
 

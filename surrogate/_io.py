@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from sim._sweep_folder import CONFIG, TABLE, read_config
 from sim.errors import DesignError, read_toml
 from sim.provenance import KINDS, folder_kind
 from sim.simulate import METRICS, diagnostic_names
@@ -241,18 +242,18 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
     they are counted in ``excluded``. A table without these columns (a sweep made before they
     were recorded) is used whole, its designs counted in ``unchecked``."""
     folder = Path(folder)
-    config_path, table_path = folder / "config.json", folder / "table.csv"
+    config_path, table_path = folder / CONFIG, folder / TABLE
     if not folder.is_dir():
         raise DesignError("SWEEP", f"no such sweep folder: {folder}")
     kind = folder_kind(folder)
-    if kind not in ("sweep", None) and not (folder / "table.csv").exists():
+    if kind not in ("sweep", None) and not table_path.exists():
         raise DesignError("SWEEP", f"{folder} holds a {KINDS[kind]}, not a {KINDS['sweep']}")
     if not config_path.exists() or not table_path.exists():
         raise DesignError(
             "SWEEP", f"{folder} has no config.json and table.csv; run `fingertip sweep` first"
         )
     try:
-        config = json.loads(config_path.read_text())
+        config = read_config(folder)
         space = space_from_dict(config["space"])
     except (json.JSONDecodeError, KeyError, TypeError) as exc:
         raise DesignError("SWEEP", f"unreadable {config_path}: {exc}") from None
