@@ -20,6 +20,7 @@ from typing import Any
 from sim import METRICS, SimOptions
 from sim.geometry import REFERENCE_GEOMETRY
 from sim.materials import Material
+from sim.provenance import write_json
 from sim.space import LAYER_ROLES, PARAM_MATERIAL_KEYS
 from sim.sweep import evaluate_point, record_key
 from sim.targets import Targets
@@ -42,13 +43,6 @@ def reference_point(material: str) -> dict[str, Any]:
         "layers.count": 1,
         "core.material": material,
     }
-
-
-def _write(path: Path, record: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record, allow_nan=False))
-    tmp.replace(path)
 
 
 def _full_point(point: dict[str, Any]) -> dict[str, Any]:
@@ -108,7 +102,8 @@ def run_fe(
 
 def _keep(path: Path, record: dict) -> dict:
     record = {"key": path.stem, **record}
-    _write(path, record)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_json(path, record, indent=None)
     return record
 
 

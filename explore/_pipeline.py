@@ -28,7 +28,14 @@ import numpy as np
 
 from sim import SOLVER_VERSION, SimOptions
 from sim.errors import DesignError
-from sim.provenance import check_folder_kind, provenance, write_json
+from sim.provenance import (
+    atomic_write,
+    check_folder_kind,
+    nan_if_none,
+    provenance,
+    write_if_changed,
+    write_json,
+)
 from sim.space import load_space, point_to_design
 from sim.sweep import default_workers
 from sim.targets import READINGS, Targets, load_targets
@@ -259,20 +266,7 @@ def _save_confirmations(out: Path, items: list[Confirmation], *, final: bool) ->
         except (ValueError, TypeError):
             return False
 
-    _write_if_changed(path, text, None if final else continues)
-
-
-def _write_if_changed(path: Path, text: str, keep: Callable[[str], bool] | None = None) -> None:
-    """Write ``text`` to ``path`` atomically unless the file holds it already (or ``keep`` says
-    its content is to stay): a re-run that changes nothing rewrites nothing."""
-    data = text.encode()
-    if path.exists():
-        old = path.read_bytes()  # exact bytes: csv's "\r\n" line ends included
-        if old == data or (keep is not None and keep(old.decode(errors="replace"))):
-            return
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    tmp.replace(path)
+    write_if_changed(path, text, None if final else continues)
 
 
 def write_trials(
@@ -301,7 +295,7 @@ def write_trials(
         cells += [int(r.in_domain), _cell(r.disagreement), int(not r.flags)]
         w.writerow(cells)
     text = fh.getvalue()
-    _write_if_changed(out / "trials.csv", text, None if final else lambda old: old.startswith(text))
+    write_if_changed(out / "trials.csv", text, None if final else lambda old: old.startswith(text))
 
 
 def _cell(v: Any) -> Any:
@@ -367,7 +361,7 @@ def retrain(
     def target_row(c: Confirmation) -> list[float]:
         trust = trust_values({**c.diagnostics, "status": c.status})
         return [
-            trust[m] if m in trust else _nan(c.fe_metrics.get(m)) if c.trusted else math.nan
+            trust[m] if m in trust else nan_if_none(c.fe_metrics.get(m)) if c.trusted else math.nan
             for m in names
         ]
 
@@ -405,10 +399,6 @@ def retrain(
         "warm_start_from": surrogate.header.get("sha256", ""),
     }
     return result.surrogate
-
-
-def _nan(v: Any) -> float:
-    return math.nan if v is None else float(v)
 
 
 # ----------------------------------------------------------------------------- the loop
@@ -600,9 +590,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
                 bar.close()
             timings["retrain_s"] += time.perf_counter() - tic
             nxt.parent.mkdir(parents=True, exist_ok=True)
-            tmp = nxt.with_name(f".{nxt.name}.tmp")
-            save_checkpoint(model, tmp)
-            tmp.replace(nxt)  # a kill never leaves half a checkpoint
+            save_checkpoint(model, nxt)  # atomic: a kill never leaves half a checkpoint
     _save_confirmations(out, confirmations, final=True)
     write_trials(out, all_rows, space.names, metric_names, final=True)
     screen = []
@@ -647,7 +635,7 @@ def _write_summary(
             if answer == json.loads(json.dumps(data, allow_nan=False)):
                 return
     data = {**data, "wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
-    _write_if_changed(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
+    write_if_changed(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
 
 
 def _choose(
@@ -699,9 +687,7 @@ def _load_candidates(out: Path, r: int) -> list[Candidate] | None:
 def _save_candidates(out: Path, r: int, chosen: list[Candidate]) -> None:
     path = _candidates_path(out, r)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
-    tmp.replace(path)
+    atomic_write(path, json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
 
 
 def _target_errors(c: Confirmation, targets: Targets) -> dict[str, float]:
@@ -787,7 +773,7 @@ def credible(c: Confirmation, targets: Targets, allow_untrusted: bool = False) -
         return False
     if allow_untrusted:
         return True
-    return c.trusted and bool(targets.sag_ok(_nan(c.fe_metrics.get("sag_mm"))))
+    return c.trusted and bool(targets.sag_ok(nan_if_none(c.fe_metrics.get("sag_mm"))))
 
 
 def summarise(
@@ -834,7 +820,9 @@ def _no_answer(confirmations: list[Confirmation], targets: Targets) -> str:
         return "no design was confirmed by FE (every confirmation failed)"
     unsettled = sum(c.diagnostics.get("settled") is False for c in ran)
     invalid = sum(c.diagnostics.get("valid") is False for c in ran)
-    sagging = sum(c.trusted and not targets.sag_ok(_nan(c.fe_metrics.get("sag_mm"))) for c in ran)
+    sagging = sum(
+        c.trusted and not targets.sag_ok(nan_if_none(c.fe_metrics.get("sag_mm"))) for c in ran
+    )
     return (
         f"no credible answer: of {len(ran)} FE-confirmed designs, {invalid} went beyond the "
         f"validity limits, {unsettled} did not reach their periodic state and {sagging} sagged "

@@ -31,6 +31,7 @@ from matplotlib.colors import LogNorm, Normalize
 from matplotlib.figure import Figure
 
 from sim.errors import DesignError
+from sim.provenance import write_if_changed
 from sim.targets import READINGS, Targets
 
 from ._objective import TAPPING, closeness, objectives
@@ -1149,9 +1150,6 @@ def write_figures(run_dir: str | Path) -> dict[str, Path]:
         figures[name].savefig(buffer, dpi=_DPI, format="png")  # no date: same figure, same bytes
         figures[name].clear()
         data = buffer.getvalue()
-        if not path.is_file() or path.read_bytes() != data:  # the same figure: left as it is
-            tmp = path.with_name(f".{path.name}.tmp")
-            tmp.write_bytes(data)
-            tmp.replace(path)
+        write_if_changed(path, data)  # the same figure: left as it is
         paths[name] = path
     return paths

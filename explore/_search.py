@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from sim.families import family_uses, is_family
+from sim.provenance import finite_or_none
 from sim.space import PARAM_MATERIAL_KEYS, DesignSpace, Parameter, mask_inactive
 from sim.targets import Targets
 from sim.trust import TRUST_OUTPUTS
@@ -291,7 +292,7 @@ def predict_rows(
         predicted = {
             m: {
                 **{
-                    k: _num(getattr(pred, k)[i, j])
+                    k: finite_or_none(getattr(pred, k)[i, j])
                     for k in ("median", "mean", "std", "lower_90", "upper_90")
                 },
                 "by_rule": bool(pred.by_rule[i, j]),  # exact by physics, not learnt
@@ -313,11 +314,6 @@ def predict_rows(
             )
         )
     return rows
-
-
-def _num(x: float) -> float | None:
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 # ----------------------------------------------------------------------------- studies

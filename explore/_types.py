@@ -29,15 +29,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from sim.provenance import finite_or_none, json_safe
+
 __all__ = ["Candidate", "Confirmation", "Summary"]
-
-
-def _num(x: Any) -> float | None:
-    """A JSON-safe float (NaN/inf -> None)."""
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 @dataclass(frozen=True)
@@ -71,18 +65,15 @@ class Candidate:
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "point": {
-                k: (None if isinstance(v, float) and math.isnan(v) else v)
-                for k, v in self.point.items()
-            },
+            "point": json_safe(self.point),
             "reason": self.reason,
             "round": self.round,
             "trial": self.trial,
             "search": self.search,
-            "score": _num(self.score),
+            "score": finite_or_none(self.score),
             "predicted": self.predicted,
             "in_domain": self.in_domain,
-            "disagreement": _num(self.disagreement),
+            "disagreement": finite_or_none(self.disagreement),
             "flags": list(self.flags),
             "trusted": self.trusted,
         }
@@ -139,9 +130,9 @@ class Confirmation:
             "key": self.key,
             "status": self.status,
             "reason": self.reason,
-            "fe_metrics": {k: _num(v) for k, v in self.fe_metrics.items()},
-            "fe_score": _num(self.fe_score),
-            "rel_error": {k: _num(v) for k, v in self.rel_error.items()},
+            "fe_metrics": {k: finite_or_none(v) for k, v in self.fe_metrics.items()},
+            "fe_score": finite_or_none(self.fe_score),
+            "rel_error": {k: finite_or_none(v) for k, v in self.rel_error.items()},
             "inside_90": self.inside_90,
             "diagnostics": self.diagnostics,
             "trusted": self.trusted,

@@ -30,9 +30,11 @@ __all__ = [
     "atomic_write",
     "check_folder_kind",
     "check_new_folder",
+    "finite_or_none",
     "folder_kind",
     "git_commit",
     "json_safe",
+    "nan_if_none",
     "package_versions",
     "provenance",
     "replacing",
@@ -254,6 +256,17 @@ def json_safe(value: Any) -> Any:
     if isinstance(value, float) and not math.isfinite(value):
         return None
     return value
+
+
+def finite_or_none(x: Any) -> float | None:
+    """A number as a JSON float: None for None, NaN and infinities (the scalar form of
+    :func:`json_safe`; ints and numpy numbers become floats)."""
+    return None if x is None else json_safe(float(x))
+
+
+def nan_if_none(x: Any) -> float:
+    """The inverse of :func:`finite_or_none` for a value read back: None -> NaN."""
+    return math.nan if x is None else float(x)
 
 
 def write_json(path: str | Path, data: Any, indent: int | None = 1) -> None:

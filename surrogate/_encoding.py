@@ -31,6 +31,7 @@ from sim.errors import DesignError
 from sim.families import FAMILIES, family_uses, is_family
 from sim.materials import CATALOGUE
 from sim.protocols import TappingOptions
+from sim.provenance import finite_or_none, nan_if_none
 from sim.space import (
     LAYER_ROLES,
     PARAM_MATERIAL_KEYS,
@@ -226,7 +227,9 @@ class Encoder:
     def to_dict(self) -> dict[str, Any]:
         """The JSON form of the training domain (the space is stored on its own)."""
         return {
-            "ranges": {k: [_none(a), _none(b)] for k, (a, b) in self.ranges.items()},
+            "ranges": {
+                k: [finite_or_none(a), finite_or_none(b)] for k, (a, b) in self.ranges.items()
+            },
             "seen": {k: list(v) for k, v in self.seen.items()},
             "omega_rad_s": self.omega_rad_s,
         }
@@ -237,7 +240,7 @@ class Encoder:
         was recorded encodes at the default tap's frequency, as it was trained)."""
         return cls(
             space,
-            {k: (_nan(a), _nan(b)) for k, (a, b) in d["ranges"].items()},
+            {k: (nan_if_none(a), nan_if_none(b)) for k, (a, b) in d["ranges"].items()},
             {k: tuple(v) for k, v in d["seen"].items()},
             float(d.get("omega_rad_s", DESCRIPTOR_OMEGA_RAD_S)),
         )
@@ -509,11 +512,3 @@ def material_descriptors(
 
 def _blank(v: Any) -> bool:
     return v is None or v == "" or (isinstance(v, float) and math.isnan(v))
-
-
-def _none(x: float) -> float | None:
-    return None if math.isnan(x) else x
-
-
-def _nan(x: float | None) -> float:
-    return math.nan if x is None else float(x)
