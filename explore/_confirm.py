@@ -21,7 +21,7 @@ from sim import METRICS, SimOptions
 from sim.geometry import REFERENCE_GEOMETRY
 from sim.materials import Material
 from sim.provenance import write_json
-from sim.space import LAYER_ROLES, PARAM_MATERIAL_KEYS
+from sim.space import with_every_layer
 from sim.sweep import evaluate_point, record_key
 from sim.targets import Targets
 
@@ -47,13 +47,8 @@ def reference_point(material: str) -> dict[str, Any]:
 
 def _full_point(point: dict[str, Any]) -> dict[str, Any]:
     """A point with every missing layer entry set inactive (references name only what they
-    use)."""
-    out = dict(point)
-    for role in LAYER_ROLES:
-        for key in ("material", "thickness_mm", *PARAM_MATERIAL_KEYS):
-            name = f"{role}.{key}"
-            out.setdefault(name, "" if key == "material" else math.nan)
-    return out
+    use): ``sim.space.with_every_layer``."""
+    return with_every_layer(point)
 
 
 def run_fe(

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from sim.errors import DesignError
-from sim.families import FAMILIES, family_uses, is_family
+from sim.families import FAMILIES, is_family
 from sim.materials import CATALOGUE
 from sim.protocols import TappingOptions
 from sim.provenance import finite_or_none, nan_if_none
@@ -37,7 +37,6 @@ from sim.space import (
     PARAM_MATERIAL_KEYS,
     DesignSpace,
     Parameter,
-    active_roles,
 )
 
 __all__ = [
@@ -97,22 +96,9 @@ def _reach_bounds(p: Parameter, lo: float, hi: float) -> tuple[float, float]:
     return (min(lo, p.low) if near_low else lo), (max(hi, p.high) if near_high else hi)
 
 
-def _counts(space: DesignSpace) -> list[int]:
-    p = space["layers.count"]
-    return [int(c) for c in (p.choices if p.kind == "choice" else [p.value])]
-
-
 def is_optional(space: DesignSpace, p: Parameter) -> bool:
-    """Whether some design of ``space`` leaves ``p`` inactive."""
-    head, key = p.name.split(".", 1)
-    if head not in LAYER_ROLES:
-        return False
-    always = all(head in active_roles(c) for c in _counts(space))
-    if key in ("material", "thickness_mm"):
-        return not always
-    material = space[f"{head}.material"]
-    names = material.choices if material.kind == "choice" else (material.value,)
-    return not (always and all(family_uses(m, key) for m in names))
+    """Whether some design of ``space`` leaves ``p`` inactive (``DesignSpace.is_optional``)."""
+    return space.is_optional(p.name)
 
 
 def _choice_key(v: Any) -> str:
@@ -268,21 +254,19 @@ class Encoder:
             i = int(np.argmax(bad))
             raise DesignError("layers.count", f"design {i}: must be 1, 2 or 3, got {count[i]!r}")
         for role in LAYER_ROLES:
-            role_on = np.isin(count, [c for c in (1, 2, 3) if role in active_roles(c)])
             mat_name = f"{role}.material"
             if mat_name not in cols:
                 continue
-            mats = np.asarray(cols[mat_name], dtype=object)
+            cases = list(zip(count, cols[mat_name], strict=True))  # what decides the rule
             for key in ("material", "thickness_mm", *PARAM_MATERIAL_KEYS):
                 name = f"{role}.{key}"
                 if name not in cols:
                     continue
-                if key == "material":
-                    on = role_on
-                elif key == "thickness_mm":
-                    on = role_on & (role != "core")
-                else:
-                    on = role_on & np.asarray([family_uses(m, key) for m in mats], dtype=bool)
+                rule = {
+                    (c, m): self.space.is_active(name, {"layers.count": c, mat_name: m})
+                    for c, m in set(cases)
+                }
+                on = np.asarray([rule[case] for case in cases], dtype=bool)
                 col = cols[name]
                 if isinstance(col, np.ndarray):
                     col = np.where(on, col, np.nan)

@@ -137,12 +137,8 @@ def check_point(space: DesignSpace, point: Mapping[str, Any]) -> dict[str, Any]:
     for name in point:
         if name not in space.names:
             raise DesignError(name, "unknown parameter (not in the surrogate's design space)")
-    filled: dict[str, Any] = {}
-    for p in space.parameters:
-        v = point.get(p.name)
-        if _blank(v):  # a fixed parameter or a single choice takes its value
-            v = p.from_unit(0.0) if not p.sampled else "" if p.kind == "choice" else math.nan
-        filled[p.name] = v
+    # a blank cell is a missing value: a fixed parameter or a single choice takes its value
+    filled = space.complete({k: v for k, v in point.items() if not _blank(v)}, mask=False)
     count = filled["layers.count"]
     if _blank(count):
         raise DesignError("layers.count", "missing")
@@ -153,20 +149,11 @@ def check_point(space: DesignSpace, point: Mapping[str, Any]) -> dict[str, Any]:
     for p in space.parameters:
         v = masked[p.name]
         if _blank(v):
-            if _uses(masked, p.name):
+            if space.is_active(p.name, masked):
                 raise DesignError(p.name, "missing (this design uses it)")
         elif p.kind == "float" and (isinstance(v, bool) or not isinstance(v, int | float)):
             raise DesignError(p.name, f"expected a number, got {v!r}")
     return space.check(masked)
-
-
-def _uses(point: dict[str, Any], name: str) -> bool:
-    """Whether the design of ``point`` uses parameter ``name``."""
-    from sim.space import mask_inactive
-
-    return not _blank(
-        mask_inactive({**point, name: "x" if name.endswith("material") else 1.0})[name]
-    )
 
 
 def _blank(v: Any) -> bool:
