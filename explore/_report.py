@@ -1,6 +1,6 @@
 """The one-page Markdown report of a search run (``report.md`` next to ``figures/``).
 
-Reads the run folder (``explore._types`` describes it) through ``explore._plots.load_run``,
+Reads the run folder (``explore._run_folder`` describes it) through ``explore._plots.load_run``,
 writes every figure with ``write_figures`` and links them relatively, so the folder can be
 moved or browsed on GitHub as it is.
 """

@@ -1,26 +1,6 @@
 """The data that flows through a search run (candidate -> confirmation -> summary).
 
-A run folder ``runs/NAME`` written by ``fingertip optimize`` / ``fingertip run`` holds:
-
-- ``config.json``, ``meta.json``: the resolved configuration and provenance.
-- ``study.db``: the Optuna studies (SQLite; ``optuna-dashboard sqlite:///runs/NAME/study.db``).
-- ``trials.csv``: every finished trial of every round, one row each: ``round``, ``trial``,
-  ``search`` ("continuous" | "buildable"), the design-space parameters (inactive = empty),
-  ``score``, ``compliance_error``, ``hysteresis_error``, ``wedge_effort`` (explore._objective),
-  ``pred.<metric>`` / ``std.<metric>`` (surrogate point prediction = median, and std),
-  ``in_domain``, ``disagreement`` and ``trusted`` (0/1).
-- ``fe/records/<key>.json``: FE records of the confirmed designs (the sweep's record form, with
-  ``curves``), and ``fe/references/<name>.json``: silicone and polyurethane on the reference
-  geometry (same form) for the plots.
-- ``rounds/round-<r>-candidates.json``: the designs round r sent to FE (``Candidate``s; a
-  resumed run reuses them); ``surrogates/round-<r>.safetensors``: the retrained surrogate that
-  round r searched with (round 0: the given checkpoint).
-- ``confirmations.json``: a list of ``Confirmation.to_json()``.
-- ``rounds/buildable-fe-candidates.json`` and ``buildable_fe.json``: the FE-only screen of
-  catalogue materials the surrogate cannot predict (search "buildable-fe", no prediction;
-  ``explore._buildable``), its candidates and their ``Confirmation.to_json()``; never used to
-  retrain the surrogate.
-- ``summary.json``: ``Summary.to_json()``; ``report.md`` and ``figures/*.png``.
+The run folder these are written to and read from, file by file, is ``explore._run_folder``'s.
 """
 
 from __future__ import annotations
