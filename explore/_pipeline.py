@@ -235,6 +235,7 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     """The surrogate's training sweep: --dataset, the checkpoint's folder (a shipped checkpoint
     carries its table.csv), or the sweep named in its header, whichever holds the table whose
     sha256 the header records."""
+    from sim import _sweep_folder as sweep_folder
     from surrogate._io import sha256_file
 
     want = surrogate.header.get("training_data", {}).get("table_sha256")
@@ -243,8 +244,8 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     for p in places:
         if not p:
             continue
-        table = Path(p) / "table.csv"
-        if table.exists() and (Path(p) / "config.json").exists():
+        table = Path(p) / sweep_folder.TABLE
+        if table.exists() and (Path(p) / sweep_folder.CONFIG).exists():
             if config.dataset or sha256_file(table) == want:
                 return Path(p)
     return None
@@ -253,12 +254,12 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
 def _sim_options(dataset: Path | None) -> SimOptions:
     """The FE options of the surrogate's training sweep (so FE confirms like with like), else
     the defaults."""
-    from sim._sweep_folder import read_config
+    from sim._sweep_folder import read_config as read_sweep_config
     from sim.sweep import options_from_dict
 
     if dataset is None:
         return SimOptions()
-    cfg = read_config(dataset)
+    cfg = read_sweep_config(dataset)
     return options_from_dict(cfg["options"]) if "options" in cfg else SimOptions()
 
 
