@@ -34,6 +34,7 @@ import numpy as np
 from sim import METRICS, SimOptions
 from sim.families import is_family
 from sim.materials import CATALOGUE, Material, material_tables
+from sim.provenance import atomic_write, write_if_changed
 from sim.space import LAYER_ROLES, DesignSpace, Parameter, active_roles, mask_inactive
 from sim.targets import Targets
 
@@ -195,20 +196,14 @@ def fe_screen(
     else:
         chosen = _choose(best, space, screen, catalogue, budget, seed)
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".{path.name}.tmp")
-        tmp.write_text(json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
-        tmp.replace(path)
+        atomic_write(path, json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
     user = {str(m.name): m for m in screen.materials}
     done = confirm(
         chosen, out, targets, options, workers=workers, progress=progress,
         materials=material_tables(user) or None, catalogue=screen.catalogue,
     )  # fmt: skip
     text = json.dumps([c.to_json() for c in done], indent=1, allow_nan=False)
-    target = out / "buildable_fe.json"
-    if not target.exists() or target.read_text() != text:
-        tmp = target.with_name(f".{target.name}.tmp")
-        tmp.write_text(text)
-        tmp.replace(target)
+    write_if_changed(out / "buildable_fe.json", text)
     return done
 
 

@@ -20,7 +20,8 @@ from typing import Any
 from sim import METRICS, SimOptions
 from sim.geometry import REFERENCE_GEOMETRY
 from sim.materials import Material
-from sim.space import LAYER_ROLES, PARAM_MATERIAL_KEYS
+from sim.provenance import write_json
+from sim.space import with_every_layer
 from sim.sweep import evaluate_point, record_key
 from sim.targets import Targets
 
@@ -44,22 +45,10 @@ def reference_point(material: str) -> dict[str, Any]:
     }
 
 
-def _write(path: Path, record: dict) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps(record, allow_nan=False))
-    tmp.replace(path)
-
-
 def _full_point(point: dict[str, Any]) -> dict[str, Any]:
     """A point with every missing layer entry set inactive (references name only what they
-    use)."""
-    out = dict(point)
-    for role in LAYER_ROLES:
-        for key in ("material", "thickness_mm", *PARAM_MATERIAL_KEYS):
-            name = f"{role}.{key}"
-            out.setdefault(name, "" if key == "material" else math.nan)
-    return out
+    use): ``sim.space.with_every_layer``."""
+    return with_every_layer(point)
 
 
 def run_fe(
@@ -108,7 +97,8 @@ def run_fe(
 
 def _keep(path: Path, record: dict) -> dict:
     record = {"key": path.stem, **record}
-    _write(path, record)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_json(path, record, indent=None)
     return record
 
 

@@ -28,6 +28,7 @@ from sim.trust import TRUST_OUTPUTS
 TRUST_NAMES = tuple(TRUST_OUTPUTS)
 
 __all__ = [
+    "OBJECTIVE_NAMES",
     "WEDGE_REFERENCE_N",
     "WEDGE_WEIGHT",
     "Closeness",
@@ -38,6 +39,8 @@ __all__ = [
 
 WEDGE_REFERENCE_N = 2.35  # silicone GLS 40 on the reference geometry (docs/validation.md)
 WEDGE_WEIGHT = 0.1
+#: the names of the multi-objective triple of :func:`objectives`, in its order
+OBJECTIVE_NAMES = ("compliance_error", "hysteresis_error", "wedge_effort")
 TAPPING = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm")
 
 

@@ -12,9 +12,7 @@ the best confirmed design and the best confirmed buildable design (``summary.jso
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-import io
 import json
 import math
 import sys
@@ -28,7 +26,11 @@ import numpy as np
 
 from sim import SOLVER_VERSION, SimOptions
 from sim.errors import DesignError
-from sim.provenance import check_folder_kind, provenance, write_json
+from sim.provenance import (
+    check_folder_kind,
+    nan_if_none,
+    provenance,
+)
 from sim.space import load_space, point_to_design
 from sim.sweep import default_workers
 from sim.targets import READINGS, Targets, load_targets
@@ -43,9 +45,18 @@ from ._buildable import (
 )
 from ._confirm import REFERENCES, confirm, reference_point, run_fe
 from ._objective import TAPPING, closeness
+from ._run_folder import (
+    add_study,
+    read_candidates,
+    read_config,
+    write_candidates,
+    write_config,
+    write_confirmations,
+    write_summary,
+    write_trials,
+)
 from ._search import (
     FAMILY_SEARCHES,
-    OBJECTIVE_NAMES,
     SearchSettings,
     TrialRow,
     _finished,
@@ -162,23 +173,9 @@ def _storage_url(config: OptimizeConfig, out: Path) -> str:
     return config.storage or f"sqlite:///{(out / 'study.db').resolve()}"
 
 
-def _read_config(out: Path) -> dict[str, Any] | None:
-    """The run folder's config.json (None if there is none); unreadable: one error line."""
-    path = out / "config.json"
-    if not path.exists():
-        return None
-    try:
-        cfg = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DesignError("--out", f"{path} is not readable JSON ({exc})") from None
-    if not isinstance(cfg, dict) or not isinstance(cfg.get("studies"), list):
-        raise DesignError("--out", f"{path} is not the configuration of a search run")
-    return cfg
-
-
 def _check_resume(out: Path, record: dict) -> None:
     """A run folder is resumed only with the configuration it was made with (``_FREE`` aside)."""
-    old = _read_config(out)
+    old = read_config(out)
     if old is None:
         return
     keys = sorted((set(old) | set(record)) - set(_FREE))
@@ -194,9 +191,7 @@ def _check_resume(out: Path, record: dict) -> None:
 def _prepare(config: OptimizeConfig, out: Path, record: dict) -> str:
     """Create the run folder (a resumed one is left as it is); returns the storage URL."""
     if not (out / "config.json").exists():
-        out.mkdir(parents=True, exist_ok=True)
-        write_json(out / "config.json", {**record, "studies": []})
-        write_json(out / "meta.json", provenance(record, config.seed, kind="optimize"))
+        write_config(out, record, provenance(record, config.seed, kind="optimize"))
     return record["storage"]
 
 
@@ -230,7 +225,7 @@ def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:
     config.check()
     out = Path(out)
     check_folder_kind(out, "optimize")
-    _read_config(out)
+    read_config(out)
     targets = load_targets(config.targets)
     from sim.materials import load_user_catalogues
 
@@ -240,87 +235,12 @@ def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:
     return targets
 
 
-def _add_study(out: Path, name: str, search: str, round_: int, mode: str) -> None:
-    path = out / "config.json"
-    cfg = json.loads(path.read_text())
-    if not any(s["name"] == name for s in cfg["studies"]):
-        directions = ["minimize"] * (3 if mode == "multi" else 1)
-        cfg["studies"].append(
-            {"name": name, "search": search, "round": round_, "directions": directions}
-        )
-        write_json(path, cfg)
-
-
-def _save_confirmations(out: Path, items: list[Confirmation], *, final: bool) -> None:
-    """confirmations.json, rewritten only when its content changes. Before the end of the loop
-    (``final`` False) a file that already continues ``items`` (a resumed run that made later
-    rounds before) is left as it is."""
-    text = json.dumps([c.to_json() for c in items], indent=1, allow_nan=False)
-    path = out / "confirmations.json"
-
-    def continues(old: str) -> bool:
-        try:
-            return json.loads(old)[: len(items)] == json.loads(text)
-        except (ValueError, TypeError):
-            return False
-
-    _write_if_changed(path, text, None if final else continues)
-
-
-def _write_if_changed(path: Path, text: str, keep: Callable[[str], bool] | None = None) -> None:
-    """Write ``text`` to ``path`` atomically unless the file holds it already (or ``keep`` says
-    its content is to stay): a re-run that changes nothing rewrites nothing."""
-    data = text.encode()
-    if path.exists():
-        old = path.read_bytes()  # exact bytes: csv's "\r\n" line ends included
-        if old == data or (keep is not None and keep(old.decode(errors="replace"))):
-            return
-    tmp = path.with_name(f".{path.name}.tmp")
-    tmp.write_bytes(data)
-    tmp.replace(path)
-
-
-def write_trials(
-    out: Path, rows: list[TrialRow], names: list[str], metrics: list[str], *, final: bool = True
-) -> None:
-    """trials.csv: one row per scored trial of every round (see explore._types), rewritten only
-    when its content changes (before the end, ``final`` False, a file that continues these rows
-    is kept)."""
-    header = [
-        "round", "trial", "search", *names, "score", *OBJECTIVE_NAMES,
-        *[f"pred.{m}" for m in metrics], *[f"std.{m}" for m in metrics],
-        "in_domain", "disagreement", "trusted",
-    ]  # fmt: skip
-    fh = io.StringIO(newline="")
-    w = csv.writer(fh)
-    w.writerow(header)
-    for r in rows:
-        cells = [r.round, r.trial, r.search]
-        for n in names:
-            v = r.point.get(n, "")
-            cells.append("" if isinstance(v, float) and math.isnan(v) else v)
-        cells.append(_cell(r.score))
-        cells += [_cell(v) for v in r.objectives]
-        cells += [_cell(r.predicted.get(m, {}).get("median")) for m in metrics]
-        cells += [_cell(r.predicted.get(m, {}).get("std")) for m in metrics]
-        cells += [int(r.in_domain), _cell(r.disagreement), int(not r.flags)]
-        w.writerow(cells)
-    text = fh.getvalue()
-    _write_if_changed(out / "trials.csv", text, None if final else lambda old: old.startswith(text))
-
-
-def _cell(v: Any) -> Any:
-    if v is None:
-        return ""
-    v = float(v)
-    return repr(v) if math.isfinite(v) else ""
-
-
 # ----------------------------------------------------------------------------- active learning
 def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     """The surrogate's training sweep: --dataset, the checkpoint's folder (a shipped checkpoint
     carries its table.csv), or the sweep named in its header, whichever holds the table whose
     sha256 the header records."""
+    from sim import _sweep_folder as sweep_folder
     from surrogate._io import sha256_file
 
     want = surrogate.header.get("training_data", {}).get("table_sha256")
@@ -329,8 +249,8 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     for p in places:
         if not p:
             continue
-        table = Path(p) / "table.csv"
-        if table.exists() and (Path(p) / "config.json").exists():
+        table = Path(p) / sweep_folder.TABLE
+        if table.exists() and (Path(p) / sweep_folder.CONFIG).exists():
             if config.dataset or sha256_file(table) == want:
                 return Path(p)
     return None
@@ -339,11 +259,12 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
 def _sim_options(dataset: Path | None) -> SimOptions:
     """The FE options of the surrogate's training sweep (so FE confirms like with like), else
     the defaults."""
+    from sim._sweep_folder import read_config as read_sweep_config
     from sim.sweep import options_from_dict
 
     if dataset is None:
         return SimOptions()
-    cfg = json.loads((dataset / "config.json").read_text())
+    cfg = read_sweep_config(dataset)
     return options_from_dict(cfg["options"]) if "options" in cfg else SimOptions()
 
 
@@ -371,7 +292,7 @@ def retrain(
     def target_row(c: Confirmation) -> list[float]:
         trust = trust_values({**c.diagnostics, "status": c.status})
         return [
-            trust[m] if m in trust else _nan(c.fe_metrics.get(m)) if c.trusted else math.nan
+            trust[m] if m in trust else nan_if_none(c.fe_metrics.get(m)) if c.trusted else math.nan
             for m in names
         ]
 
@@ -409,10 +330,6 @@ def retrain(
         "warm_start_from": surrogate.header.get("sha256", ""),
     }
     return result.surrogate
-
-
-def _nan(v: Any) -> float:
-    return math.nan if v is None else float(v)
 
 
 # ----------------------------------------------------------------------------- the loop
@@ -486,10 +403,6 @@ def _catalogues(config: OptimizeConfig, trained) -> tuple[tuple, dict]:
     return user, catalogue
 
 
-#: summary.json entries that say how long this invocation took (the rest is the answer)
-_TIMING_KEYS = ("wall_time_s", "timings", "resumed")
-
-
 def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) -> Summary:
     """Run (or resume) a search in ``out``; returns the summary (also written to disk).
 
@@ -555,7 +468,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         round_rows: dict[str, list[TrialRow]] = {}
         for search, sp, n in searches:
             name = f"{config.study}-r{r}-{search}"
-            _add_study(out, name, search, r, config.mode)
+            add_study(out, name, search, r, config.mode)
             study = create_study(storage, name, dataclasses.replace(settings, trials=n))
             total = n + (settings.screen_keep if settings.screen else 0)  # seeds + sampled
             bar = tqdm(total=total, desc=f"round {r + 1}: search {search}", unit="trial",
@@ -569,10 +482,10 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             bar.close()
             timings["search_s"] += time.perf_counter() - tic
             all_rows += round_rows[search]
-        chosen = _load_candidates(out, r)
+        chosen = read_candidates(out, r)
         if chosen is None:  # not chosen yet (a resumed run keeps its earlier choice)
             chosen = _choose(round_rows, surrogate, config, confirmations)
-            _save_candidates(out, r, chosen)
+            write_candidates(out, r, chosen)
         tic = time.perf_counter()
         new = confirm(
             chosen, out, targets, options, workers=config.workers, progress=progress,
@@ -581,7 +494,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         timings["fe_s"] += time.perf_counter() - tic
         known = {c.key for c in confirmations}
         confirmations += [c for c in new if c.key not in known]
-        _save_confirmations(out, confirmations, final=False)
+        write_confirmations(out, confirmations, final=False)
         info = _round_info(r, new, targets, config.tolerance)
         rounds.append(info)
         write_trials(out, all_rows, space.names, metric_names, final=False)
@@ -606,10 +519,8 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
                 bar.close()
             timings["retrain_s"] += time.perf_counter() - tic
             nxt.parent.mkdir(parents=True, exist_ok=True)
-            tmp = nxt.with_name(f".{nxt.name}.tmp")
-            save_checkpoint(model, tmp)
-            tmp.replace(nxt)  # a kill never leaves half a checkpoint
-    _save_confirmations(out, confirmations, final=True)
+            save_checkpoint(model, nxt)  # atomic: a kill never leaves half a checkpoint
+    write_confirmations(out, confirmations, final=True)
     write_trials(out, all_rows, space.names, metric_names, final=True)
     screen = []
     fe_only = set(s.catalogue) - predictable_materials(s.surrogate.space)
@@ -630,30 +541,8 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         summary.notes.append(screen_summary(screen, len(s.catalogue)))
     if s.build_note:
         summary.notes.append(s.build_note)
-    _write_summary(out, summary, time.perf_counter() - t0, timings, resumed)
+    write_summary(out, summary, time.perf_counter() - t0, timings, resumed)
     return summary
-
-
-def _write_summary(
-    out: Path, summary: Summary, wall_time_s: float, timings: dict[str, float], resumed: bool
-) -> None:
-    """summary.json: the answer, and how long the invocation that wrote it took
-    (``wall_time_s``, ``timings``; ``resumed``: it continued a run folder, so the time of the
-    killed invocations before it is not counted). Left as it is when the answer is the one it
-    holds already (a finished run re-run)."""
-    data = summary.to_json()
-    path = out / "summary.json"
-    if path.exists():
-        try:
-            old = json.loads(path.read_text())
-        except (OSError, ValueError):
-            old = None
-        if isinstance(old, dict):
-            answer = {k: v for k, v in old.items() if k not in _TIMING_KEYS}
-            if answer == json.loads(json.dumps(data, allow_nan=False)):
-                return
-    data = {**data, "wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
-    _write_if_changed(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
 
 
 def _choose(
@@ -689,25 +578,6 @@ def _choose(
             best = [flagged[0].candidate(search)] if flagged else []
         chosen += best
     return chosen
-
-
-def _candidates_path(out: Path, r: int) -> Path:
-    return out / "rounds" / f"round-{r}-candidates.json"
-
-
-def _load_candidates(out: Path, r: int) -> list[Candidate] | None:
-    path = _candidates_path(out, r)
-    if not path.exists():
-        return None
-    return [Candidate.from_json(d) for d in json.loads(path.read_text())]
-
-
-def _save_candidates(out: Path, r: int, chosen: list[Candidate]) -> None:
-    path = _candidates_path(out, r)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    tmp.write_text(json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
-    tmp.replace(path)
 
 
 def _target_errors(c: Confirmation, targets: Targets) -> dict[str, float]:
@@ -793,7 +663,7 @@ def credible(c: Confirmation, targets: Targets, allow_untrusted: bool = False) -
         return False
     if allow_untrusted:
         return True
-    return c.trusted and bool(targets.sag_ok(_nan(c.fe_metrics.get("sag_mm"))))
+    return c.trusted and bool(targets.sag_ok(nan_if_none(c.fe_metrics.get("sag_mm"))))
 
 
 def summarise(
@@ -840,7 +710,9 @@ def _no_answer(confirmations: list[Confirmation], targets: Targets) -> str:
         return "no design was confirmed by FE (every confirmation failed)"
     unsettled = sum(c.diagnostics.get("settled") is False for c in ran)
     invalid = sum(c.diagnostics.get("valid") is False for c in ran)
-    sagging = sum(c.trusted and not targets.sag_ok(_nan(c.fe_metrics.get("sag_mm"))) for c in ran)
+    sagging = sum(
+        c.trusted and not targets.sag_ok(nan_if_none(c.fe_metrics.get("sag_mm"))) for c in ran
+    )
     return (
         f"no credible answer: of {len(ran)} FE-confirmed designs, {invalid} went beyond the "
         f"validity limits, {unsettled} did not reach their periodic state and {sagging} sagged "

@@ -1,4 +1,4 @@
-"""Design-space figures of a search run (the run-folder contract is in ``explore._types``).
+"""Design-space figures of a search run (the run-folder contract is in ``explore._run_folder``).
 
 As in Optuna's visualization modules, every figure is made in two steps: a pure function
 computes a small frozen "info" object from the run folder's data (numbers only, no
@@ -13,10 +13,8 @@ dimensionless (``explore._objective``).
 
 from __future__ import annotations
 
-import csv
 import io
 import itertools
-import json
 import math
 import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -30,10 +28,18 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import LogNorm, Normalize
 from matplotlib.figure import Figure
 
-from sim.errors import DesignError
+from sim.provenance import write_if_changed
 from sim.targets import READINGS, Targets
 
 from ._objective import TAPPING, closeness, objectives
+from ._run_folder import (
+    CONFIG,
+    OBJECTIVE_NAMES,
+    read_confirmations,
+    read_json,
+    read_summary,
+    read_trials,
+)
 from ._types import Confirmation
 
 __all__ = [
@@ -83,20 +89,6 @@ FIGURES: dict[str, str] = {
     "projections": "Pairwise projections of the most important parameters, coloured by score.",
     "parallel": "Parallel coordinates of the numeric parameters; the best 10 % are highlighted.",
 }
-OBJECTIVE_NAMES = ("compliance_error", "hysteresis_error", "wedge_effort")
-_FIXED_COLUMNS = frozenset(
-    {
-        "round",
-        "trial",
-        "search",
-        "score",
-        *OBJECTIVE_NAMES,
-        "in_domain",
-        "disagreement",
-        "trusted",
-    }
-)
-_SURROGATE_PREFIXES = ("pred.", "std.")
 _DPI = 110
 _UNITS = {
     "disp_at_1N_mm": "mm",
@@ -126,7 +118,7 @@ class RunData:
 
     ``trials``: the ``trials.csv`` columns, header order; numeric columns are float arrays
     (empty cell = inactive/missing -> NaN), the others arrays of str. ``params``: the
-    design-space parameter columns (every column outside the fixed set of ``explore._types``).
+    design-space parameter columns (``explore._run_folder.parameter_columns``).
     ``records`` / ``references``: FE records (``curves``, ``metrics``) by confirmation key /
     by reference name (file stem). ``summary`` and ``config``: the parsed JSON ({} if absent).
     """
@@ -158,60 +150,24 @@ class RunData:
         return col
 
 
-def _read_json(path: Path) -> Any:
-    """A JSON file of the run folder; a damaged one is one error line naming it."""
-    try:
-        with path.open(encoding="utf-8") as fh:
-            return json.load(fh)
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DesignError(str(path), f"not readable JSON ({exc})") from None
-
-
-def _parse_column(cells: list[str]) -> np.ndarray:
-    """Float array if every non-empty cell is a number (empty -> NaN), else str array."""
-    try:
-        return np.array([float(c) if c.strip() else np.nan for c in cells], dtype=float)
-    except ValueError:
-        return np.array(cells, dtype=object)
-
-
-def _read_trials(path: Path) -> tuple[dict[str, np.ndarray], tuple[str, ...]]:
-    if not path.is_file():
-        return {}, ()
-    with path.open(newline="") as fh:
-        reader = csv.DictReader(fh)
-        rows = list(reader)
-        header = list(reader.fieldnames or ())
-    columns = {name: _parse_column([r.get(name) or "" for r in rows]) for name in header}
-    params = tuple(
-        n for n in header if n not in _FIXED_COLUMNS and not n.startswith(_SURROGATE_PREFIXES)
-    )
-    return columns, params
-
-
 def _read_folder(folder: Path) -> dict[str, dict[str, Any]]:
     if not folder.is_dir():
         return {}
-    return {p.stem: _read_json(p) for p in sorted(folder.glob("*.json"))}
+    return {p.stem: read_json(p) for p in sorted(folder.glob("*.json"))}
 
 
 def load_run(run_dir: str | Path) -> RunData:
     """Read a run folder: trials.csv, confirmations.json, the FE records of the confirmations,
     the references, summary.json and config.json. Any of them may be missing."""
     run_dir = Path(run_dir)
-    trials, params = _read_trials(run_dir / "trials.csv")
-    conf_path = run_dir / "confirmations.json"
-    confirmations = (
-        tuple(Confirmation.from_json(d) for d in _read_json(conf_path))
-        if conf_path.is_file()
-        else ()
-    )
+    trials, params = read_trials(run_dir)
+    confirmations = read_confirmations(run_dir)
     records = {}
     for c in confirmations:
         path = run_dir / "fe" / "records" / f"{c.key}.json"
         if path.is_file():
-            records[c.key] = _read_json(path)
-    summary_path, config_path = run_dir / "summary.json", run_dir / "config.json"
+            records[c.key] = read_json(path)
+    config_path = run_dir / CONFIG
     return RunData(
         run_dir=run_dir,
         trials=trials,
@@ -219,8 +175,8 @@ def load_run(run_dir: str | Path) -> RunData:
         confirmations=confirmations,
         records=records,
         references=_read_folder(run_dir / "fe" / "references"),
-        summary=_read_json(summary_path) if summary_path.is_file() else {},
-        config=_read_json(config_path) if config_path.is_file() else {},
+        summary=read_summary(run_dir),
+        config=read_json(config_path) if config_path.is_file() else {},
     )
 
 
@@ -1149,9 +1105,6 @@ def write_figures(run_dir: str | Path) -> dict[str, Path]:
         figures[name].savefig(buffer, dpi=_DPI, format="png")  # no date: same figure, same bytes
         figures[name].clear()
         data = buffer.getvalue()
-        if not path.is_file() or path.read_bytes() != data:  # the same figure: left as it is
-            tmp = path.with_name(f".{path.name}.tmp")
-            tmp.write_bytes(data)
-            tmp.replace(path)
+        write_if_changed(path, data)  # the same figure: left as it is
         paths[name] = path
     return paths

@@ -1,6 +1,6 @@
 """The one-page Markdown report of a search run (``report.md`` next to ``figures/``).
 
-Reads the run folder (``explore._types`` describes it) through ``explore._plots.load_run``,
+Reads the run folder (``explore._run_folder`` describes it) through ``explore._plots.load_run``,
 writes every figure with ``write_figures`` and links them relatively, so the folder can be
 moved or browsed on GitHub as it is.
 """
@@ -14,6 +14,7 @@ from typing import Any
 
 import numpy as np
 
+from sim.provenance import write_if_changed
 from sim.targets import Targets
 
 from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
@@ -366,8 +367,5 @@ def write_report(run_dir: str | Path) -> Path:
     ]
     path = run_dir / "report.md"
     text = "\n".join(lines).rstrip() + "\n"
-    if not path.is_file() or path.read_text(encoding="utf-8") != text:  # the same: left alone
-        tmp = path.with_name(f".{path.name}.tmp")
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(path)
+    write_if_changed(path, text)  # the same: left alone
     return path

@@ -24,12 +24,13 @@ from typing import Any
 
 import numpy as np
 
-from sim.families import family_uses, is_family
-from sim.space import PARAM_MATERIAL_KEYS, DesignSpace, Parameter, mask_inactive
+from sim.families import is_family
+from sim.provenance import finite_or_none
+from sim.space import DesignSpace, Parameter
 from sim.targets import Targets
 from sim.trust import TRUST_OUTPUTS
 
-from ._objective import closeness, infeasibility, objectives
+from ._objective import OBJECTIVE_NAMES, closeness, infeasibility, objectives
 from ._types import Candidate
 
 __all__ = [
@@ -56,7 +57,6 @@ SCORED = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm", "wedge_peak_force_
 #: the predictions credibility is judged on (``infeasibility``); the yes/no ones by their mean
 _JUDGED = (*TRUST_OUTPUTS, "sag_mm")
 _YES_NO = ("reached_base", "folded")
-OBJECTIVE_NAMES = ("compliance_error", "hysteresis_error", "wedge_effort")
 
 
 @dataclass(frozen=True)
@@ -211,8 +211,8 @@ def suggest_point(trial, space: DesignSpace) -> dict[str, Any]:
     """A design point proposed by an Optuna trial, define-by-run: fixed parameters take their
     value, a layer's parameters are suggested only when the design uses them."""
     point: dict[str, Any] = {}
-    for p in space.parameters:
-        if not _used(space, point, p):
+    for p in space.parameters:  # space order: the count and a layer's material come first
+        if not space.is_active(p.name, point):
             continue
         if not p.sampled:
             point[p.name] = p.from_unit(0.0)
@@ -221,26 +221,6 @@ def suggest_point(trial, space: DesignSpace) -> dict[str, Any]:
         else:
             point[p.name] = trial.suggest_float(p.name, p.low, p.high, log=p.log)
     return point_from_params(space, point)
-
-
-def _used(space: DesignSpace, point: dict[str, Any], p: Parameter) -> bool:
-    """Whether ``p`` matters given the parameters chosen so far (space order: count and a
-    layer's material come before the layer's material parameters)."""
-    head, _, key = p.name.partition(".")
-    if head in ("geometry", "layers"):
-        return True
-    count = point.get("layers.count")
-    if count is None:
-        return True
-    from sim.space import active_roles
-
-    if head not in active_roles(count):
-        return False
-    if key == "thickness_mm":
-        return head != "core"
-    if key in PARAM_MATERIAL_KEYS:
-        return family_uses(point.get(f"{head}.material"), key)
-    return True
 
 
 # ----------------------------------------------------------------------------- scoring
@@ -307,7 +287,7 @@ def predict_rows(
         predicted = {
             m: {
                 **{
-                    k: _num(getattr(pred, k)[i, j])
+                    k: finite_or_none(getattr(pred, k)[i, j])
                     for k in ("median", "mean", "std", "lower_90", "upper_90")
                 },
                 "by_rule": bool(pred.by_rule[i, j]),  # exact by physics, not learnt
@@ -331,23 +311,11 @@ def predict_rows(
     return rows
 
 
-def _num(x: float) -> float | None:
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
 # ----------------------------------------------------------------------------- studies
 def point_from_params(space: DesignSpace, params: dict[str, Any]) -> dict[str, Any]:
-    """The design point of a trial's parameters (fixed values filled, unused ones masked)."""
-    full: dict[str, Any] = {}
-    for p in space.parameters:
-        if p.name in params:
-            full[p.name] = params[p.name]
-        elif not p.sampled:
-            full[p.name] = p.from_unit(0.0)
-        else:
-            full[p.name] = "" if p.kind == "choice" else math.nan
-    return mask_inactive(full)
+    """The design point of a trial's parameters (fixed values filled, unused ones masked:
+    ``DesignSpace.complete``)."""
+    return space.complete(params)
 
 
 def run_study(

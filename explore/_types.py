@@ -1,26 +1,6 @@
 """The data that flows through a search run (candidate -> confirmation -> summary).
 
-A run folder ``runs/NAME`` written by ``fingertip optimize`` / ``fingertip run`` holds:
-
-- ``config.json``, ``meta.json``: the resolved configuration and provenance.
-- ``study.db``: the Optuna studies (SQLite; ``optuna-dashboard sqlite:///runs/NAME/study.db``).
-- ``trials.csv``: every finished trial of every round, one row each: ``round``, ``trial``,
-  ``search`` ("continuous" | "buildable"), the design-space parameters (inactive = empty),
-  ``score``, ``compliance_error``, ``hysteresis_error``, ``wedge_effort`` (explore._objective),
-  ``pred.<metric>`` / ``std.<metric>`` (surrogate point prediction = median, and std),
-  ``in_domain``, ``disagreement`` and ``trusted`` (0/1).
-- ``fe/records/<key>.json``: FE records of the confirmed designs (the sweep's record form, with
-  ``curves``), and ``fe/references/<name>.json``: silicone and polyurethane on the reference
-  geometry (same form) for the plots.
-- ``rounds/round-<r>-candidates.json``: the designs round r sent to FE (``Candidate``s; a
-  resumed run reuses them); ``surrogates/round-<r>.safetensors``: the retrained surrogate that
-  round r searched with (round 0: the given checkpoint).
-- ``confirmations.json``: a list of ``Confirmation.to_json()``.
-- ``rounds/buildable-fe-candidates.json`` and ``buildable_fe.json``: the FE-only screen of
-  catalogue materials the surrogate cannot predict (search "buildable-fe", no prediction;
-  ``explore._buildable``), its candidates and their ``Confirmation.to_json()``; never used to
-  retrain the surrogate.
-- ``summary.json``: ``Summary.to_json()``; ``report.md`` and ``figures/*.png``.
+The run folder these are written to and read from, file by file, is ``explore._run_folder``'s.
 """
 
 from __future__ import annotations
@@ -29,15 +9,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from sim.provenance import finite_or_none, json_safe
+
 __all__ = ["Candidate", "Confirmation", "Summary"]
-
-
-def _num(x: Any) -> float | None:
-    """A JSON-safe float (NaN/inf -> None)."""
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 @dataclass(frozen=True)
@@ -71,18 +45,15 @@ class Candidate:
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "point": {
-                k: (None if isinstance(v, float) and math.isnan(v) else v)
-                for k, v in self.point.items()
-            },
+            "point": json_safe(self.point),
             "reason": self.reason,
             "round": self.round,
             "trial": self.trial,
             "search": self.search,
-            "score": _num(self.score),
+            "score": finite_or_none(self.score),
             "predicted": self.predicted,
             "in_domain": self.in_domain,
-            "disagreement": _num(self.disagreement),
+            "disagreement": finite_or_none(self.disagreement),
             "flags": list(self.flags),
             "trusted": self.trusted,
         }
@@ -139,9 +110,9 @@ class Confirmation:
             "key": self.key,
             "status": self.status,
             "reason": self.reason,
-            "fe_metrics": {k: _num(v) for k, v in self.fe_metrics.items()},
-            "fe_score": _num(self.fe_score),
-            "rel_error": {k: _num(v) for k, v in self.rel_error.items()},
+            "fe_metrics": {k: finite_or_none(v) for k, v in self.fe_metrics.items()},
+            "fe_score": finite_or_none(self.fe_score),
+            "rel_error": {k: finite_or_none(v) for k, v in self.rel_error.items()},
             "inside_90": self.inside_90,
             "diagnostics": self.diagnostics,
             "trusted": self.trusted,

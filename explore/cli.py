@@ -359,8 +359,9 @@ def _optimize_config(args: argparse.Namespace):
 
 def _finish(out, progress: bool) -> int:
     from explore._report import write_report
+    from explore._run_folder import read_summary
 
-    summary = json.loads((out / "summary.json").read_text())
+    summary = read_summary(out)
     report = write_report(out)
     labels = {
         "best": "best design",

@@ -1,14 +1,24 @@
-"""Run folders: provenance (versions, git commit, configuration) and atomic creation."""
+"""Run folders: provenance (versions, git commit, configuration), atomic creation, and the one
+way every run-folder file is written.
+
+Every file a command writes into a run folder goes through :func:`atomic_write` (a temporary
+file in the same folder, then ``os.replace``: a kill leaves the old file or the new one, never
+half of one); :func:`write_if_changed` leaves a file alone when it holds the text already (a
+re-run that changes nothing rewrites nothing). JSON is strict (``allow_nan=False``): values go
+through :func:`json_safe` (NaN and infinities -> None, numpy scalars -> Python numbers).
+"""
 
 from __future__ import annotations
 
 import json
+import math
 import os
 import platform
 import shutil
 import subprocess
 import sys
 import tempfile
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from importlib import metadata
@@ -17,13 +27,20 @@ from typing import Any
 
 __all__ = [
     "KINDS",
+    "atomic_write",
     "check_folder_kind",
     "check_new_folder",
+    "finite_or_none",
     "folder_kind",
     "git_commit",
+    "json_safe",
+    "nan_if_none",
     "package_versions",
     "provenance",
+    "replacing",
     "run_folder",
+    "write_if_changed",
+    "write_json",
 ]
 
 _PACKAGES = ("numpy", "scipy", "scikit-fem", "qdldl", "triangle", "meshio", "matplotlib", "torch")
@@ -185,5 +202,75 @@ def run_folder(path: str | Path):
     os.replace(tmp, path)
 
 
-def write_json(path: Path, data: Any) -> None:
-    path.write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
+# ---------------------------------------------------------------------------- writing files
+@contextmanager
+def replacing(path: str | Path) -> Iterator[Path]:
+    """Yield a temporary path in ``path``'s folder; when the block succeeds it replaces ``path``
+    (``os.replace``, atomic), when it fails it is removed. For writers that need a file name
+    (safetensors); text and bytes: :func:`atomic_write`."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        yield tmp
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    os.replace(tmp, path)
+
+
+def atomic_write(path: str | Path, data: str | bytes) -> None:
+    """Write ``data`` (text is UTF-8) to ``path`` atomically: the file is the old one or the
+    new one, never half of one, whenever the process is killed."""
+    with replacing(path) as tmp:
+        if isinstance(data, bytes):
+            tmp.write_bytes(data)
+        else:
+            tmp.write_text(data, encoding="utf-8")
+
+
+def write_if_changed(
+    path: str | Path, data: str | bytes, keep: Callable[[str], bool] | None = None
+) -> bool:
+    """Write ``data`` to ``path`` atomically unless the file holds it already, byte for byte
+    (or ``keep``, given the old text, says it is to stay). Returns whether it wrote."""
+    path = Path(path)
+    new = data.encode() if isinstance(data, str) else data
+    if path.is_file():
+        old = path.read_bytes()  # exact bytes: csv's "\r\n" line ends included
+        if old == new or (keep is not None and keep(old.decode(errors="replace"))):
+            return False
+    atomic_write(path, new)
+    return True
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` as strict JSON can hold it, recursively: a non-finite float (NaN, inf) becomes
+    None, a numpy scalar or array a Python number or list, a tuple a list; anything else is
+    left as it is (a mapping's keys too)."""
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    if hasattr(value, "tolist") and type(value).__module__ == "numpy":
+        return json_safe(value.tolist())  # numpy scalar -> int/float/bool, array -> list
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def finite_or_none(x: Any) -> float | None:
+    """A number as a JSON float: None for None, NaN and infinities (the scalar form of
+    :func:`json_safe`; ints and numpy numbers become floats)."""
+    return None if x is None else json_safe(float(x))
+
+
+def nan_if_none(x: Any) -> float:
+    """The inverse of :func:`finite_or_none` for a value read back: None -> NaN."""
+    return math.nan if x is None else float(x)
+
+
+def write_json(path: str | Path, data: Any, indent: int | None = 1) -> None:
+    """Write ``data`` as strict JSON (``allow_nan=False``: make it :func:`json_safe` first)
+    to ``path`` atomically; ``indent=None``: one line."""
+    text = json.dumps(data, indent=indent, allow_nan=False)
+    atomic_write(path, text + "\n" if indent is not None else text)

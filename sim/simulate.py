@@ -22,6 +22,7 @@ from .protocols import (
     run_tapping,
     run_wedge,
 )
+from .provenance import finite_or_none
 from .solver import Body, NewtonOptions
 from .validity import ValidityOptions, Violation, check
 
@@ -197,7 +198,7 @@ class SimResult:
     def to_json(self) -> dict[str, Any]:
         """JSON-ready dict: metric names at the top level, then curves and diagnostics."""
         return {
-            **{k: _finite(v) for k, v in self.metrics.items()},
+            **{k: finite_or_none(v) for k, v in self.metrics.items()},
             "ok": self.ok,
             "failures": [f.__dict__ for f in self.failures],
             "curves": self.curves,
@@ -232,10 +233,6 @@ def diagnostic_names(protocols: tuple[str, ...] | list[str] = PROTOCOLS) -> list
         names += [f"tapping_{k}" for k in SETTLE_KEYS if k != "settled"]
     names += [f"{p}_{k}" for p in protocols for k in DIAGNOSTIC_KEYS]
     return [*names, "violations"]
-
-
-def _finite(v: float | None) -> float | None:
-    return None if v is None or not np.isfinite(v) else float(v)
 
 
 _RUNNERS = {

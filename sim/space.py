@@ -31,6 +31,7 @@ complete without the user's file. Parameters that a design does not use are
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -58,10 +59,15 @@ __all__ = [
     "PRONY_TIME_RATIOS",
     "DesignSpace",
     "Parameter",
+    "active_roles",
+    "inactive_value",
+    "is_active",
     "load_space",
+    "mask_inactive",
     "param_material",
     "point_from_design",
     "space_from_dict",
+    "with_every_layer",
 ]
 
 DEFAULT_SPACE_PATH = Path(__file__).parent / "data" / "default_space.toml"
@@ -233,14 +239,41 @@ class DesignSpace:
                 point[name] = "" if name.endswith(".material") else math.nan
         return out
 
+    def is_active(self, name: str, point: Mapping[str, Any]) -> bool:
+        """Whether the design of ``point`` uses parameter ``name`` (the one rule,
+        :func:`is_active`); a partial point too (see there)."""
+        return is_active(name, point)
+
+    def is_optional(self, name: str) -> bool:
+        """Whether some design of the space leaves parameter ``name`` inactive."""
+        head = name.split(".", 1)[0]
+        if head not in LAYER_ROLES:
+            return False
+        material = f"{head}.material"
+        cases = itertools.product(_options(self["layers.count"]), _options(self[material]))
+        return not all(self.is_active(name, {"layers.count": c, material: m}) for c, m in cases)
+
+    def complete(self, point: Mapping[str, Any], *, mask: bool = True) -> dict[str, Any]:
+        """``point`` with every parameter of the space it lacks filled: a fixed parameter or a
+        single choice takes its value, any other is blank ("" for a choice, NaN for a number);
+        then masked (:func:`mask_inactive`) unless ``mask`` is False. The space's parameters
+        come first, in its order; other entries of ``point`` are kept after them."""
+        values = {
+            p.name: point[p.name]
+            if p.name in point
+            else p.from_unit(0.0)
+            if not p.sampled
+            else _blank(p)
+            for p in self.parameters
+        }
+        values.update({k: v for k, v in point.items() if k not in values})
+        return mask_inactive(values) if mask else values
+
     def check(self, point: Mapping[str, Any]) -> dict[str, Any]:
         """Validate a hand-written point (active values inside the bounds or choices) and return
-        it masked; a DesignError names the first parameter outside the space."""
-        values = dict(point)
-        for p in self.parameters:
-            if p.name not in values:
-                values[p.name] = p.from_unit(0.0) if not p.sampled else math.nan
-        values = mask_inactive(values)
+        it completed and masked (:meth:`complete`); a DesignError names the first parameter
+        outside the space."""
+        values = self.complete(point)
         for p in self.parameters:
             v = values[p.name]
             if (isinstance(v, float) and math.isnan(v)) or v == "":
@@ -263,27 +296,73 @@ class DesignSpace:
 
 
 def active_roles(count: int) -> tuple[str, ...]:
+    """The layer roles of a design of ``count`` layers, outermost first."""
     return {1: ("core",), 2: ("skin", "core"), 3: ("skin", "middle", "core")}[int(count)]
 
 
-def mask_inactive(values: dict[str, Any]) -> dict[str, Any]:
+def _uses(role: str, key: str, roles: tuple[str, ...], material: Any) -> bool:
+    """THE rule of which parameters a design uses: a layer's parameter ``key`` is used when the
+    layer exists (``role`` among the design's ``roles``) and ``key`` is its material, its
+    thickness (not the core's: it fills the rest) or a parameter its material's family uses
+    (``sim.families.family_uses``)."""
+    return role in roles and (
+        key == "material"
+        or (key == "thickness_mm" and role != "core")
+        or family_uses(material, key)
+    )
+
+
+def is_active(name: str, point: Mapping[str, Any]) -> bool:
+    """Whether the design of ``point`` uses parameter ``name``: geometry and the layer count
+    always; a layer's parameters by :func:`_uses`. ``point`` may be partial, as a define-by-run
+    search builds it in space order: without ``layers.count`` every parameter may be used,
+    without the layer's material none of its family parameters is."""
+    role, _, key = name.partition(".")
+    if role not in LAYER_ROLES:
+        return True
+    count = point.get("layers.count")
+    if count is None:
+        return True
+    return _uses(role, key, active_roles(count), point.get(f"{role}.material"))
+
+
+def inactive_value(name: str) -> Any:
+    """What a point holds for a layer parameter its design does not use: "" for the material,
+    NaN for a number."""
+    return "" if name.endswith(".material") else math.nan
+
+
+def mask_inactive(values: Mapping[str, Any]) -> dict[str, Any]:
     """Set the parameters a design does not use to NaN (numbers) or "" (choices)."""
     out = dict(values)
     roles = active_roles(out["layers.count"])
     for role in LAYER_ROLES:
-        active = role in roles
         for key in _LAYER_KEYS:
             name = f"{role}.{key}"
-            if name not in out:
-                continue
-            used = active and (
-                key == "material"
-                or (key == "thickness_mm" and role != "core")
-                or family_uses(out.get(f"{role}.material"), key)
-            )
-            if not used:
-                out[name] = "" if key == "material" else math.nan
+            if name in out and not _uses(role, key, roles, out.get(f"{role}.material")):
+                out[name] = inactive_value(name)
     return out
+
+
+def with_every_layer(point: Mapping[str, Any]) -> dict[str, Any]:
+    """``point`` with every layer parameter of every role it lacks set inactive: the form a
+    sweep records, for a partial point that names only what its design uses (a reference
+    design) and no space to complete it from."""
+    out = dict(point)
+    for role in LAYER_ROLES:
+        for key in _LAYER_KEYS:
+            out.setdefault(f"{role}.{key}", inactive_value(f"{role}.{key}"))
+    return out
+
+
+def _blank(p: Parameter) -> Any:
+    """A sampled parameter's value before it is chosen: "" for a choice, NaN for a number."""
+    return "" if p.kind == "choice" else math.nan
+
+
+def _options(p: Parameter) -> tuple:
+    """The values a fixed or choice parameter can take."""
+    return p.choices if p.kind == "choice" else (p.value,)
 
 
 def point_to_design(

@@ -1,13 +1,8 @@
 """Sweeps: sample a design space, evaluate every design by FE, keep every result safely.
 
-A sweep folder ``runs/NAME`` holds
-
-- ``config.json``: the resolved space, n, seed, sampler, simulation options, solver version;
-- ``meta.json``: provenance (git commit, package versions, command) of the latest invocation;
-- ``records/<key>.json``: one file per evaluated design, written atomically (temporary name,
-  then ``os.replace``), keyed by a hash of the design, the options and the solver version;
-- ``table.csv``: parameters + metrics (+ status and reason) of every design, rebuilt from the
-  records at the end of each invocation; ``curves.jsonl``: the curves, one line per design.
+A sweep folder ``runs/NAME`` holds its ``config.json``, ``meta.json``, one record per design
+(``records/<key>.json``, written atomically), ``table.csv`` and ``curves.jsonl``; the files
+and their forms are ``sim._sweep_folder``'s, which alone writes and reads them.
 
 Re-running the same command continues where it stopped (after ``kill -9`` too): designs with a
 record are skipped, failed ones only run again with ``retry_failed``. Only the parent process
@@ -16,7 +11,6 @@ writes records, so a killed worker can never leave half a record.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import hashlib
 import json
@@ -31,15 +25,16 @@ from typing import Any
 
 import numpy as np
 
+from ._sweep_folder import SweepStore, read_config, write_config, write_meta
 from .errors import DesignError, SimulationError
 from .materials import Material, UserCatalogue, catalogue_from_tables, material_tables
 from .options import apply_overrides
-from .protocols import profile_summary
-from .provenance import check_folder_kind, provenance, write_json
-from .simulate import METRICS, SOLVER_VERSION, SimOptions, diagnostic_names, simulate
+from .provenance import check_folder_kind, json_safe, provenance
+from .simulate import SOLVER_VERSION, SimOptions, simulate
 from .space import DesignSpace, point_to_design, space_from_dict
 
 __all__ = [
+    "SweepStore",
     "SweepSummary",
     "catalogue_hashes",
     "default_workers",
@@ -119,7 +114,7 @@ def evaluate_point(
     """
     options = options_from_dict(options_dict)
     t0 = time.perf_counter()
-    record: dict[str, Any] = {"params": _jsonable(point), "solver_version": SOLVER_VERSION}
+    record: dict[str, Any] = {"params": json_safe(point), "solver_version": SOLVER_VERSION}
     try:
         catalogue = catalogue_from_tables(materials) if materials else None
         design = point_to_design(point, catalogue)
@@ -136,10 +131,7 @@ def evaluate_point(
             reason="; ".join(
                 f"{f.protocol} at t = {f.time_s:.4g} s: {f.reason}" for f in res.failures
             ),
-            metrics={
-                k: (None if v is None or not math.isfinite(v) else v)
-                for k, v in res.metrics.items()
-            },
+            metrics=json_safe(res.metrics),
             diagnostics=json_safe(res.diagnostics()),
             curves=res.curves,
             n_dofs=res.n_dofs,
@@ -161,102 +153,6 @@ def options_from_dict(d: dict[str, Any]) -> SimOptions:
             for f in dataclasses.fields(base)
         },
     )
-
-
-def json_safe(values: dict[str, Any]) -> dict[str, Any]:
-    """A flat dict with every non-finite float (NaN, inf) as None: strict JSON."""
-    return {
-        k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in values.items()
-    }
-
-
-def _jsonable(point: dict[str, Any]) -> dict[str, Any]:
-    return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in point.items()}
-
-
-def _atomic_write(path: Path, data: dict) -> None:
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    tmp.write_text(json.dumps(data, allow_nan=False))
-    os.replace(tmp, path)
-
-
-class SweepStore:
-    """The records of a sweep folder (one JSON file per design)."""
-
-    def __init__(self, folder: Path) -> None:
-        self.folder = folder
-        self.records_dir = folder / "records"
-
-    def load(self) -> dict[str, dict]:
-        out = {}
-        if self.records_dir.exists():
-            for path in self.records_dir.glob("*.json"):
-                try:
-                    out[path.stem] = json.loads(path.read_text())
-                except (json.JSONDecodeError, OSError):
-                    continue  # cannot happen with atomic writes; never trust a broken file
-        return out
-
-    def write(self, key: str, record: dict) -> None:
-        self.records_dir.mkdir(parents=True, exist_ok=True)
-        _atomic_write(self.records_dir / f"{key}.json", {"key": key, **record})
-
-    def consolidate(self, keys: list[str], names: list[str]) -> None:
-        """Rebuild table.csv and curves.jsonl for ``keys`` (the sweep's designs, in order)."""
-        records = self.load()
-        metric_names = list(METRICS)
-        diag_names = diagnostic_names()
-        tmp_table = self.folder / ".table.csv.tmp"
-        tmp_curves = self.folder / ".curves.jsonl.tmp"
-        with tmp_table.open("w", newline="") as fh, tmp_curves.open("w") as fc:
-            writer = csv.writer(fh)
-            writer.writerow(
-                [
-                    "index",
-                    "key",
-                    "status",
-                    *names,
-                    *metric_names,
-                    *diag_names,
-                    "wall_time_s",
-                    "reason",
-                ]
-            )
-            for i, key in enumerate(keys):
-                rec = records.get(key)
-                if rec is None:
-                    continue
-                params = rec["params"]
-                metrics = dict(rec.get("metrics", {}))
-                if rec["status"] == "ok" and "profile_1s_area_2mm_mm2" not in metrics:
-                    # records from before the profile summary existed: derive it from the curves
-                    summary = profile_summary(rec.get("curves", {}))
-                    metrics.update(
-                        {k: (v if math.isfinite(v) else None) for k, v in summary.items()}
-                    )
-                writer.writerow(
-                    [
-                        i,
-                        key,
-                        rec["status"],
-                        *["" if params.get(n) is None else params.get(n) for n in names],
-                        *["" if metrics.get(m) is None else metrics[m] for m in metric_names],
-                        *_cells(rec.get("diagnostics", {}), diag_names),
-                        f"{rec.get('wall_time_s', 0.0):.3f}",
-                        rec.get("reason", ""),
-                    ]
-                )
-                if rec["status"] == "ok":
-                    fc.write(
-                        json.dumps({"index": i, "key": key, "curves": rec.get("curves", {})}) + "\n"
-                    )
-        os.replace(tmp_table, self.folder / "table.csv")
-        os.replace(tmp_curves, self.folder / "curves.jsonl")
-
-
-def _cells(values: dict[str, Any], names: list[str]) -> list[Any]:
-    """Table cells: "" for a value not recorded (records before diagnostics existed)."""
-    return ["" if values.get(n) is None else values[n] for n in names]
 
 
 def _config(space: DesignSpace, n: int, seed: int, sampler: str, options: SimOptions) -> dict:
@@ -288,7 +184,7 @@ def _check_config(folder: Path, config: dict) -> None:
     if not path.exists():
         return
     try:
-        old = json.loads(path.read_text())
+        old = read_config(folder)
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DesignError(
             "--out", f"{path} is not readable JSON ({exc}); choose a new folder"
@@ -360,8 +256,8 @@ def run_sweep(
     materials = material_tables({str(m.name): m for m in space.materials}) or None
     client = _connect(scheduler) if scheduler else None  # refused before the folder is made
     folder.mkdir(parents=True, exist_ok=True)
-    write_json(folder / "config.json", json.loads(json.dumps(config)))
-    write_json(folder / "meta.json", provenance(config, seed, kind="sweep"))
+    write_config(folder, config)
+    write_meta(folder, provenance(config, seed, kind="sweep"))
     store = SweepStore(folder)
     done = store.load()
     todo = []
@@ -486,7 +382,7 @@ def catalogue_hashes(config: Mapping[str, Any]) -> list[str]:
 
 def load_space_config(folder: Path) -> DesignSpace:
     """The space a sweep folder was made with."""
-    return space_from_dict(json.loads((folder / "config.json").read_text())["space"])
+    return space_from_dict(read_config(folder)["space"])
 
 
 def options_with_overrides(overrides: dict[str, str]) -> SimOptions:

@@ -15,12 +15,12 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from sim.provenance import json_safe, replacing
 from sim.simulate import METRICS, SOLVER_VERSION
 from sim.space import space_from_dict
 
@@ -53,10 +53,6 @@ def _digest(tensors: dict[str, np.ndarray], header: dict[str, Any]) -> str:
     return h.hexdigest()
 
 
-def _num(x: float) -> float | None:
-    return float(x) if math.isfinite(x) else None
-
-
 def describe(surrogate) -> dict[str, Any]:
     """The structural part of the header (space, encoding, metrics, normalisers)."""
     space, enc, norm = surrogate.space, surrogate.encoder, surrogate.normaliser
@@ -71,7 +67,7 @@ def describe(surrogate) -> dict[str, Any]:
                 log=p.log,
                 optional=is_optional(space, p),
                 encoding="log-unit + active flag" if p.log else "unit + active flag",
-                training_range=[_num(lo), _num(hi)],
+                training_range=json_safe([float(lo), float(hi)]),
             )
             if not d["optional"]:
                 d["encoding"] = d["encoding"].replace(" + active flag", "")
@@ -140,9 +136,8 @@ def write_checkpoint(path: str | Path, tensors: dict[str, np.ndarray], header: d
     path = Path(path)
     header = {k: v for k, v in header.items() if k != "sha256"}
     header["sha256"] = _digest(tensors, header)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    save_file(tensors, str(tmp), metadata={META_KEY: json.dumps(header, allow_nan=False)})
-    os.replace(tmp, path)
+    with replacing(path) as tmp:
+        save_file(tensors, str(tmp), metadata={META_KEY: json.dumps(header, allow_nan=False)})
     return path
 
 

@@ -28,15 +28,15 @@ from typing import Any
 import numpy as np
 
 from sim.errors import DesignError
-from sim.families import FAMILIES, family_uses, is_family
+from sim.families import FAMILIES, is_family
 from sim.materials import CATALOGUE
 from sim.protocols import TappingOptions
+from sim.provenance import finite_or_none, nan_if_none
 from sim.space import (
     LAYER_ROLES,
     PARAM_MATERIAL_KEYS,
     DesignSpace,
     Parameter,
-    active_roles,
 )
 
 __all__ = [
@@ -96,22 +96,9 @@ def _reach_bounds(p: Parameter, lo: float, hi: float) -> tuple[float, float]:
     return (min(lo, p.low) if near_low else lo), (max(hi, p.high) if near_high else hi)
 
 
-def _counts(space: DesignSpace) -> list[int]:
-    p = space["layers.count"]
-    return [int(c) for c in (p.choices if p.kind == "choice" else [p.value])]
-
-
 def is_optional(space: DesignSpace, p: Parameter) -> bool:
-    """Whether some design of ``space`` leaves ``p`` inactive."""
-    head, key = p.name.split(".", 1)
-    if head not in LAYER_ROLES:
-        return False
-    always = all(head in active_roles(c) for c in _counts(space))
-    if key in ("material", "thickness_mm"):
-        return not always
-    material = space[f"{head}.material"]
-    names = material.choices if material.kind == "choice" else (material.value,)
-    return not (always and all(family_uses(m, key) for m in names))
+    """Whether some design of ``space`` leaves ``p`` inactive (``DesignSpace.is_optional``)."""
+    return space.is_optional(p.name)
 
 
 def _choice_key(v: Any) -> str:
@@ -253,7 +240,9 @@ class Encoder:
     def to_dict(self) -> dict[str, Any]:
         """The JSON form of the training domain (the space is stored on its own)."""
         return {
-            "ranges": {k: [_none(a), _none(b)] for k, (a, b) in self.ranges.items()},
+            "ranges": {
+                k: [finite_or_none(a), finite_or_none(b)] for k, (a, b) in self.ranges.items()
+            },
             "seen": {k: list(v) for k, v in self.seen.items()},
             "omega_rad_s": self.omega_rad_s,
         }
@@ -264,7 +253,7 @@ class Encoder:
         was recorded encodes at the default tap's frequency, as it was trained)."""
         return cls(
             space,
-            {k: (_nan(a), _nan(b)) for k, (a, b) in d["ranges"].items()},
+            {k: (nan_if_none(a), nan_if_none(b)) for k, (a, b) in d["ranges"].items()},
             {k: tuple(v) for k, v in d["seen"].items()},
             float(d.get("omega_rad_s", DESCRIPTOR_OMEGA_RAD_S)),
         )
@@ -292,21 +281,21 @@ class Encoder:
             i = int(np.argmax(bad))
             raise DesignError("layers.count", f"design {i}: must be 1, 2 or 3, got {count[i]!r}")
         for role in LAYER_ROLES:
-            role_on = np.isin(count, [c for c in (1, 2, 3) if role in active_roles(c)])
             mat_name = f"{role}.material"
             if mat_name not in cols:
                 continue
+            # what decides the rule: the layer count and the material, a few distinct pairs
             codes, mats = _factorize(cols[mat_name])  # choice keys: text
+            pairs, pair_of = np.unique(codes * 4 + count.astype(np.intp), return_inverse=True)
             for key in ("material", "thickness_mm", *PARAM_MATERIAL_KEYS):
                 name = f"{role}.{key}"
                 if name not in cols:
                     continue
-                if key == "material":
-                    on = role_on
-                elif key == "thickness_mm":
-                    on = role_on & (role != "core")
-                else:
-                    on = role_on & np.asarray([family_uses(m, key) for m in mats], bool)[codes]
+                rule = [
+                    self.space.is_active(name, {"layers.count": int(q % 4), mat_name: mats[q // 4]})
+                    for q in pairs
+                ]
+                on = np.asarray(rule, dtype=bool)[pair_of]
                 col = cols[name]
                 if isinstance(col, np.ndarray):
                     col = np.where(on, col, np.nan)
@@ -537,11 +526,3 @@ def _is_empty(v: Any) -> bool:
 
 def _blank(v: Any) -> bool:
     return v is None or v == "" or (isinstance(v, float) and math.isnan(v))
-
-
-def _none(x: float) -> float | None:
-    return None if math.isnan(x) else x
-
-
-def _nan(x: float | None) -> float:
-    return math.nan if x is None else float(x)

@@ -19,6 +19,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from sim.provenance import json_safe
+
 from ._surrogate import Surrogate
 from ._train import r2_score
 
@@ -125,7 +127,7 @@ class Report:
     trust: TrustScore | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        return _clean(
+        return json_safe(
             {
                 "n_test": self.n_test,
                 "in_domain_fraction": self.in_domain_fraction,
@@ -134,16 +136,6 @@ class Report:
                 "speed": asdict(self.speed),
             }
         )
-
-
-def _clean(x: Any) -> Any:
-    if isinstance(x, float):
-        return x if math.isfinite(x) else None
-    if isinstance(x, dict):
-        return {k: _clean(v) for k, v in x.items()}
-    if isinstance(x, list | tuple):
-        return [_clean(v) for v in x]
-    return x
 
 
 def score(p: ParityData) -> MetricScore:
@@ -358,7 +350,7 @@ def write_report(report: Report, folder: Path, info: dict[str, Any]) -> None:
     figures.mkdir(parents=True, exist_ok=True)
     for p in report.parity:
         render_parity(p, figures / f"parity_{p.metric}.png")
-    data = {**_clean(info), **report.to_dict()}
+    data = {**json_safe(info), **report.to_dict()}
     (folder / "report.json").write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
     s = report.speed
     lines = [

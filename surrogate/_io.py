@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from sim._sweep_folder import CONFIG, TABLE, read_config
 from sim.errors import DesignError, read_toml
 from sim.provenance import KINDS, folder_kind
 from sim.simulate import METRICS, diagnostic_names
@@ -136,12 +137,8 @@ def check_point(space: DesignSpace, point: Mapping[str, Any]) -> dict[str, Any]:
     for name in point:
         if name not in space.names:
             raise DesignError(name, "unknown parameter (not in the surrogate's design space)")
-    filled: dict[str, Any] = {}
-    for p in space.parameters:
-        v = point.get(p.name)
-        if _blank(v):  # a fixed parameter or a single choice takes its value
-            v = p.from_unit(0.0) if not p.sampled else "" if p.kind == "choice" else math.nan
-        filled[p.name] = v
+    # a blank cell is a missing value: a fixed parameter or a single choice takes its value
+    filled = space.complete({k: v for k, v in point.items() if not _blank(v)}, mask=False)
     count = filled["layers.count"]
     if _blank(count):
         raise DesignError("layers.count", "missing")
@@ -152,20 +149,11 @@ def check_point(space: DesignSpace, point: Mapping[str, Any]) -> dict[str, Any]:
     for p in space.parameters:
         v = masked[p.name]
         if _blank(v):
-            if _uses(masked, p.name):
+            if space.is_active(p.name, masked):
                 raise DesignError(p.name, "missing (this design uses it)")
         elif p.kind == "float" and (isinstance(v, bool) or not isinstance(v, int | float)):
             raise DesignError(p.name, f"expected a number, got {v!r}")
     return space.check(masked)
-
-
-def _uses(point: dict[str, Any], name: str) -> bool:
-    """Whether the design of ``point`` uses parameter ``name``."""
-    from sim.space import mask_inactive
-
-    return not _blank(
-        mask_inactive({**point, name: "x" if name.endswith("material") else 1.0})[name]
-    )
 
 
 def _blank(v: Any) -> bool:
@@ -241,18 +229,18 @@ def read_sweep(folder: str | Path, trusted_only: bool = True) -> SweepData:
     they are counted in ``excluded``. A table without these columns (a sweep made before they
     were recorded) is used whole, its designs counted in ``unchecked``."""
     folder = Path(folder)
-    config_path, table_path = folder / "config.json", folder / "table.csv"
+    config_path, table_path = folder / CONFIG, folder / TABLE
     if not folder.is_dir():
         raise DesignError("SWEEP", f"no such sweep folder: {folder}")
     kind = folder_kind(folder)
-    if kind not in ("sweep", None) and not (folder / "table.csv").exists():
+    if kind not in ("sweep", None) and not table_path.exists():
         raise DesignError("SWEEP", f"{folder} holds a {KINDS[kind]}, not a {KINDS['sweep']}")
     if not config_path.exists() or not table_path.exists():
         raise DesignError(
             "SWEEP", f"{folder} has no config.json and table.csv; run `fingertip sweep` first"
         )
     try:
-        config = json.loads(config_path.read_text())
+        config = read_config(folder)
         space = space_from_dict(config["space"])
     except (json.JSONDecodeError, KeyError, TypeError) as exc:
         raise DesignError("SWEEP", f"unreadable {config_path}: {exc}") from None

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -10,6 +9,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from sim.provenance import finite_or_none
 from sim.simulate import METRICS
 from sim.space import DesignSpace
 
@@ -80,9 +80,6 @@ class Prediction:
     def to_records(self) -> list[dict[str, Any]]:
         """One JSON-able dict per design (None for a metric the surrogate cannot predict)."""
 
-        def num(x: float) -> float | None:
-            return float(x) if math.isfinite(x) else None
-
         out = []
         for i in range(len(self)):
             out.append(
@@ -90,7 +87,7 @@ class Prediction:
                     "in_domain": bool(self.in_domain[i]),
                     "domain_note": self.reasons[i],
                     **{
-                        key: {m: num(a[i, j]) for j, m in enumerate(self.metric_names)}
+                        key: {m: finite_or_none(a[i, j]) for j, m in enumerate(self.metric_names)}
                         for key, a in (
                             ("mean", self.mean),
                             ("median", self.median if self.median is not None else self.mean),

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from sim.provenance import git_commit
+from sim.provenance import finite_or_none, git_commit
 from sim.simulate import METRICS
 from sim.trust import TRUST_OUTPUTS
 
@@ -293,11 +293,11 @@ def validation_metrics(
     mean = surrogate.normaliser.to_physical(mean_z, std_z)["mean"]
     r2 = {}
     for j, m in enumerate(surrogate.metric_names):
-        r2[m] = _none(r2_score(targets[:, j], mean[:, j]))
+        r2[m] = finite_or_none(r2_score(targets[:, j], mean[:, j]))
     return {
         "n_designs": len(features),
         "member_nll": [float(v) for v in member_nll],
-        "ensemble_nll": _none(float(nll[ok].mean())) if ok.any() else None,
+        "ensemble_nll": finite_or_none(nll[ok].mean()) if ok.any() else None,
         "r2": r2,
     }
 
@@ -312,7 +312,3 @@ def r2_score(y: np.ndarray, pred: np.ndarray) -> float:
     if ss_tot == 0:
         return math.nan
     return 1.0 - float(((y - pred) ** 2).sum()) / ss_tot
-
-
-def _none(x: float) -> float | None:
-    return x if math.isfinite(x) else None

@@ -1,0 +1,292 @@
+"""The search-run folder: every file of ``runs/NAME`` made by ``fingertip optimize`` / ``run``
+that the search writes and the report reads, with its form, written and read here.
+
+- ``config.json`` (:func:`write_config`, :func:`read_config`, :func:`add_study`): the resolved
+  configuration (``explore._pipeline.OptimizeConfig`` and the targets, simulation options,
+  storage URL), and ``studies``: one entry per Optuna study as it starts (``name``,
+  ``search``, ``round``, ``directions``); ``meta.json``: provenance.
+- ``study.db``: the Optuna studies (SQLite; ``optuna-dashboard sqlite:///runs/NAME/study.db``).
+- ``trials.csv`` (:func:`write_trials`, :func:`read_trials`): every finished trial of every
+  round, one row each: ``round``, ``trial``, ``search`` ("continuous" | "buildable" | a
+  family), the design-space parameters (inactive = empty), ``score``, the objectives
+  ``OBJECTIVE_NAMES`` (``explore._objective``), ``pred.<metric>`` / ``std.<metric>``
+  (surrogate point prediction = median, and std), ``in_domain``, ``disagreement`` and
+  ``trusted`` (0/1). The parameter columns are every column outside the others
+  (:func:`parameter_columns`).
+- ``fe/records/<key>.json``: FE records of the confirmed designs (the sweep's record form, with
+  ``curves``; ``explore._confirm``), and ``fe/references/<name>.json``: silicone and
+  polyurethane on the reference geometry (same form) for the plots.
+- ``rounds/round-<r>-candidates.json`` (:func:`write_candidates`, :func:`read_candidates`):
+  the designs round r sent to FE (``Candidate``s; a resumed run reuses them);
+  ``surrogates/round-<r>.safetensors``: the retrained surrogate that round r searched with
+  (round 0: the given checkpoint).
+- ``confirmations.json`` (:func:`write_confirmations`, :func:`read_confirmations`): a list of
+  ``Confirmation.to_json()``.
+- ``rounds/buildable-fe-candidates.json`` and ``buildable_fe.json``: the FE-only screen of
+  catalogue materials the surrogate cannot predict (search "buildable-fe", no prediction;
+  ``explore._buildable``), its candidates and their ``Confirmation.to_json()``; never used to
+  retrain the surrogate.
+- ``summary.json`` (:func:`write_summary`, :func:`read_summary`): ``Summary.to_json()`` and the
+  timing of the invocation that wrote it (``TIMING_KEYS``); ``report.md`` and
+  ``figures/*.png``.
+
+Every file is written atomically (``sim.provenance``), and only when its content changes.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from sim.errors import DesignError
+from sim.provenance import atomic_write, write_if_changed, write_json
+
+from ._objective import OBJECTIVE_NAMES
+from ._types import Candidate, Confirmation, Summary
+
+if TYPE_CHECKING:
+    from ._search import TrialRow
+
+__all__ = [
+    "OBJECTIVE_NAMES",
+    "TIMING_KEYS",
+    "add_study",
+    "parameter_columns",
+    "read_candidates",
+    "read_config",
+    "read_confirmations",
+    "read_json",
+    "read_summary",
+    "read_trials",
+    "trials_header",
+    "write_candidates",
+    "write_config",
+    "write_confirmations",
+    "write_summary",
+    "write_trials",
+]
+
+CONFIG, META, TRIALS, CONFIRMATIONS, SUMMARY = (
+    "config.json",
+    "meta.json",
+    "trials.csv",
+    "confirmations.json",
+    "summary.json",
+)
+
+#: trials.csv: the columns before the parameters, those after them, and the prefixes of the
+#: surrogate's prediction columns (the last columns but ``TRIAL_TRUST``)
+TRIAL_KEYS = ("round", "trial", "search")
+TRIAL_SCORES = ("score", *OBJECTIVE_NAMES)
+TRIAL_PREDICTION_PREFIXES = ("pred.", "std.")
+TRIAL_TRUST = ("in_domain", "disagreement", "trusted")
+_NOT_PARAMETERS = frozenset((*TRIAL_KEYS, *TRIAL_SCORES, *TRIAL_TRUST))
+
+#: summary.json entries that say how long the invocation took (the rest is the answer)
+TIMING_KEYS = ("wall_time_s", "timings", "resumed")
+
+
+def read_json(path: Path) -> Any:
+    """A JSON file of the run folder; a damaged one is one error line naming it."""
+    try:
+        with path.open(encoding="utf-8") as fh:
+            return json.load(fh)
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DesignError(str(path), f"not readable JSON ({exc})") from None
+
+
+# ----------------------------------------------------------------------------- config.json
+def read_config(out: Path) -> dict[str, Any] | None:
+    """The run folder's config.json (None if there is none); unreadable: one error line."""
+    path = out / CONFIG
+    if not path.exists():
+        return None
+    try:
+        cfg = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DesignError("--out", f"{path} is not readable JSON ({exc})") from None
+    if not isinstance(cfg, dict) or not isinstance(cfg.get("studies"), list):
+        raise DesignError("--out", f"{path} is not the configuration of a search run")
+    return cfg
+
+
+def write_config(out: Path, record: dict[str, Any], meta: dict[str, Any]) -> None:
+    """A new run folder's config.json (``record``, no study yet) and meta.json (``meta``)."""
+    out.mkdir(parents=True, exist_ok=True)
+    write_json(out / CONFIG, {**record, "studies": []})
+    write_json(out / META, meta)
+
+
+def add_study(out: Path, name: str, search: str, round_: int, mode: str) -> None:
+    """Record a study in config.json (once)."""
+    path = out / CONFIG
+    cfg = json.loads(path.read_text())
+    if not any(s["name"] == name for s in cfg["studies"]):
+        directions = ["minimize"] * (3 if mode == "multi" else 1)
+        cfg["studies"].append(
+            {"name": name, "search": search, "round": round_, "directions": directions}
+        )
+        write_json(path, cfg)
+
+
+# ----------------------------------------------------------------------------- trials.csv
+def trials_header(names: Sequence[str], metrics: Sequence[str]) -> list[str]:
+    """The columns of trials.csv for the space parameters ``names`` and the surrogate's
+    ``metrics``."""
+    pred, std = TRIAL_PREDICTION_PREFIXES
+    return [
+        *TRIAL_KEYS, *names, *TRIAL_SCORES,
+        *[f"{pred}{m}" for m in metrics], *[f"{std}{m}" for m in metrics],
+        *TRIAL_TRUST,
+    ]  # fmt: skip
+
+
+def parameter_columns(header: Sequence[str]) -> tuple[str, ...]:
+    """The design-space parameter columns of a trials.csv header: every column that is not a
+    trial key, score, objective, prediction or trust column."""
+    return tuple(
+        n
+        for n in header
+        if n not in _NOT_PARAMETERS and not n.startswith(TRIAL_PREDICTION_PREFIXES)
+    )
+
+
+def _cell(v: Any) -> Any:
+    if v is None:
+        return ""
+    v = float(v)
+    return repr(v) if math.isfinite(v) else ""
+
+
+def _trial_cells(r: TrialRow, names: Sequence[str], metrics: Sequence[str]) -> list[Any]:
+    cells: list[Any] = [r.round, r.trial, r.search]
+    for n in names:
+        v = r.point.get(n, "")
+        cells.append("" if isinstance(v, float) and math.isnan(v) else v)
+    cells.append(_cell(r.score))
+    cells += [_cell(v) for v in r.objectives]
+    cells += [_cell(r.predicted.get(m, {}).get("median")) for m in metrics]
+    cells += [_cell(r.predicted.get(m, {}).get("std")) for m in metrics]
+    cells += [int(r.in_domain), _cell(r.disagreement), int(not r.flags)]
+    return cells
+
+
+def write_trials(
+    out: Path,
+    rows: Sequence[TrialRow],
+    names: Sequence[str],
+    metrics: Sequence[str],
+    *,
+    final: bool = True,
+) -> None:
+    """trials.csv: one row per scored trial of every round, rewritten only when its content
+    changes (before the end, ``final`` False, a file that continues these rows is kept)."""
+    fh = io.StringIO(newline="")
+    w = csv.writer(fh)
+    w.writerow(trials_header(names, metrics))
+    for r in rows:
+        w.writerow(_trial_cells(r, names, metrics))
+    text = fh.getvalue()
+    write_if_changed(out / TRIALS, text, None if final else lambda old: old.startswith(text))
+
+
+def _parse_column(cells: list[str]) -> np.ndarray:
+    """Float array if every non-empty cell is a number (empty -> NaN), else str array."""
+    try:
+        return np.array([float(c) if c.strip() else np.nan for c in cells], dtype=float)
+    except ValueError:
+        return np.array(cells, dtype=object)
+
+
+def read_trials(out: Path) -> tuple[dict[str, np.ndarray], tuple[str, ...]]:
+    """trials.csv as columns (header order; numeric ones float arrays, empty cell -> NaN, the
+    others arrays of str) and its parameter columns; ``({}, ())`` without the file."""
+    path = out / TRIALS
+    if not path.is_file():
+        return {}, ()
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        rows = list(reader)
+        header = list(reader.fieldnames or ())
+    columns = {name: _parse_column([r.get(name) or "" for r in rows]) for name in header}
+    return columns, parameter_columns(header)
+
+
+# ----------------------------------------------------------------------------- candidates
+def _candidates_path(out: Path, r: int) -> Path:
+    return out / "rounds" / f"round-{r}-candidates.json"
+
+
+def read_candidates(out: Path, r: int) -> list[Candidate] | None:
+    """The designs round ``r`` sent to FE; None when it has not chosen them yet."""
+    path = _candidates_path(out, r)
+    if not path.exists():
+        return None
+    return [Candidate.from_json(d) for d in json.loads(path.read_text())]
+
+
+def write_candidates(out: Path, r: int, chosen: list[Candidate]) -> None:
+    """Record the designs round ``r`` sends to FE."""
+    path = _candidates_path(out, r)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write(path, json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
+
+
+# ----------------------------------------------------------------------------- confirmations
+def read_confirmations(out: Path) -> tuple[Confirmation, ...]:
+    """confirmations.json (none without the file; a damaged one: one error line)."""
+    path = out / CONFIRMATIONS
+    if not path.is_file():
+        return ()
+    return tuple(Confirmation.from_json(d) for d in read_json(path))
+
+
+def write_confirmations(out: Path, items: list[Confirmation], *, final: bool) -> None:
+    """confirmations.json, rewritten only when its content changes. Before the end of the loop
+    (``final`` False) a file that already continues ``items`` (a resumed run that made later
+    rounds before) is left as it is."""
+    text = json.dumps([c.to_json() for c in items], indent=1, allow_nan=False)
+
+    def continues(old: str) -> bool:
+        try:
+            return json.loads(old)[: len(items)] == json.loads(text)
+        except (ValueError, TypeError):
+            return False
+
+    write_if_changed(out / CONFIRMATIONS, text, None if final else continues)
+
+
+# ----------------------------------------------------------------------------- summary.json
+def read_summary(out: Path) -> dict[str, Any]:
+    """summary.json ({} without the file; a damaged one: one error line)."""
+    path = out / SUMMARY
+    return read_json(path) if path.is_file() else {}
+
+
+def write_summary(
+    out: Path, summary: Summary, wall_time_s: float, timings: dict[str, float], resumed: bool
+) -> None:
+    """summary.json: the answer, and how long the invocation that wrote it took
+    (``wall_time_s``, ``timings``; ``resumed``: it continued a run folder, so the time of the
+    killed invocations before it is not counted). Left as it is when the answer is the one it
+    holds already (a finished run re-run)."""
+    data = summary.to_json()
+    path = out / SUMMARY
+    if path.exists():
+        try:
+            old = json.loads(path.read_text())
+        except (OSError, ValueError):
+            old = None
+        if isinstance(old, dict):
+            answer = {k: v for k, v in old.items() if k not in TIMING_KEYS}
+            if answer == json.loads(json.dumps(data, allow_nan=False)):
+                return
+    data = {**data, "wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
+    write_if_changed(path, json.dumps(data, indent=1, allow_nan=False) + "\n")

@@ -1,0 +1,148 @@
+"""The sweep folder: every file of ``runs/NAME`` made by ``fingertip sweep``, written and read here.
+
+- ``config.json`` (:func:`write_config`, :func:`read_config`): the resolved space, n, seed,
+  sampler, simulation options (``dataclasses.asdict`` form), solver version and the
+  ``--catalogue`` files (path, sha256);
+- ``meta.json`` (:func:`write_meta`): provenance (git commit, package versions, command) of the
+  latest invocation;
+- ``records/<key>.json`` (:class:`SweepStore`): one file per evaluated design, written
+  atomically, keyed by a hash of the design, the options and the solver version
+  (``sim.sweep.record_key``): ``key``, ``params`` (the point, inactive = null), ``status``
+  ("ok" | "failed"), ``reason``, ``metrics``, ``diagnostics``, ``curves``, ``n_dofs``,
+  ``solver_version``, ``wall_time_s``;
+- ``table.csv`` (:meth:`SweepStore.consolidate`, columns :func:`table_header`): parameters +
+  metrics + diagnostics (+ status and reason) of every design, rebuilt from the records at the
+  end of each invocation; ``curves.jsonl``: the curves of the designs that succeeded, one line
+  ``{"index", "key", "curves"}`` per design. ``surrogate.read_sweep`` reads the table.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+from typing import Any
+
+from .protocols import profile_summary
+from .provenance import json_safe, replacing, write_json
+from .simulate import METRICS, diagnostic_names
+
+__all__ = [
+    "CONFIG",
+    "CURVES",
+    "META",
+    "RECORDS",
+    "TABLE",
+    "SweepStore",
+    "read_config",
+    "table_header",
+    "write_config",
+    "write_meta",
+]
+
+CONFIG, META, RECORDS, TABLE, CURVES = (
+    "config.json",
+    "meta.json",
+    "records",
+    "table.csv",
+    "curves.jsonl",
+)
+
+
+def read_config(folder: Path) -> dict[str, Any]:
+    """A sweep folder's ``config.json`` (``OSError`` / ``ValueError`` when absent or not JSON:
+    the caller says which option it came from)."""
+    return json.loads((Path(folder) / CONFIG).read_text())
+
+
+def write_config(folder: Path, config: dict[str, Any]) -> None:
+    """Write ``config.json`` (JSON form: tuples become lists)."""
+    write_json(Path(folder) / CONFIG, json.loads(json.dumps(config)))
+
+
+def write_meta(folder: Path, meta: dict[str, Any]) -> None:
+    """Write ``meta.json`` (``sim.provenance.provenance``)."""
+    write_json(Path(folder) / META, meta)
+
+
+def table_header(names: list[str]) -> list[str]:
+    """The columns of ``table.csv`` for the space parameters ``names``."""
+    return [
+        "index",
+        "key",
+        "status",
+        *names,
+        *METRICS,
+        *diagnostic_names(),
+        "wall_time_s",
+        "reason",
+    ]
+
+
+class SweepStore:
+    """The records of a sweep folder (one JSON file per design), and its table and curves."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = folder
+        self.records_dir = folder / RECORDS
+
+    def load(self) -> dict[str, dict]:
+        """Every readable record, by key."""
+        out = {}
+        if self.records_dir.exists():
+            for path in self.records_dir.glob("*.json"):
+                try:
+                    out[path.stem] = json.loads(path.read_text())
+                except (json.JSONDecodeError, OSError):
+                    continue  # cannot happen with atomic writes; never trust a broken file
+        return out
+
+    def write(self, key: str, record: dict) -> None:
+        """Write the record of design ``key`` atomically (one line of JSON)."""
+        self.records_dir.mkdir(parents=True, exist_ok=True)
+        write_json(self.records_dir / f"{key}.json", {"key": key, **record}, indent=None)
+
+    def consolidate(self, keys: list[str], names: list[str]) -> None:
+        """Rebuild table.csv and curves.jsonl for ``keys`` (the sweep's designs, in order)."""
+        records = self.load()
+        metric_names = list(METRICS)
+        diag_names = diagnostic_names()
+        with (
+            replacing(self.folder / TABLE) as tmp_table,
+            replacing(self.folder / CURVES) as tmp_curves,
+            tmp_table.open("w", newline="") as fh,
+            tmp_curves.open("w") as fc,
+        ):
+            writer = csv.writer(fh)
+            writer.writerow(table_header(names))
+            for i, key in enumerate(keys):
+                rec = records.get(key)
+                if rec is None:
+                    continue
+                params = rec["params"]
+                metrics = dict(rec.get("metrics", {}))
+                if rec["status"] == "ok" and "profile_1s_area_2mm_mm2" not in metrics:
+                    # records from before the profile summary existed: derive it from the curves
+                    metrics.update(json_safe(profile_summary(rec.get("curves", {}))))
+                writer.writerow(
+                    [
+                        i,
+                        key,
+                        rec["status"],
+                        *_cells(params, names),
+                        *_cells(metrics, metric_names),
+                        *_cells(rec.get("diagnostics", {}), diag_names),
+                        f"{rec.get('wall_time_s', 0.0):.3f}",
+                        rec.get("reason", ""),
+                    ]
+                )
+                if rec["status"] == "ok":
+                    fc.write(
+                        json.dumps({"index": i, "key": key, "curves": rec.get("curves", {})}) + "\n"
+                    )
+
+
+def _cells(values: dict[str, Any], names: list[str]) -> list[Any]:
+    """Table cells: "" for a value not recorded (inactive, or a record from before the value
+    existed)."""
+    return ["" if values.get(n) is None else values[n] for n in names]

@@ -1,0 +1,170 @@
+"""One owner per run-folder file and one rule for which parameters a design uses (issue 16,
+items 1 and 2): the atomic write, the JSON-safe conversion, trials.csv written then read, and
+``DesignSpace.is_active`` / ``is_optional`` / ``complete`` against the rules they replace."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from explore._run_folder import (
+    OBJECTIVE_NAMES,
+    parameter_columns,
+    read_trials,
+    trials_header,
+    write_trials,
+)
+from explore._search import TrialRow
+from sim.families import family_uses
+from sim.provenance import atomic_write, json_safe, write_if_changed, write_json
+from sim.space import DEFAULT_SPACE_PATH, LAYER_ROLES, PARAM_MATERIAL_KEYS, active_roles, load_space
+
+SPACES = {"default": DEFAULT_SPACE_PATH, "wide": DEFAULT_SPACE_PATH.parent / "wide_space.toml"}
+
+
+def _points(space, n: int = 200, seed: int = 0) -> list[dict]:
+    rng = np.random.default_rng(seed)
+    return [space.point(rng.random(len(space.sampled))) for _ in range(n)]
+
+
+# ---------------------------------------------------------------------------- writing files
+def test_atomic_write_leaves_no_temporary_file(tmp_path):
+    path = tmp_path / "a.json"
+    atomic_write(path, "one")
+    atomic_write(path, b"two")
+    assert path.read_text() == "two" and [p.name for p in tmp_path.iterdir()] == ["a.json"]
+
+
+def test_write_if_changed_writes_only_a_change(tmp_path):
+    path = tmp_path / "t.csv"
+    assert write_if_changed(path, "a\r\n")
+    assert not write_if_changed(path, "a\r\n")
+    assert not write_if_changed(path, "b", keep=lambda old: old == "a\r\n")
+    assert write_if_changed(path, "b") and path.read_text() == "b"
+
+
+def test_json_safe_is_strict_json():
+    value = {"a": math.nan, "b": [1.0, math.inf, (np.float64(2.5), np.int64(3))], "c": None}
+    out = json_safe(value)
+    assert out == {"a": None, "b": [1.0, None, [2.5, 3]], "c": None}
+    assert type(out["b"][2][1]) is int
+    assert json.loads(json.dumps(out, allow_nan=False)) == out
+
+
+def test_write_json_is_one_line_without_indent(tmp_path):
+    write_json(tmp_path / "r.json", {"k": 1}, indent=None)
+    assert (tmp_path / "r.json").read_text() == '{"k": 1}'
+
+
+# ---------------------------------------------------------------------------- trials.csv
+def test_trials_csv_round_trips_its_parameter_columns(tmp_path):
+    space = load_space()
+    points = _points(space, 12)
+    rows = [
+        TrialRow(
+            round=0, trial=i, search="continuous", point=p, score=0.1 * i,
+            objectives=(0.1, math.inf, 0.3),
+            predicted={"disp_at_1N_mm": {"median": 1.5, "std": 0.1}},
+            in_domain=True, disagreement=0.01, flags=() if i % 2 else ("x",),
+        )
+        for i, p in enumerate(points)
+    ]  # fmt: skip
+    write_trials(tmp_path, rows, space.names, ["disp_at_1N_mm"])
+    columns, params = read_trials(tmp_path)
+    assert params == tuple(space.names)
+    assert list(columns) == trials_header(space.names, ["disp_at_1N_mm"])
+    assert parameter_columns(list(columns)) == params
+    for name in space.names:
+        for value, cell in zip((p[name] for p in points), columns[name], strict=True):
+            if isinstance(value, str):
+                assert cell == value
+            elif isinstance(value, float) and math.isnan(value):
+                assert math.isnan(cell)
+            else:
+                assert cell == pytest.approx(value)
+    assert np.isinf(columns["hysteresis_error"]).sum() == 0  # non-finite: an empty cell
+    assert set(OBJECTIVE_NAMES) <= set(columns)
+
+
+# ---------------------------------------------------------------------------- the one rule
+def _old_used(point: dict, name: str) -> bool:
+    """``explore._search._used`` before the rule was ``DesignSpace.is_active``."""
+    head, _, key = name.partition(".")
+    if head in ("geometry", "layers"):
+        return True
+    count = point.get("layers.count")
+    if count is None:
+        return True
+    if head not in active_roles(count):
+        return False
+    if key == "thickness_mm":
+        return head != "core"
+    if key in PARAM_MATERIAL_KEYS:
+        return family_uses(point.get(f"{head}.material"), key)
+    return True
+
+
+def _old_optional(space, name: str) -> bool:
+    """``surrogate._encoding.is_optional`` before it was ``DesignSpace.is_optional``."""
+    head, key = name.split(".", 1)
+    if head not in LAYER_ROLES:
+        return False
+    count = space["layers.count"]
+    counts = count.choices if count.kind == "choice" else (count.value,)
+    always = all(head in active_roles(c) for c in counts)
+    if key in ("material", "thickness_mm"):
+        return not always
+    m = space[f"{head}.material"]
+    names = m.choices if m.kind == "choice" else (m.value,)
+    return not (always and all(family_uses(x, key) for x in names))
+
+
+def _old_complete(space, params: dict) -> dict:
+    """``explore._search.point_from_params`` before it was ``DesignSpace.complete``."""
+    from sim.space import mask_inactive
+
+    full = {}
+    for p in space.parameters:
+        if p.name in params:
+            full[p.name] = params[p.name]
+        elif not p.sampled:
+            full[p.name] = p.from_unit(0.0)
+        else:
+            full[p.name] = "" if p.kind == "choice" else math.nan
+    return mask_inactive(full)
+
+
+def _same(a: dict, b: dict) -> bool:
+    return list(a) == list(b) and all(
+        (isinstance(a[k], float) and math.isnan(a[k]) and math.isnan(b[k])) or a[k] == b[k]
+        for k in a
+    )
+
+
+@pytest.mark.parametrize("which", sorted(SPACES))
+def test_is_active_agrees_with_the_old_rule(which):
+    space = load_space(SPACES[which])
+    for point in _points(space):
+        for name in space.names:
+            assert space.is_active(name, point) == _old_used(point, name), name
+            blank = point[name] == "" or (
+                isinstance(point[name], float) and math.isnan(point[name])
+            )
+            assert space.is_active(name, point) == (not blank), name  # the masking agrees
+            # a define-by-run prefix: the parameters chosen before ``name``, in space order
+            prefix = {n: point[n] for n in space.names[: space.names.index(name)]}
+            assert space.is_active(name, prefix) == _old_used(prefix, name), name
+
+
+@pytest.mark.parametrize("which", sorted(SPACES))
+def test_is_optional_and_complete_agree_with_the_old_rules(which):
+    space = load_space(SPACES[which])
+    for name in space.names:
+        assert space.is_optional(name) == _old_optional(space, name), name
+    for point in _points(space, 50, seed=1):
+        used = {n: v for n, v in point.items() if space.is_active(n, point) and space[n].sampled}
+        assert _same(space.complete(used), _old_complete(space, used))
+        assert _same(space.complete(used), point)
