@@ -347,25 +347,26 @@ def run_study(
     A resumed study restarts at the last whole batch it holds: the stored trials of a batch cut
     by a kill (Optuna writes trials one by one) are asked again, identical, and not stored
     twice. A resumed search therefore holds exactly the trials of an uninterrupted one.
+
+    With ``settings.screen``, the study's first trials are the best designs of a quasi-random
+    screen (``screen``), and ``settings.trials`` sampled trials follow them (``_seed``; in a
+    shared study the first worker to find it empty seeds it).
     """
     import optuna
 
     multi = settings.mode == "multi"
-    seeds = _seed_trials(surrogate, space, targets, settings, round_, search)
-    total = len(seeds) + settings.trials
-    if shared:
-        if _finished(study) == 0:  # the first worker seeds the study
-            study.add_trials(seeds)
-        target, done, n_stored = study, _finished(study), None
-    else:
-        states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
+    states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
+    stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
+    n_seeds = _seed(study, stored, surrogate, space, targets, settings, round_, search)
+    if n_seeds > sum(_is_seed(t) for t in stored):  # seeds were added: read them back
         stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
-        if len(stored) < len(seeds):  # the seeds are the first trials; a kill may cut them
-            study.add_trials(seeds[len(stored) :])
-            stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
+    total = n_seeds + settings.trials
+    if shared:
+        target, done, n_stored = study, len(stored), None
+    else:
         n_stored = len(stored)
-        sampled = n_stored - len(seeds)
-        done = len(seeds) + min(sampled - sampled % settings.batch, settings.trials)
+        sampled = n_stored - n_seeds
+        done = n_seeds + min(sampled - sampled % settings.batch, settings.trials)
         target = _twin(study, settings, stored[:done])
     pending: list = []
     while done < total:
@@ -426,6 +427,24 @@ def screen(
         keep_points += [points[i] for i in best]
     order = np.argsort(keep_scores, kind="stable")[: settings.screen_keep]
     return [keep_points[i] for i in order if math.isfinite(keep_scores[i])]
+
+
+def _is_seed(trial) -> bool:
+    return trial.user_attrs.get("source") == "screen"
+
+
+def _seed(study, stored, surrogate, space, targets, settings, round_, search) -> int:
+    """Seed ``study`` with the screen's best designs (``_seed_trials``) unless it holds sampled
+    trials already, and return how many seeds it holds. The seeds are its first trials; a kill
+    may have cut them, and the screen is deterministic, so the missing ones are added. A
+    resumed study past its seeds is never screened again (the screen is the costly part)."""
+    n_seeds = sum(_is_seed(t) for t in stored)
+    keep = settings.screen_keep if settings.screen > 0 else 0
+    if n_seeds < len(stored) or n_seeds >= keep:
+        return n_seeds
+    seeds = _seed_trials(surrogate, space, targets, settings, round_, search)
+    study.add_trials(seeds[n_seeds:])
+    return len(seeds)
 
 
 def _seed_trials(

@@ -387,6 +387,12 @@ def _finish(out, progress: bool) -> int:
         )
     for note in summary["notes"]:
         print(f"  {note}")
+    t = summary.get("timings") or {}
+    if t:  # where the time went (this invocation; a resumed run counts its own part only)
+        print(
+            f"time: search {t.get('search_s', 0):.0f} s, FE {t.get('fe_s', 0):.0f} s, "
+            f"retraining {t.get('retrain_s', 0):.0f} s; {summary['wall_time_s']:.0f} s in all"
+        )
     print(f"report: {report}")
     return 0
 

@@ -60,9 +60,9 @@ class NewtonOptions:
     # A step whose residual has not halved over the last `stall_window` iterations (judged from
     # iteration `stall_from` on) is abandoned, and the caller cuts it. On default-space designs
     # about a third of all factorisations went into steps that then failed at `max_iterations`,
-    # creeping down between jumps as surface nodes enter and leave contact. (6, 8) was the best
-    # of (5, 7), (6, 8), (8, 10) on two samples of sweep designs: -26 % factorisations, -37 %
-    # residual evaluations; (4, 6) cost more than it saved (docs/validation.md, "Newton").
+    # creeping down between jumps as surface nodes enter and leave contact. (6, 8) saved 14-27 %
+    # of the factorisations and 29-38 % of the residual evaluations on three samples; (4, 6)
+    # cost more than it saved (docs/validation.md, "Newton"; scripts/newton_study.py).
     stall_window: int = 6
     stall_from: int = 8
     stall_reduction: float = 0.5

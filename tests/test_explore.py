@@ -66,8 +66,9 @@ tau_s = { low = 0.05, high = 1.0, log = true }
 """
 
 
-def _env() -> dict[str, str]:
-    return {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1"}
+def _env(threads: int = 1) -> dict[str, str]:
+    """The environment of a CLI subprocess; ``threads``: torch's (and BLAS') thread count."""
+    return {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": str(threads)}
 
 
 # ----------------------------------------------------------------------------- search space
@@ -305,14 +306,14 @@ def tiny_model(tmp_path_factory) -> Path:
     return root / "model" / "model.safetensors"
 
 
-def _run(args: list[str]) -> subprocess.CompletedProcess:
+def _run(args: list[str], threads: int = 1) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-m", "explore.cli", *args],
         cwd=REPO,
         capture_output=True,
         text=True,
         timeout=900,
-        env=_env(),
+        env=_env(threads),
     )
 
 
@@ -442,12 +443,16 @@ def _without(d: dict, *keys: str) -> dict:
 def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     """kill -9 during round 2's search, after round 1's FE and retraining; the same command
     then ends exactly where an uninterrupted run ends: the same trials, candidates, FE
-    confirmations, retrained surrogate, answer, report and figures."""
+    confirmations, retrained surrogate, answer, report and figures. Determinism too: the
+    uninterrupted run has one FE worker and two torch threads, the killed one two workers and
+    one thread (issue 15, item 4)."""
     from surrogate import load_checkpoint
 
     n = 300
     ref, out = tmp_path / "ref" / "opt", tmp_path / "killed" / "opt"
-    proc = _run(_optimize_args(tiny_model, ref, n))
+    ref_args = _optimize_args(tiny_model, ref, n)
+    ref_args[ref_args.index("--workers") + 1] = "1"
+    proc = _run(ref_args, threads=2)
     assert proc.returncode == 0, proc.stderr
     args = [sys.executable, "-m", "explore.cli", *_optimize_args(tiny_model, out, n)]
     stored = _kill_when(args, out / "study.db", "fingertip-r1-continuous", 128, n)
@@ -464,10 +469,14 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     files = sorted(str(p.relative_to(ref)) for p in ref.rglob("*") if p.is_file())
     assert files == sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     # byte for byte: everything but the files that record when or how long (checked below)
-    timed = ("meta.json", "summary.json", "study.db", "surrogates/", "fe/")
+    timed = ("meta.json", "summary.json", "study.db", "surrogates/", "fe/", "config.json")
     for name in files:
         if not name.startswith(timed):
             same_bytes(name)
+    cfg_a = json.loads((ref / "config.json").read_text())
+    cfg_b = json.loads((out / "config.json").read_text().replace(str(out), str(ref)))
+    assert cfg_a["workers"] == 1 and cfg_b["workers"] == 2  # the one entry that may differ
+    assert _without(cfg_a, "workers") == _without(cfg_b, "workers")
     assert {"trials.csv", "confirmations.json", "report.md", "config.json"} <= set(files)
     assert "rounds/round-1-candidates.json" in files and "figures/importance.png" in files
     timing = ("wall_time_s", "timings", "resumed")
