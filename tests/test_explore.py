@@ -371,6 +371,12 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     study = optuna.load_study(study_name=names[0], storage=cfg["storage"])
     assert len(study.trials) == SearchSettings().screen_keep + 60  # the screen's seeds first
     assert study.trials[0].user_attrs["source"] == "screen"
+    # the README's answer block is made from a run folder by scripts/readme_answer.py
+    block = _readme_answer().render(out)
+    assert f"{len(confs)} designs confirmed with full FE" in block
+    assert block.count("\n| best ") == 4
+    row = next(line for line in block.splitlines() if line.startswith("| best credible |"))
+    assert f"{best['readings']['sag_mm']:.2f}" in row and "outline" in row
     report = (out / "report.md").read_text()
     assert "figures/loops.png" in report or "figures/" in report
     assert (out / "figures").is_dir() and any((out / "figures").glob("*.png"))
@@ -502,6 +508,25 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
         ta, tb = (optuna.load_study(study_name=st["name"], storage=f"sqlite:///{d}/study.db")
                   .trials for d in (ref, out))  # fmt: skip
         assert [(t.params, t.values) for t in ta] == [(t.params, t.values) for t in tb]
+
+
+def _readme_answer():
+    """scripts/readme_answer.py as a module (scripts/ is not a package)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "readme_answer", REPO / "scripts" / "readme_answer.py"
+    )
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_readme_answer_block_has_its_markers():
+    text = (REPO / "README.md").read_text()
+    block = text.split("<!-- answer:start -->\n", 1)[1].split("<!-- answer:end -->", 1)[0]
+    assert "| best credible |" in block and "fingertip run --out" in block
+    assert _readme_answer().replace_block(text, block) == text  # the block round-trips
 
 
 def torch_equal(a, b) -> bool:

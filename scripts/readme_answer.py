@@ -1,0 +1,123 @@
+"""Regenerate the README's answer table from a run folder of the main job.
+
+    python scripts/readme_answer.py runs/main_v22            # print the block
+    python scripts/readme_answer.py runs/main_v22 --write    # and replace it in README.md
+
+The block between ``<!-- answer:start -->`` and ``<!-- answer:end -->`` in README.md is the
+output of :func:`render` on the run folder's ``summary.json`` and ``confirmations.json``: the
+command, the run's time and phases, how many designs FE confirmed and how many were credible,
+and one table row per answer (best credible, best gel, best foam core, best buildable) with
+both displacement readings, the sag, the hysteresis and the errors against the targets. The
+prose around the block (what the numbers mean) stays hand-written: re-read it when the block
+changes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from explore._run_folder import read_summary
+
+README = Path(__file__).resolve().parents[1] / "README.md"
+START, END = "<!-- answer:start -->", "<!-- answer:end -->"
+LABELS = {
+    "best": "best credible",
+    "gel": "best gel",
+    "foam": "best foam core",
+    "buildable": "best buildable",
+}
+
+
+def _layer(material: dict | str) -> str:
+    """A layer's material in words: a catalogue name, or a family member's parameters."""
+    if isinstance(material, str):
+        return material
+    mu = 1000.0 * material["mu_MPa"][0]
+    g = sum(material.get("prony_g", []))
+    taus = ", ".join(f"{1000 * t:.3g}" for t in material.get("prony_tau_s", []))
+    kind = "foam" if material.get("model") == "hyperfoam" else "gel"
+    nu = f", ν {material['nu']:.2f}" if kind == "foam" else ""
+    relax = f", relaxing {100 * g:.0f} % (terms at {taus} ms)" if g > 0 else ", elastic"
+    return f"{kind} μ0 {mu:.3g} kPa, α {material['alpha'][0]:.3g}{nu}{relax}"
+
+
+def describe(design: dict) -> str:
+    """A design in one line: its layers outermost first, then its outline."""
+    layers = design["layers"]
+    words = []
+    for layer in layers:
+        text = _layer(layer["material"])
+        if "thickness_mm" in layer and layer["thickness_mm"] is not None:
+            text = f"{layer['thickness_mm']:.2f} mm {text}"
+        words.append(text)
+    g = design.get("geometry", {})
+    outline = (
+        f"; outline {g['half_width_mm']:.2f} × {g['height_mm']:.2f} mm, exponent "
+        f"{g['exponent']:.2f}"
+        if g
+        else ""
+    )
+    return ("one layer: " if len(layers) == 1 else "") + " over ".join(words) + outline
+
+
+def _percent(e: float) -> str:
+    """A relative error as the README writes it: "−54 %" (a true minus sign), "+3 %"."""
+    return f"{'−' if e < 0 else '+'}{abs(100 * e):.0f} %"
+
+
+def render(folder: Path) -> str:
+    """The README block for the run folder ``folder``."""
+    summary = read_summary(folder)
+    confirmations = json.loads((folder / "confirmations.json").read_text())
+    credible = sum(1 for c in confirmations if c.get("trusted"))
+    t = summary.get("timings") or {}
+    lines = [
+        f"`fingertip run --out {folder.as_posix()}`: {len(summary['rounds'])} rounds, "
+        f"{summary['wall_time_s']:.0f} s (search {t.get('search_s', 0):.0f} s, FE "
+        f"{t.get('fe_s', 0):.0f} s, retraining {t.get('retrain_s', 0):.0f} s); "
+        f"{len(confirmations)} designs confirmed with full FE, {credible} of them trusted.",
+        "",
+        "| answer | design | 1 N / 4 N from touch (mm) | from the top (mm) | sag (mm) | "
+        "hysteresis (N mm) | errors |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for kind, label in LABELS.items():
+        a = summary["answers"].get(kind)
+        if a is None:
+            lines.append(f"| {label} | none credible confirmed by FE | | | | | |")
+            continue
+        r = a["readings"]
+        touch, top = r["from_first_touch"], r["from_undeformed_top"]
+        errors = ", ".join(_percent(e) for e in a["errors_vs_targets"].values())
+        lines.append(
+            f"| {label} | {describe(a['design'])} | {touch['disp_at_1N_mm']:.2f} / "
+            f"{touch['disp_at_4N_mm']:.2f} | {top['disp_at_1N_mm']:.2f} / "
+            f"{top['disp_at_4N_mm']:.2f} | {r['sag_mm']:.2f} | "
+            f"{a['fe_metrics']['hysteresis_Nmm']:.3g} | {errors} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def replace_block(text: str, block: str) -> str:
+    """``text`` with the part between the markers replaced by ``block``."""
+    head, rest = text.split(START, 1)
+    _, tail = rest.split(END, 1)
+    return f"{head}{START}\n{block}{END}{tail}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("run", type=Path, help="a run folder of fingertip run / optimize")
+    ap.add_argument("--write", action="store_true", help="replace the block in README.md")
+    args = ap.parse_args()
+    block = render(args.run)
+    sys.stdout.write(block)
+    if args.write:
+        README.write_text(replace_block(README.read_text(), block))
+
+
+if __name__ == "__main__":
+    main()
