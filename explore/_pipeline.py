@@ -31,6 +31,7 @@ from sim.provenance import (
     nan_if_none,
     provenance,
 )
+from sim.simulate import same_metrics
 from sim.space import load_space, point_to_design
 from sim.sweep import default_workers
 from sim.targets import READINGS, Targets, load_targets
@@ -418,7 +419,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
     out = Path(out)
     s = _setup(config, out)
     trained_on = s.surrogate.header.get("solver_version")
-    if trained_on != SOLVER_VERSION:
+    if not same_metrics(trained_on):
         print(
             f"warning: the surrogate {config.surrogate} was trained on FE results of solver "
             f"{trained_on}, this is solver {SOLVER_VERSION}: its predictions may be off; the "

@@ -40,6 +40,10 @@ __all__ = [
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
 SOLVER_VERSION = "2.2"
+#: Earlier solver versions whose metrics this one reproduces within its tolerances: a surrogate
+#: trained on their FE results is as good as one trained on this version's (2.1 -> 2.2 changed
+#: only when Newton gives up on a step; docs/validation.md, "Newton").
+SAME_METRICS_AS = ("2.1",)
 # 2.2: Newton abandons a stalled step early (NewtonOptions.stall_*), so the step is cut sooner:
 #      same tolerances; metrics within 0.1 % of 2.1 but for hysteresis values below 1e-3 N mm
 #      (numerical noise of nearly elastic designs; docs/validation.md, "Newton")
@@ -226,6 +230,11 @@ DIAGNOSTIC_KEYS = {
 }
 
 
+def same_metrics(version: str | None) -> bool:
+    """Whether FE results of solver ``version`` are those of this solver (``SAME_METRICS_AS``)."""
+    return version == SOLVER_VERSION or version in SAME_METRICS_AS
+
+
 def diagnostic_names(protocols: tuple[str, ...] | list[str] = PROTOCOLS) -> list[str]:
     """The keys of ``SimResult.diagnostics()`` for a run of ``protocols``, in a fixed order (the
     diagnostic columns of a sweep's table.csv)."""
@@ -248,7 +257,21 @@ def simulate(
     protocols: tuple[str, ...] | list[str] = PROTOCOLS,
     options: SimOptions = SimOptions(),
 ) -> SimResult:
-    """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised."""
+    """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised.
+
+    Every BLAS call runs on one thread (``threadpoolctl``): the same design gives the same bits
+    whatever OMP_NUM_THREADS says (a threaded dot product sums in another order)."""
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=1, user_api="blas"):
+        return _simulate(design, protocols, options)
+
+
+def _simulate(
+    design: Design,
+    protocols: tuple[str, ...] | list[str] = PROTOCOLS,
+    options: SimOptions = SimOptions(),
+) -> SimResult:
     from .fe import Discretization  # the FE stack (scikit-fem) only when something is simulated
     from .mesh import build_mesh
 

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from sim.provenance import json_safe, replacing
-from sim.simulate import METRICS, SOLVER_VERSION
+from sim.simulate import METRICS, SOLVER_VERSION, same_metrics
 from sim.space import space_from_dict
 
 from ._encoding import (
@@ -188,7 +188,8 @@ def read_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, 
 def load_checkpoint(path: str | Path, *, allow_solver_mismatch: bool = False):
     """Load a ``Surrogate``. A ``CheckpointError`` (one-line message) for a file that is not a
     checkpoint, another schema version, a tampered file, or a model trained on FE data of
-    another solver version (unless ``allow_solver_mismatch``)."""
+    another solver version (unless ``allow_solver_mismatch``; a version whose metrics this
+    solver reproduces, ``sim.simulate.SAME_METRICS_AS``, is accepted)."""
     import torch
 
     from ._model import MODELS
@@ -196,7 +197,7 @@ def load_checkpoint(path: str | Path, *, allow_solver_mismatch: bool = False):
 
     tensors, header = read_checkpoint(path)
     solver = header.get("solver_version")
-    if solver != SOLVER_VERSION and not allow_solver_mismatch:
+    if not same_metrics(solver) and not allow_solver_mismatch:
         raise CheckpointError(
             path,
             f"trained on FE results of solver version {solver!r}, this solver is "

@@ -561,9 +561,10 @@ def test_a_study_cut_anywhere_resumes_to_the_same_trials(tiny_model, mode):
 
 def test_search_resumes_after_kill(tiny_model, tmp_path):
     """kill -9 during the search; the same command finishes with exactly the asked number of
-    trials, keeping every trial stored before the kill."""
+    trials (the screen's seeds and the sampler's), keeping every trial stored before the kill."""
     out = tmp_path / "opt"
     n = 600
+    total = SearchSettings().screen_keep + n
     args = [sys.executable, "-m", "explore.cli", *_optimize_args(tiny_model, out, n, rounds=1)]
     proc = subprocess.Popen(args, cwd=REPO, env=_env(), stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)  # fmt: skip
@@ -571,18 +572,18 @@ def test_search_resumes_after_kill(tiny_model, tmp_path):
     name = "fingertip-r0-continuous"
     stored = 0
     deadline = time.monotonic() + 300
-    while time.monotonic() < deadline and proc.poll() is None and not 128 <= stored < n:
+    while time.monotonic() < deadline and proc.poll() is None and not 128 <= stored < total:
         time.sleep(0.05)
         stored = _stored_trials(db)  # a cheap read, so the kill lands right after a flush
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     before = optuna.load_study(study_name=name, storage=f"sqlite:///{db}").trials
-    assert 128 <= len(before) < n, f"could not catch the search mid-way ({len(before)} trials)"
+    assert 128 <= len(before) < total, f"could not catch the search mid-way ({len(before)})"
     proc = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=900,
                           env=_env())  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     after = optuna.load_study(study_name=name, storage=f"sqlite:///{db}").trials
-    assert len(after) == n
+    assert len(after) == total
     for old, new in zip(before, after, strict=False):
         assert old.params == new.params and old.values == new.values
     summary = json.loads((out / "summary.json").read_text())
