@@ -24,8 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from sim import SOLVER_VERSION, SimOptions
 from sim.errors import DesignError
+from sim.metrics import SOLVER_VERSION
+from sim.options import SimOptions
 from sim.provenance import (
     check_folder_kind,
     nan_if_none,
@@ -260,7 +261,7 @@ def _sim_options(dataset: Path | None) -> SimOptions:
     """The FE options of the surrogate's training sweep (so FE confirms like with like), else
     the defaults."""
     from sim._sweep_folder import read_config as read_sweep_config
-    from sim.sweep import options_from_dict
+    from sim.options import options_from_dict
 
     if dataset is None:
         return SimOptions()

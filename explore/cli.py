@@ -12,16 +12,9 @@ import math
 import sys
 from collections.abc import Callable
 
-from sim import (
-    METRICS,
-    PROTOCOLS,
-    DesignError,
-    SimOptions,
-    homogeneous_design,
-    load_design,
-    simulate,
-)
-from sim.options import apply_overrides, parse_override
+from sim import DesignError, homogeneous_design, load_design, simulate
+from sim.metrics import METRICS, PROTOCOLS
+from sim.options import SimOptions, apply_overrides, parse_override
 from sim.provenance import check_folder_kind, check_new_folder
 from sim.sweep import default_workers
 

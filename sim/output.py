@@ -9,8 +9,9 @@ from typing import Any
 
 import numpy as np
 
+from .options import SimOptions
 from .provenance import provenance, run_folder, write_json
-from .simulate import SimOptions, SimResult
+from .simulate import SimResult
 from .validity import compressive_log_strain, volume_ratio
 
 __all__ = ["curve_plot_data", "write_result"]

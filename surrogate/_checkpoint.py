@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from sim.metrics import METRICS, SOLVER_VERSION
 from sim.provenance import json_safe, replacing
-from sim.simulate import METRICS, SOLVER_VERSION
 from sim.space import space_from_dict
 
 from ._encoding import (

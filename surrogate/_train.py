@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from sim.metrics import METRICS
 from sim.provenance import finite_or_none, git_commit
-from sim.simulate import METRICS
 from sim.trust import TRUST_OUTPUTS
 
 from ._encoding import Encoder

@@ -22,8 +22,8 @@ from explore.cli import main
 from sim import Geometry, SimOptions, ValidityOptions, homogeneous_design, simulate
 from sim.contact import Plate
 from sim.materials import LAWS, Material
+from sim.metrics import DIAGNOSTIC_KEYS
 from sim.options import apply_overrides
-from sim.simulate import DIAGNOSTIC_KEYS
 from sim.validity import (
     DeformationTracker,
     assess,
