@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from .contact import Plate, Wedge
 from .design import Design
 from .errors import SimulationError
+from .fe import Discretization
 from .metrics import (
     DIAGNOSTIC_KEYS,
     METRICS,
@@ -23,7 +23,7 @@ from .metrics import (
     diagnostic_names,
 )
 from .options import SimOptions
-from .protocols import ProtocolResult, run_plate, run_tapping, run_wedge
+from .protocols import REGISTRY, Protocol, ProtocolResult
 from .provenance import finite_or_none
 from .solver import Body
 from .validity import ValidityOptions, Violation, check
@@ -34,6 +34,7 @@ __all__ = [
     "PROTOCOLS",
     "SETTLE_KEYS",
     "SOLVER_VERSION",
+    "ProtocolFailure",
     "SimOptions",
     "SimResult",
     "diagnostic_names",
@@ -43,6 +44,8 @@ __all__ = [
 
 @dataclass(frozen=True)
 class ProtocolFailure:
+    """A protocol that failed: where (its time, s) and why."""
+
     protocol: str
     time_s: float
     reason: str
@@ -128,25 +131,17 @@ class SimResult:
         }
 
 
-_RUNNERS = {
-    "tapping": (Plate, run_tapping, "tapping"),
-    "plate": (Plate, run_plate, "plate"),
-    "wedge": (Wedge, run_wedge, "wedge"),
-}
-
-
 def simulate(
     design: Design,
     protocols: tuple[str, ...] | list[str] = PROTOCOLS,
     options: SimOptions = SimOptions(),
 ) -> SimResult:
     """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised."""
-    from .fe import Discretization  # the FE stack (scikit-fem) only when something is simulated
     from .mesh import build_mesh
 
     t0 = time.perf_counter()
     for p in protocols:
-        if p not in _RUNNERS:
+        if p not in REGISTRY:
             raise ValueError(f"unknown protocol {p!r}; known: {', '.join(PROTOCOLS)}")
     fmesh = build_mesh(design.geometry, design.thicknesses_mm, options.mesh)
     disc = Discretization(fmesh, design.materials)
@@ -158,38 +153,14 @@ def simulate(
     failures: list[ProtocolFailure] = []
     fields: dict[str, np.ndarray] = {}
     for name in protocols:
-        indenter_cls, runner, _ = _RUNNERS[name]
-        opts = getattr(options, name)
-        indenter = (
-            Wedge(opts.tip_width_mm, opts.half_angle_deg) if indenter_cls is Wedge else Plate()
-        )
-        body = Body(
-            disc,
-            indenter,
-            options.newton,
-            getattr(opts, "penalty_per_mm", None),
-        )
-        try:
-            res: ProtocolResult = runner(body, opts)
-        except SimulationError as exc:
-            failures.append(ProtocolFailure(exc.protocol, exc.time_s, exc.reason))
+        body, outcome = _run(disc, REGISTRY[name], options)
+        if isinstance(outcome, ProtocolFailure):
+            failures.append(outcome)
             figures[name] = {"newton_iterations": body.newton_iterations, "failed": True}
             continue
-        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-            failures.append(ProtocolFailure(name, body.t, f"{type(exc).__name__}: {exc}"))
-            figures[name] = {"newton_iterations": body.newton_iterations, "failed": True}
-            continue
-        metrics.update(res.metrics)
-        curves.update(res.curves)
-        figures[name] = {
-            "newton_iterations": res.newton_iterations,
-            "steps": res.steps,
-            "factorizations": body.factorizations,
-            "evaluations": body.evaluations,
-            "timings_s": dict(body.timings),
-            "wall_time_s": res.wall_time_s,
-            **res.info,
-        }
+        metrics.update(outcome.metrics)
+        curves.update(outcome.curves)
+        figures[name] = _figures(outcome, body)
         fields[name] = body.u.copy()
     return SimResult(
         design=design,
@@ -203,3 +174,35 @@ def simulate(
         fields=fields,
         discretization=disc,
     )
+
+
+def _run(
+    disc: Discretization, protocol: Protocol, options: SimOptions
+) -> tuple[Body, ProtocolResult | ProtocolFailure]:
+    """``protocol`` on a fresh body of ``disc``: the body and its result, or how it failed."""
+    opts = getattr(options, protocol.name)
+    body = Body(
+        disc,
+        protocol.make_indenter(opts),
+        options.newton,
+        getattr(opts, "penalty_per_mm", None),
+    )
+    try:
+        return body, protocol.run(body, opts)
+    except SimulationError as exc:
+        return body, ProtocolFailure(exc.protocol, exc.time_s, exc.reason)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        return body, ProtocolFailure(protocol.name, body.t, f"{type(exc).__name__}: {exc}")
+
+
+def _figures(res: ProtocolResult, body: Body) -> dict[str, Any]:
+    """A completed protocol's solver figures and ``info`` (``SimResult.protocols``)."""
+    return {
+        "newton_iterations": res.newton_iterations,
+        "steps": res.steps,
+        "factorizations": body.factorizations,
+        "evaluations": body.evaluations,
+        "timings_s": dict(body.timings),
+        "wall_time_s": res.wall_time_s,
+        **res.info,
+    }
