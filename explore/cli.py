@@ -64,7 +64,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     options = apply_overrides(SimOptions(), dict(parse_override(s) for s in args.set or []))
     if args.out is not None:
         check_new_folder(args.out)  # fail before computing, not after
-    result = simulate(design, protocols, options)
+    result = simulate(design, protocols, options, keep_fields=args.out is not None)
     if args.out is not None:
         from sim.output import write_result
 

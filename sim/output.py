@@ -83,7 +83,8 @@ def _render(figs: dict[str, dict[str, Any]], folder: Path) -> None:
 def write_vtu(result: SimResult, folder: Path) -> list[Path]:
     """The deformed P2 mesh at the end of each protocol (triangle6 cells) for ParaView, with
     each cell's layer and, over its quadrature points, its largest compressive log strain and
-    smallest J (the quantities ``sim.validity`` limits, in that final state)."""
+    smallest J (the quantities ``sim.validity`` limits, in that final state). Nothing unless
+    the result kept its fields (``simulate(..., keep_fields=True)``)."""
     import meshio
 
     disc = result.discretization

@@ -53,7 +53,8 @@ class ProtocolFailure:
 
 @dataclass(frozen=True)
 class SimResult:
-    """Metrics (None where a protocol failed), curves, per-protocol figures and failures."""
+    """Metrics (None where a protocol failed), curves, per-protocol figures and failures;
+    ``fields`` and ``discretization`` only with ``simulate(..., keep_fields=True)``."""
 
     design: Design
     metrics: dict[str, float | None]
@@ -135,8 +136,14 @@ def simulate(
     design: Design,
     protocols: tuple[str, ...] | list[str] = PROTOCOLS,
     options: SimOptions = SimOptions(),
+    *,
+    keep_fields: bool = False,
 ) -> SimResult:
-    """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised."""
+    """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised.
+
+    ``keep_fields``: keep the discretisation and each completed protocol's final displacements
+    in the result (``discretization``, ``fields``: what ``sim.output.write_vtu`` draws); by
+    default the result holds figures only."""
     from .mesh import build_mesh
 
     t0 = time.perf_counter()
@@ -161,7 +168,8 @@ def simulate(
         metrics.update(outcome.metrics)
         curves.update(outcome.curves)
         figures[name] = _figures(outcome, body)
-        fields[name] = body.u.copy()
+        if keep_fields:
+            fields[name] = body.u.copy()
     return SimResult(
         design=design,
         metrics=metrics,
@@ -172,7 +180,7 @@ def simulate(
         wall_time_s=time.perf_counter() - t0,
         validity_options=options.validity,
         fields=fields,
-        discretization=disc,
+        discretization=disc if keep_fields else None,
     )
 
 
