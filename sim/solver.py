@@ -123,11 +123,7 @@ class Body:
         dof_x = disc.gmap[2 * s]
         dof_y = disc.gmap[2 * s + 1]
         self._sdof = (dof_x, dof_y)
-        pos = lambda r, c: np.where(  # noqa: E731
-            (r >= 0) & (c >= 0),
-            np.searchsorted(disc._ukeys, np.maximum(r, 0) * disc.n_free + np.maximum(c, 0)),
-            -1,
-        )
+        pos = disc.pattern_position
         self._kpos = (pos(dof_x, dof_x), pos(dof_x, dof_y), pos(dof_y, dof_x), pos(dof_y, dof_y))
         # committed state
         self.u = np.zeros((disc.n_nodes, 2))
