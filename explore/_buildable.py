@@ -31,9 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from sim import METRICS, SimOptions
 from sim.families import is_family
 from sim.materials import CATALOGUE, Material, material_tables
+from sim.metrics import METRICS
+from sim.options import SimOptions
 from sim.provenance import atomic_write, write_if_changed
 from sim.space import LAYER_ROLES, DesignSpace, Parameter, active_roles, mask_inactive
 from sim.targets import Targets

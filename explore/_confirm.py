@@ -17,9 +17,10 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any
 
-from sim import METRICS, SimOptions
 from sim.geometry import REFERENCE_GEOMETRY
 from sim.materials import Material
+from sim.metrics import METRICS
+from sim.options import SimOptions
 from sim.provenance import write_json
 from sim.space import with_every_layer
 from sim.sweep import evaluate_point, record_key

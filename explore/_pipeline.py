@@ -24,14 +24,14 @@ from typing import Any
 
 import numpy as np
 
-from sim import SOLVER_VERSION, SimOptions
 from sim.errors import DesignError
+from sim.metrics import SOLVER_VERSION, same_metrics
+from sim.options import SimOptions
 from sim.provenance import (
     check_folder_kind,
     nan_if_none,
     provenance,
 )
-from sim.simulate import same_metrics
 from sim.space import load_space, point_to_design
 from sim.sweep import default_workers
 from sim.targets import READINGS, Targets, load_targets
@@ -261,7 +261,7 @@ def _sim_options(dataset: Path | None) -> SimOptions:
     """The FE options of the surrogate's training sweep (so FE confirms like with like), else
     the defaults."""
     from sim._sweep_folder import read_config as read_sweep_config
-    from sim.sweep import options_from_dict
+    from sim.options import options_from_dict
 
     if dataset is None:
         return SimOptions()

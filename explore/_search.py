@@ -229,7 +229,7 @@ def _scores(pred, targets: Targets, options=None, allow_untrusted: bool = False)
     closeness of the median prediction, plus the credibility penalty unless
     ``allow_untrusted`` (``explore._objective.infeasibility``, judged with the validity limits
     and tapping tolerances of ``options``, a ``SimOptions``, default the defaults)."""
-    from sim import SimOptions
+    from sim.options import SimOptions
 
     options = SimOptions() if options is None else options
     names = list(pred.metric_names)

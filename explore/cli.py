@@ -12,16 +12,9 @@ import math
 import sys
 from collections.abc import Callable
 
-from sim import (
-    METRICS,
-    PROTOCOLS,
-    DesignError,
-    SimOptions,
-    homogeneous_design,
-    load_design,
-    simulate,
-)
-from sim.options import apply_overrides, parse_override
+from sim import DesignError, homogeneous_design, load_design, simulate
+from sim.metrics import METRICS, PROTOCOLS
+from sim.options import SimOptions, apply_overrides, parse_override
 from sim.provenance import check_folder_kind, check_new_folder
 from sim.sweep import default_workers
 
@@ -71,7 +64,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     options = apply_overrides(SimOptions(), dict(parse_override(s) for s in args.set or []))
     if args.out is not None:
         check_new_folder(args.out)  # fail before computing, not after
-    result = simulate(design, protocols, options)
+    result = simulate(design, protocols, options, keep_fields=args.out is not None)
     if args.out is not None:
         from sim.output import write_result
 

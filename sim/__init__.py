@@ -9,8 +9,10 @@ from .design import Design, Layer, design_from_dict, homogeneous_design, load_de
 from .errors import DesignError, SimulationError
 from .geometry import REFERENCE_GEOMETRY, Geometry
 from .mesh import DEFAULT_MESH, MeshOptions
+from .metrics import METRICS, PROTOCOLS, SOLVER_VERSION
+from .options import SimOptions
 from .protocols import PlateOptions, TappingOptions, WedgeOptions
-from .simulate import METRICS, PROTOCOLS, SOLVER_VERSION, SimOptions, SimResult, simulate
+from .simulate import SimResult, simulate
 from .validity import ValidityOptions
 
 __all__ = [

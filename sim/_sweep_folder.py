@@ -23,9 +23,9 @@ import json
 from pathlib import Path
 from typing import Any
 
+from .metrics import METRICS, diagnostic_names
 from .protocols import profile_summary
 from .provenance import json_safe, replacing, write_json
-from .simulate import METRICS, diagnostic_names
 
 __all__ = [
     "CONFIG",

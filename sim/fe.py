@@ -196,6 +196,14 @@ class Discretization:
         nodes.sort()
         return np.array([n for _, n in nodes], dtype=np.int64)
 
+    def pattern_position(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Where each free-dof pair (``rows[i]``, ``cols[i]``) sits in the tangent's data array
+        (the sparsity pattern); -1 where either is a fixed dof (numbered -1 in ``gmap``). The
+        pairs must be in the pattern (contact couples the two dofs of a surface node: they are)."""
+        rows, cols = np.asarray(rows), np.asarray(cols)
+        keys = np.maximum(rows, 0) * self.n_free + np.maximum(cols, 0)
+        return np.where((rows >= 0) & (cols >= 0), np.searchsorted(self._ukeys, keys), -1)
+
     def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
         """The free-dof tangent as a CSC matrix (the pattern is symmetric, so CSR = CSC^T)."""
         import scipy.sparse as sp

@@ -1,16 +1,72 @@
-"""Override simulation options by dotted names, e.g. ``tapping.peak_force_N=4``."""
+"""The simulation's options (``SimOptions``): their sections, their dict form and overrides by
+dotted names, e.g. ``tapping.peak_force_N=4``."""
 
 from __future__ import annotations
 
 import dataclasses
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 from typing import Any
 
 from .errors import DesignError
-from .simulate import SimOptions
+from .mesh import DEFAULT_MESH, MeshOptions
+from .protocols import PlateOptions, TappingOptions, WedgeOptions
+from .solver import NewtonOptions
+from .validity import ValidityOptions
 
-__all__ = ["apply_overrides", "option_names", "parse_override"]
+__all__ = [
+    "SimOptions",
+    "apply_overrides",
+    "option_names",
+    "options_from_dict",
+    "parse_override",
+]
+
+
+@dataclass(frozen=True)
+class SimOptions:
+    """Numerical and protocol options; the defaults are the converged reference settings."""
+
+    mesh: MeshOptions = DEFAULT_MESH
+    newton: NewtonOptions = NewtonOptions()
+    tapping: TappingOptions = TappingOptions()
+    plate: PlateOptions = PlateOptions()
+    wedge: WedgeOptions = WedgeOptions()
+    validity: ValidityOptions = ValidityOptions()
+
+    def with_steps_scaled(self, factor: float) -> SimOptions:
+        """Every step count multiplied by ``factor`` (time-step convergence studies)."""
+        tap, plate, wedge = self.tapping, self.plate, self.wedge
+        return dataclasses.replace(
+            self,
+            tapping=tap.with_steps_scaled(factor),
+            plate=dataclasses.replace(plate, steps=max(2, round(plate.steps * factor))),
+            wedge=dataclasses.replace(
+                wedge,
+                ramp_steps=max(2, round(wedge.ramp_steps * factor)),
+                hold_steps=max(4, round(wedge.hold_steps * factor)),
+            ),
+        )
+
+    def with_mesh_refined(self, factor: float) -> SimOptions:
+        """Every element size divided by ``factor`` (mesh convergence studies)."""
+        return dataclasses.replace(self, mesh=self.mesh.refined(factor))
+
+
+def options_from_dict(d: dict[str, Any]) -> SimOptions:
+    """SimOptions from their ``dataclasses.asdict`` form (as a sweep's config.json holds).
+
+    A section missing from ``d`` (a config written before the section existed, e.g. the shipped
+    sweep's before ``validity``) keeps its defaults."""
+    base = SimOptions()
+    return dataclasses.replace(
+        base,
+        **{
+            f.name: dataclasses.replace(getattr(base, f.name), **d.get(f.name, {}))
+            for f in dataclasses.fields(base)
+        },
+    )
 
 
 def option_names(options: SimOptions | None = None) -> list[str]:

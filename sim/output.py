@@ -9,8 +9,9 @@ from typing import Any
 
 import numpy as np
 
+from .options import SimOptions
 from .provenance import provenance, run_folder, write_json
-from .simulate import SimOptions, SimResult
+from .simulate import SimResult
 from .validity import compressive_log_strain, volume_ratio
 
 __all__ = ["curve_plot_data", "write_result"]
@@ -82,7 +83,8 @@ def _render(figs: dict[str, dict[str, Any]], folder: Path) -> None:
 def write_vtu(result: SimResult, folder: Path) -> list[Path]:
     """The deformed P2 mesh at the end of each protocol (triangle6 cells) for ParaView, with
     each cell's layer and, over its quadrature points, its largest compressive log strain and
-    smallest J (the quantities ``sim.validity`` limits, in that final state)."""
+    smallest J (the quantities ``sim.validity`` limits, in that final state). Nothing unless
+    the result kept its fields (``simulate(..., keep_fields=True)``)."""
     import meshio
 
     disc = result.discretization

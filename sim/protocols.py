@@ -18,6 +18,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -27,7 +28,9 @@ from .solver import Body, Control
 from .validity import DeformationTracker
 
 __all__ = [
+    "REGISTRY",
     "PlateOptions",
+    "Protocol",
     "ProtocolResult",
     "TappingOptions",
     "WedgeOptions",
@@ -225,6 +228,61 @@ def _result(protocol, body, t0, it0, steps, metrics, curves, info=None) -> Proto
     )
 
 
+class _Recorder:
+    """What every protocol records at each committed step (``_march``'s ``on_step``).
+
+    The curve: the time from the curve's start, the indenter's displacement from ``top`` and the
+    force in N (``force_N`` converts the half model's force per unit thickness); over the whole
+    run: the deepest indenter penetration, the most surface nodes resting on the base and the
+    deformation (``DeformationTracker``, whose peak state the protocol marks). ``new_curve``
+    starts another curve (each tap), keeping the rest."""
+
+    def __init__(self, body: Body, top: float, force_N: Callable[[float], float]) -> None:
+        self.body = body
+        self.top = top
+        self.force_N = force_N
+        self.max_penetration = 0.0
+        self.max_base_nodes = 0
+        self.tracker = DeformationTracker(body.disc)
+        self.new_curve()
+
+    def new_curve(self, disp0: float = 0.0) -> None:
+        """Start a curve at the current time, at displacement ``disp0`` and no force."""
+        self.t_start = self.body.t
+        self.t, self.disp, self.force = [0.0], [disp0], [0.0]
+        self.peak_force = -np.inf
+        self.peak_H = [s.H for s in self.body.states]
+
+    def record(self, t: float, peak: bool = False) -> None:
+        """The step just committed at ``t``; ``peak``: it is the state of the peak load."""
+        body = self.body
+        self.t.append(t - self.t_start)
+        self.disp.append(self.top - body.indenter_position)
+        self.force.append(self.force_N(body.force))
+        self.max_penetration = max(self.max_penetration, body.max_penetration())
+        self.max_base_nodes = max(self.max_base_nodes, body.base_contact_nodes())
+        self.tracker.observe(body)
+        if peak:
+            self.tracker.observe_peak(body)
+
+    def record_peak_force(self, t: float) -> None:
+        """``record``, the peak being the step of the curve's largest force so far (its Prony
+        history kept as ``peak_H``; committed states are new arrays: no copy needed)."""
+        body = self.body
+        peak = body.force > self.peak_force
+        if peak:
+            self.peak_force, self.peak_H = body.force, [s.H for s in body.states]
+        self.record(t, peak)
+
+    def info(self) -> dict[str, Any]:
+        """The figures over the whole run for ``ProtocolResult.info``."""
+        return {
+            "max_penetration_mm": self.max_penetration,
+            "max_base_contact_nodes": self.max_base_nodes,
+            "validity": self.tracker.summary(),
+        }
+
+
 # ---------------------------------------------------------------------------- tapping
 def _tap_times(t_load: float, n: int) -> np.ndarray:
     """Times in [0, t_load] for a half-sine tap, dense where the displacement changes fast.
@@ -333,6 +391,52 @@ def _cannot_settle(residuals: list[float], opts: TappingOptions) -> bool:
     return bool(k + needed > opts.max_taps)
 
 
+class _Taps:
+    """One tap after another on ``body``: the tap's schedule, the Newton starting points from
+    the previous tap (``_Replay``), the record and the count of steps, shared by all taps."""
+
+    def __init__(self, body: Body, opts: TappingOptions) -> None:
+        self.body = body
+        self.opts = opts
+        self.top0 = body.top_height()
+        self.t_load = 0.5 / opts.frequency_Hz
+        self.omega = np.pi / self.t_load
+        self.scale = scale = 1.0 / (2.0 * opts.length_mm)  # N -> N/mm on the half model
+        self.s_rest = self.t_load + _rest_times(opts, _shortest_relaxation_time(body))
+        self.steps = 0
+        self.replay_load, self.replay_rest = _Replay(), _Replay()
+        self.recorder = _Recorder(body, self.top0, lambda f: f / scale)
+
+    def tap(self, n_loaded: int) -> tuple[np.ndarray, dict, list[np.ndarray]]:
+        """One tap (contact then rest) from the current state: its metrics (``TAP_METRICS``),
+        its record and the Prony state at its peak force."""
+        body, opts, t_load, rec = self.body, self.opts, self.t_load, self.recorder
+        omega, scale = self.omega, self.scale
+        s_load = _tap_times(t_load, n_loaded)[1:]
+        s_load[-1] = t_load * (1.0 - 1e-4)  # stop just short of zero force; the plate lifts
+        t_start = body.t
+        touch = self.top0 - body.top_height()
+        rec.new_curve(touch)
+
+        def force_at(t: float) -> Control:
+            return Control.force(opts.peak_force_N * np.sin(omega * (t - t_start)) * scale)
+
+        self.replay_load.start(body, n_loaded)
+        on_step, replay = rec.record_peak_force, self.replay_load
+        self.steps += _march(body, t_start + s_load, force_at, "tapping", on_step, replay=replay)
+        rec.t.append(t_load)
+        rec.disp.append(rec.disp[-1])
+        rec.force.append(0.0)
+        body.indenter_position = np.inf
+        self.replay_rest.start(body)
+        free = lambda t: Control.free()  # noqa: E731
+        self.steps += _march(body, t_start + self.s_rest, free, "tapping", replay=self.replay_rest)
+        d1, d4, hyst = _tap_metrics(rec.t, rec.disp, rec.force, t_load, opts.peak_force_N, omega)
+        metrics = np.array([d1, d4, d1 - touch, d4 - touch, hyst])
+        record = {"t": rec.t, "disp": rec.disp, "force": rec.force, "touch": touch}
+        return metrics, record, rec.peak_H
+
+
 def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> ProtocolResult:
     """Tap until the periodic (quasi-steady) state; the metrics are those of the last tap.
 
@@ -349,68 +453,20 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
     t0, it0 = time.perf_counter(), body.newton_iterations
     if not isinstance(body.indenter, Plate):
         raise ValueError("tapping needs a Plate indenter")
-    top0 = body.top_height()
-    t_load = 0.5 / opts.frequency_Hz
-    omega = np.pi / t_load
-    period = t_load + opts.rest_s
-    scale = 1.0 / (2.0 * opts.length_mm)  # N -> N/mm on the half model
-    s_rest = t_load + _rest_times(opts, _shortest_relaxation_time(body))
-    pen = [0.0]
-    base = [0]
-    steps = [0]
-    replay_load, replay_rest = _Replay(), _Replay()
-    tracker = DeformationTracker(body.disc)
-
-    def tap(n_loaded: int) -> tuple[np.ndarray, dict, list[np.ndarray]]:
-        """One tap (contact then rest) from the current state: its metrics (``TAP_METRICS``),
-        its record and the Prony state at its peak force."""
-        s_load = _tap_times(t_load, n_loaded)[1:]
-        s_load[-1] = t_load * (1.0 - 1e-4)  # stop just short of zero force; the plate lifts
-        t_start = body.t
-        touch = top0 - body.top_height()
-        rec_t, rec_d, rec_f = [0.0], [touch], [0.0]
-        peak = {"force": -np.inf, "H": [s.H for s in body.states]}
-
-        def record(t: float) -> None:
-            rec_t.append(t - t_start)
-            rec_d.append(top0 - body.indenter_position)
-            rec_f.append(body.force / scale)
-            pen[0] = max(pen[0], body.max_penetration())
-            base[0] = max(base[0], body.base_contact_nodes())
-            tracker.observe(body)
-            if body.force > peak["force"]:  # committed states are new arrays: no copy needed
-                peak["force"], peak["H"] = body.force, [s.H for s in body.states]
-                tracker.observe_peak(body)  # the last tap's peak is the one reported
-
-        def force_at(t: float) -> Control:
-            return Control.force(opts.peak_force_N * np.sin(omega * (t - t_start)) * scale)
-
-        replay_load.start(body, n_loaded)
-        steps[0] += _march(body, t_start + s_load, force_at, "tapping", record, replay=replay_load)
-        rec_t.append(t_load)
-        rec_d.append(rec_d[-1])
-        rec_f.append(0.0)
-        body.indenter_position = np.inf
-        replay_rest.start(body)
-        free = lambda t: Control.free()  # noqa: E731
-        steps[0] += _march(body, t_start + s_rest, free, "tapping", replay=replay_rest)
-        d1, d4, hyst = _tap_metrics(rec_t, rec_d, rec_f, t_load, opts.peak_force_N, omega)
-        metrics = np.array([d1, d4, d1 - touch, d4 - touch, hyst])
-        return metrics, {"t": rec_t, "disp": rec_d, "force": rec_f, "touch": touch}, peak["H"]
-
+    taps = _Taps(body, opts)
     history: list[np.ndarray] = []
     if all(m.is_elastic for m in body.disc.materials):
-        metrics_k, last, _ = tap(opts.steps_loaded)
+        metrics_k, last, _ = taps.tap(opts.steps_loaded)
         history.append(metrics_k)
         settled, residual, rel_error = True, 0.0, np.zeros(len(TAP_METRICS))
         residuals, accelerated, stalled = [0.0], {}, False
     else:
-        periodic = PeriodicState(body, period)
+        periodic = PeriodicState(body, taps.t_load + opts.rest_s)
         settled = stalled = False
         residuals = []
         for k in range(opts.max_taps):
             H_start = [s.H for s in body.states]
-            metrics_k, last, H_peak = tap(opts.steps_settle)
+            metrics_k, last, H_peak = taps.tap(opts.steps_settle)
             history.append(metrics_k)
             status = periodic.after_tap(H_start, H_peak, metrics_k)
             residuals.append(status.residual)
@@ -427,7 +483,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
         residual, rel_error = status.residual, status.relative_error(metrics_k)
         accelerated = dict(periodic.used)
         if opts.steps_settle != opts.steps_loaded:  # a finer tap for the metrics
-            metrics_k, last, _ = tap(opts.steps_loaded)
+            metrics_k, last, _ = taps.tap(opts.steps_loaded)
             history.append(metrics_k)
     metrics = {name: float(v) for name, v in zip(TAP_METRICS, history[-1], strict=True)}
     metrics["sag_mm"] = float(last["touch"])
@@ -447,16 +503,14 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
         "estimated_error": errors,  # relative, per metric; null where a metric was not reached
         "max_estimated_error": float(max(finite, default=float("inf"))),
         "touch_mm": last["touch"],
-        "rest_steps": len(s_rest),
+        "rest_steps": len(taps.s_rest),
         "history": [[_json_float(v) for v in h] for h in history],
         "residual_history": [_json_float(r) for r in residuals],
         "accelerated": accelerated,
         "stalled": stalled,  # stopped early: the periodic state was out of reach (unsettled)
-        "max_penetration_mm": pen[0],
-        "max_base_contact_nodes": base[0],
-        "validity": tracker.summary(),
+        **taps.recorder.info(),
     }
-    return _result("tapping", body, t0, it0, steps[0], metrics, curves, info)
+    return _result("tapping", body, t0, it0, taps.steps, metrics, curves, info)
 
 
 def _json_float(v: float) -> float | None:
@@ -472,36 +526,24 @@ def run_plate(body: Body, opts: PlateOptions = PlateOptions()) -> ProtocolResult
     times = body.t + duration * np.arange(1, opts.steps + 1) / opts.steps
     t_start = body.t
     scale = 2.0 * opts.length_mm
-    rec_d, rec_f = [0.0], [0.0]
 
     def position(t: float) -> Control:
         return Control.position(top - opts.speed_mm_per_s * (t - t_start))
 
-    pen = [0.0]
-    base = [0]
-    tracker = DeformationTracker(body.disc)
+    rec = _Recorder(body, top, lambda f: f * scale)
+    last = times[-1] - 1e-9 * max(1.0, abs(times[-1]))
 
     def record(t: float) -> None:
-        rec_d.append(top - body.indenter_position)
-        rec_f.append(body.force * scale)
-        pen[0] = max(pen[0], body.max_penetration())
-        base[0] = max(base[0], body.base_contact_nodes())
-        tracker.observe(body)
-        if t >= times[-1] - 1e-9 * max(1.0, abs(times[-1])):  # the last step: the peak load
-            tracker.observe_peak(body)
+        rec.record(t, peak=t >= last)  # the last step: the peak load
 
     steps = _march(body, times, position, "plate", record)
+    rec_d, rec_f = rec.disp, rec.force
     reached = rec_d[-1] >= 1.0 - 1e-9  # the metric is defined only if the plate gets to 1 mm
     metrics = {
         "plate_force_at_1mm_N": float(np.interp(1.0, rec_d, rec_f)) if reached else float("nan")
     }
     curves = {"plate": {"displacement_mm": rec_d, "force_N": rec_f}}
-    info = {
-        "max_penetration_mm": pen[0],
-        "max_base_contact_nodes": base[0],
-        "validity": tracker.summary(),
-    }
-    return _result("plate", body, t0, it0, steps, metrics, curves, info)
+    return _result("plate", body, t0, it0, steps, metrics, curves, rec.info())
 
 
 # ---------------------------------------------------------------------------- wedge
@@ -562,7 +604,6 @@ def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult
     geo = np.geomspace(0.01 * opts.ramp_s, opts.hold_s, opts.hold_steps)
     hold = np.unique(np.concatenate([opts.ramp_s + geo, [t_prof, opts.ramp_s + opts.hold_s]]))
     hold = t_start + hold[hold > opts.ramp_s]
-    rec_t, rec_f = [0.0], [0.0]
     profiles: dict[str, dict] = {}
     snapshots = [("profile_1s", opts.ramp_s)] + (
         [("profile_100s", 100.0)] if t_prof == 100.0 else []
@@ -572,18 +613,10 @@ def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult
         frac = min(1.0, (t - t_start) / opts.ramp_s)
         return Control.position(top - opts.depth_mm * frac)
 
-    pen = [0.0]
-    base = [0]
-    tracker = DeformationTracker(body.disc)
+    rec = _Recorder(body, top, lambda f: f * scale)
 
     def record(t: float) -> None:
-        rec_t.append(t - t_start)
-        rec_f.append(body.force * scale)
-        pen[0] = max(pen[0], body.max_penetration())
-        base[0] = max(base[0], body.base_contact_nodes())
-        tracker.observe(body)
-        if abs(t - t_start - opts.ramp_s) < 1e-9:  # the end of the ramp: the deepest indentation
-            tracker.observe_peak(body)
+        rec.record(t, peak=abs(t - t_start - opts.ramp_s) < 1e-9)  # the deepest indentation
         for label, when in snapshots:
             if abs(t - t_start - when) < 1e-9:
                 profiles[label] = surface_profile(
@@ -592,6 +625,7 @@ def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult
 
     steps = _march(body, ramp, position, "wedge", record)
     steps += _march(body, hold, position, "wedge", record)
+    rec_t, rec_f = rec.t, rec.force
     rec_t_arr = np.array(rec_t)
     metrics = {
         "wedge_peak_force_N": float(np.max(rec_f)),
@@ -601,9 +635,33 @@ def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult
     }
     curves = {"wedge": {"time_s": rec_t, "force_N": rec_f}, **profiles}
     metrics.update(profile_summary(curves))
-    info = {
-        "max_penetration_mm": pen[0],
-        "max_base_contact_nodes": base[0],
-        "validity": tracker.summary(),
-    }
-    return _result("wedge", body, t0, it0, steps, metrics, curves, info)
+    return _result("wedge", body, t0, it0, steps, metrics, curves, rec.info())
+
+
+# ---------------------------------------------------------------------------- registry
+@dataclass(frozen=True)
+class Protocol:
+    """One protocol: its indenter, made from the protocol's options, and its runner."""
+
+    name: str
+    make_indenter: Callable[[Any], Plate | Wedge]
+    run: Callable[[Body, Any], ProtocolResult]
+
+
+def _plate(opts: TappingOptions | PlateOptions) -> Plate:
+    return Plate()
+
+
+def _wedge(opts: WedgeOptions) -> Wedge:
+    return Wedge(opts.tip_width_mm, opts.half_angle_deg)
+
+
+#: Protocol name -> its registry entry (the names and order of ``sim.metrics.PROTOCOLS``).
+REGISTRY: dict[str, Protocol] = {
+    p.name: p
+    for p in (
+        Protocol("tapping", _plate, run_tapping),
+        Protocol("plate", _plate, run_plate),
+        Protocol("wedge", _wedge, run_wedge),
+    )
+}

@@ -25,6 +25,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from .metrics import SOLVER_VERSION
+
 __all__ = [
     "KINDS",
     "atomic_write",
@@ -89,8 +91,6 @@ def provenance(
 ) -> dict[str, Any]:
     """What a run folder's ``meta.json`` records; ``kind`` (``KINDS``) says which command made
     the folder, so that the others refuse it."""
-    from .simulate import SOLVER_VERSION
-
     return {
         **({"kind": kind} if kind is not None else {}),
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),

@@ -1,136 +1,55 @@
-"""One full design evaluation: mesh, discretise, run the protocols, collect metrics and curves."""
+"""One full design evaluation: mesh, discretise, run the protocols, collect metrics and curves.
+
+The metric registry lives in ``sim.metrics`` and the options in ``sim.options``; both are
+re-exported here for the imports that name ``sim.simulate``."""
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from .contact import Plate, Wedge
 from .design import Design
 from .errors import SimulationError
-from .mesh import DEFAULT_MESH, MeshOptions
-from .protocols import (
-    PlateOptions,
-    ProtocolResult,
-    TappingOptions,
-    WedgeOptions,
-    run_plate,
-    run_tapping,
-    run_wedge,
+from .fe import Discretization
+from .metrics import (
+    DIAGNOSTIC_KEYS,
+    METRICS,
+    PROTOCOLS,
+    SAME_METRICS_AS,
+    SETTLE_KEYS,
+    SOLVER_VERSION,
+    diagnostic_names,
+    same_metrics,
 )
+from .options import SimOptions
+from .protocols import REGISTRY, Protocol, ProtocolResult
 from .provenance import finite_or_none
-from .solver import Body, NewtonOptions
+from .solver import Body
 from .validity import ValidityOptions, Violation, check
 
 __all__ = [
     "DIAGNOSTIC_KEYS",
     "METRICS",
     "PROTOCOLS",
+    "SAME_METRICS_AS",
     "SETTLE_KEYS",
     "SOLVER_VERSION",
+    "ProtocolFailure",
     "SimOptions",
     "SimResult",
     "diagnostic_names",
+    "same_metrics",
     "simulate",
 ]
-
-#: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
-SOLVER_VERSION = "2.2"
-#: Earlier solver versions whose metrics this one reproduces within its tolerances: a surrogate
-#: trained on their FE results is as good as one trained on this version's (2.1 -> 2.2 changed
-#: only when Newton gives up on a step; docs/validation.md, "Newton").
-SAME_METRICS_AS = ("2.1",)
-# 2.2: Newton abandons a stalled step early (NewtonOptions.stall_*), so the step is cut sooner:
-#      same tolerances; metrics within 0.1 % of 2.1 but for hysteresis values below 1e-3 N mm
-#      (numerical noise of nearly elastic designs; docs/validation.md, "Newton")
-# 2.1: sag_mm metric (the displacement at the start of the measured tap); catalogue silicones at
-#      nu = 0.499 (was 0.49); material families gel/foam (sim.families)
-# 2.0: tapping to the periodic state on a residual (sim.periodic), rest steps from the shortest
-#      relaxation time, 48 loaded steps, Newton started from the previous tap's increment,
-#      separate shear/bulk relaxation, validity and settling recorded
-# 1.3: profile summary = area to 2 mm (was half-width)
-
-PROTOCOLS = ("tapping", "plate", "wedge")
-
-#: Metric name -> (protocol, unit, description).
-METRICS: dict[str, tuple[str, str, str]] = {
-    "disp_at_1N_mm": (
-        "tapping",
-        "mm",
-        "loading-branch displacement at 1 N from the undeformed top",
-    ),
-    "disp_at_4N_mm": (
-        "tapping",
-        "mm",
-        "loading-branch displacement at 4 N from the undeformed top",
-    ),
-    "disp_at_1N_from_touch_mm": (
-        "tapping",
-        "mm",
-        "displacement at 1 N from first touch of the tap",
-    ),
-    "disp_at_4N_from_touch_mm": (
-        "tapping",
-        "mm",
-        "displacement at 4 N from first touch of the tap",
-    ),
-    "hysteresis_Nmm": ("tapping", "N mm", "area of the last tap's force-displacement loop"),
-    "sag_mm": (
-        "tapping",
-        "mm",
-        "displacement at the start (first touch) of the measured tap from the undeformed top: "
-        "what the earlier taps left unrecovered",
-    ),
-    "plate_force_at_1mm_N": ("plate", "N", "plate force at 1 mm indentation (L = 22 mm)"),
-    "wedge_peak_force_N": ("wedge", "N", "peak wedge force, at the end of the 1 s ramp"),
-    "wedge_force_at_100s_N": ("wedge", "N", "wedge force at t = 100 s of the hold"),
-    "profile_1s_area_2mm_mm2": (
-        "wedge",
-        "mm^2",
-        "area under the surface-deflection profile from the wedge corner to 2 mm, at 1 s",
-    ),
-    "profile_1s_defl_at_1mm_mm": ("wedge", "mm", "surface deflection 1 mm from the corner, 1 s"),
-    "profile_100s_area_2mm_mm2": ("wedge", "mm^2", "as profile_1s_area_2mm_mm2, at 100 s"),
-    "profile_100s_defl_at_1mm_mm": ("wedge", "mm", "as profile_1s_defl_at_1mm_mm, at 100 s"),
-}
-
-
-@dataclass(frozen=True)
-class SimOptions:
-    """Numerical and protocol options; the defaults are the converged reference settings."""
-
-    mesh: MeshOptions = DEFAULT_MESH
-    newton: NewtonOptions = NewtonOptions()
-    tapping: TappingOptions = TappingOptions()
-    plate: PlateOptions = PlateOptions()
-    wedge: WedgeOptions = WedgeOptions()
-    validity: ValidityOptions = ValidityOptions()
-
-    def with_steps_scaled(self, factor: float) -> SimOptions:
-        """Every step count multiplied by ``factor`` (time-step convergence studies)."""
-        tap, plate, wedge = self.tapping, self.plate, self.wedge
-        return dataclasses.replace(
-            self,
-            tapping=tap.with_steps_scaled(factor),
-            plate=dataclasses.replace(plate, steps=max(2, round(plate.steps * factor))),
-            wedge=dataclasses.replace(
-                wedge,
-                ramp_steps=max(2, round(wedge.ramp_steps * factor)),
-                hold_steps=max(4, round(wedge.hold_steps * factor)),
-            ),
-        )
-
-    def with_mesh_refined(self, factor: float) -> SimOptions:
-        """Every element size divided by ``factor`` (mesh convergence studies)."""
-        return dataclasses.replace(self, mesh=self.mesh.refined(factor))
 
 
 @dataclass(frozen=True)
 class ProtocolFailure:
+    """A protocol that failed: where (its time, s) and why."""
+
     protocol: str
     time_s: float
     reason: str
@@ -138,7 +57,8 @@ class ProtocolFailure:
 
 @dataclass(frozen=True)
 class SimResult:
-    """Metrics (None where a protocol failed), curves, per-protocol figures and failures."""
+    """Metrics (None where a protocol failed), curves, per-protocol figures and failures;
+    ``fields`` and ``discretization`` only with ``simulate(..., keep_fields=True)``."""
 
     design: Design
     metrics: dict[str, float | None]
@@ -216,68 +136,35 @@ class SimResult:
         }
 
 
-#: The tapping protocol's periodic-state figures in diagnostics() (as ``tapping_<key>``).
-SETTLE_KEYS = ("settled", "taps", "residual", "max_estimated_error", "touch_mm")
-
-#: diagnostics() key suffix -> key of the protocol's validity summary.
-DIAGNOSTIC_KEYS = {
-    "max_compressive_log_strain": "max_compressive_log_strain",
-    "min_J": "min_J",
-    "contact_width_mm": "contact_width_at_peak_mm",
-    "reached_base": "reached_base",
-    "folded": "folded",
-    "nominal_compression": "nominal_compression",
-}
-
-
-def same_metrics(version: str | None) -> bool:
-    """Whether FE results of solver ``version`` are those of this solver (``SAME_METRICS_AS``)."""
-    return version == SOLVER_VERSION or version in SAME_METRICS_AS
-
-
-def diagnostic_names(protocols: tuple[str, ...] | list[str] = PROTOCOLS) -> list[str]:
-    """The keys of ``SimResult.diagnostics()`` for a run of ``protocols``, in a fixed order (the
-    diagnostic columns of a sweep's table.csv)."""
-    names = ["settled", "valid"] if "tapping" in protocols else ["valid"]
-    if "tapping" in protocols:
-        names += [f"tapping_{k}" for k in SETTLE_KEYS if k != "settled"]
-    names += [f"{p}_{k}" for p in protocols for k in DIAGNOSTIC_KEYS]
-    return [*names, "violations"]
-
-
-_RUNNERS = {
-    "tapping": (Plate, run_tapping, "tapping"),
-    "plate": (Plate, run_plate, "plate"),
-    "wedge": (Wedge, run_wedge, "wedge"),
-}
-
-
 def simulate(
     design: Design,
     protocols: tuple[str, ...] | list[str] = PROTOCOLS,
     options: SimOptions = SimOptions(),
+    *,
+    keep_fields: bool = False,
 ) -> SimResult:
     """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised.
+
+    ``keep_fields``: keep the discretisation and each completed protocol's final displacements
+    in the result (``discretization``, ``fields``: what ``sim.output.write_vtu`` draws); by
+    default the result holds figures only.
 
     Every BLAS call runs on one thread (``threadpoolctl``): the same design gives the same bits
     whatever OMP_NUM_THREADS says (a threaded dot product sums in another order)."""
     from threadpoolctl import threadpool_limits
 
     with threadpool_limits(limits=1, user_api="blas"):
-        return _simulate(design, protocols, options)
+        return _simulate(design, protocols, options, keep_fields)
 
 
 def _simulate(
-    design: Design,
-    protocols: tuple[str, ...] | list[str] = PROTOCOLS,
-    options: SimOptions = SimOptions(),
+    design: Design, protocols: tuple[str, ...] | list[str], options: SimOptions, keep_fields: bool
 ) -> SimResult:
-    from .fe import Discretization  # the FE stack (scikit-fem) only when something is simulated
     from .mesh import build_mesh
 
     t0 = time.perf_counter()
     for p in protocols:
-        if p not in _RUNNERS:
+        if p not in REGISTRY:
             raise ValueError(f"unknown protocol {p!r}; known: {', '.join(PROTOCOLS)}")
     fmesh = build_mesh(design.geometry, design.thicknesses_mm, options.mesh)
     disc = Discretization(fmesh, design.materials)
@@ -289,39 +176,16 @@ def _simulate(
     failures: list[ProtocolFailure] = []
     fields: dict[str, np.ndarray] = {}
     for name in protocols:
-        indenter_cls, runner, _ = _RUNNERS[name]
-        opts = getattr(options, name)
-        indenter = (
-            Wedge(opts.tip_width_mm, opts.half_angle_deg) if indenter_cls is Wedge else Plate()
-        )
-        body = Body(
-            disc,
-            indenter,
-            options.newton,
-            getattr(opts, "penalty_per_mm", None),
-        )
-        try:
-            res: ProtocolResult = runner(body, opts)
-        except SimulationError as exc:
-            failures.append(ProtocolFailure(exc.protocol, exc.time_s, exc.reason))
+        body, outcome = _run(disc, REGISTRY[name], options)
+        if isinstance(outcome, ProtocolFailure):
+            failures.append(outcome)
             figures[name] = {"newton_iterations": body.newton_iterations, "failed": True}
             continue
-        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
-            failures.append(ProtocolFailure(name, body.t, f"{type(exc).__name__}: {exc}"))
-            figures[name] = {"newton_iterations": body.newton_iterations, "failed": True}
-            continue
-        metrics.update(res.metrics)
-        curves.update(res.curves)
-        figures[name] = {
-            "newton_iterations": res.newton_iterations,
-            "steps": res.steps,
-            "factorizations": body.factorizations,
-            "evaluations": body.evaluations,
-            "timings_s": dict(body.timings),
-            "wall_time_s": res.wall_time_s,
-            **res.info,
-        }
-        fields[name] = body.u.copy()
+        metrics.update(outcome.metrics)
+        curves.update(outcome.curves)
+        figures[name] = _figures(outcome, body)
+        if keep_fields:
+            fields[name] = body.u.copy()
     return SimResult(
         design=design,
         metrics=metrics,
@@ -332,5 +196,37 @@ def _simulate(
         wall_time_s=time.perf_counter() - t0,
         validity_options=options.validity,
         fields=fields,
-        discretization=disc,
+        discretization=disc if keep_fields else None,
     )
+
+
+def _run(
+    disc: Discretization, protocol: Protocol, options: SimOptions
+) -> tuple[Body, ProtocolResult | ProtocolFailure]:
+    """``protocol`` on a fresh body of ``disc``: the body and its result, or how it failed."""
+    opts = getattr(options, protocol.name)
+    body = Body(
+        disc,
+        protocol.make_indenter(opts),
+        options.newton,
+        getattr(opts, "penalty_per_mm", None),
+    )
+    try:
+        return body, protocol.run(body, opts)
+    except SimulationError as exc:
+        return body, ProtocolFailure(exc.protocol, exc.time_s, exc.reason)
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:
+        return body, ProtocolFailure(protocol.name, body.t, f"{type(exc).__name__}: {exc}")
+
+
+def _figures(res: ProtocolResult, body: Body) -> dict[str, Any]:
+    """A completed protocol's solver figures and ``info`` (``SimResult.protocols``)."""
+    return {
+        "newton_iterations": res.newton_iterations,
+        "steps": res.steps,
+        "factorizations": body.factorizations,
+        "evaluations": body.evaluations,
+        "timings_s": dict(body.timings),
+        "wall_time_s": res.wall_time_s,
+        **res.info,
+    }

@@ -123,11 +123,7 @@ class Body:
         dof_x = disc.gmap[2 * s]
         dof_y = disc.gmap[2 * s + 1]
         self._sdof = (dof_x, dof_y)
-        pos = lambda r, c: np.where(  # noqa: E731
-            (r >= 0) & (c >= 0),
-            np.searchsorted(disc._ukeys, np.maximum(r, 0) * disc.n_free + np.maximum(c, 0)),
-            -1,
-        )
+        pos = disc.pattern_position
         self._kpos = (pos(dof_x, dof_x), pos(dof_x, dof_y), pos(dof_y, dof_x), pos(dof_y, dof_y))
         # committed state
         self.u = np.zeros((disc.n_nodes, 2))
@@ -285,7 +281,6 @@ class Body:
                 d = guess[1]
         else:
             u, d = self._predict(u, d, control)
-        free = disc.free
         ev = self._evaluate(u, control, d, dt, True, frozen_history)
         if ev is None:
             return StepResult(False, 0, "inverted element at start of step")
@@ -330,11 +325,6 @@ class Body:
                     dd = (-rd - kcol @ du) / (c - kcol @ x2)
                     du = du - x2 * dd
             self.timings["triangular solves"] += time.perf_counter() - t0
-            # Line search on the directional derivative g(a) = [du, dd] . residual(a), i.e. on the
-            # incremental potential (hyperelasticity, the Prony update within a step, penalty
-            # contact and the dead load on the plate are all variational). The full step is taken
-            # when it does not overshoot the minimum along the line by much; otherwise the root of
-            # g is bracketed (regula falsi). Inverted elements halve the step.
             if not (np.all(np.isfinite(du)) and np.isfinite(dd)):
                 self.newton_iterations += it
                 return StepResult(False, it, "singular tangent")
@@ -343,39 +333,8 @@ class Body:
             if not np.isfinite(g0):
                 self.newton_iterations += it
                 return StepResult(False, it, "singular tangent")
-            a_lo, g_lo = 0.0, g0
-            a_hi = None  # smallest step known to overshoot the minimum along the line
-            alpha = 1.0
-            accepted = None
-            for bt in range(opts.max_backtracks + 1):
-                u_try = u.copy()
-                u_try.reshape(-1)[free] += alpha * du
-                d_try = d + alpha * dd
-                trial = self._evaluate(u_try, control, d_try, dt, bt == 0, frozen_history)
-                if trial is None:
-                    alpha = 0.5 * (a_lo + alpha)
-                    continue
-                with np.errstate(all="ignore"):
-                    g = float(du @ trial[0]) + dd * trial[4]
-                if (
-                    g0 >= 0.0
-                    or abs(g) <= opts.line_search_eta * abs(g0)
-                    or bt == opts.max_backtracks
-                ):
-                    accepted = (u_try, d_try, trial)
-                    break
-                if g < 0.0:  # still descending: the minimum lies beyond alpha
-                    if alpha >= 1.0:
-                        accepted = (u_try, d_try, trial)
-                        break
-                    a_lo, g_lo = alpha, g
-                    alpha = min(1.0, 2.0 * alpha) if a_hi is None else 0.5 * (a_lo + a_hi)
-                else:  # overshoot: safeguarded regula falsi inside [a_lo, alpha]
-                    a_hi = alpha
-                    guess = a_lo - g_lo * (alpha - a_lo) / (g - g_lo)
-                    width = alpha - a_lo  # keep at least 10 % away from either end
-                    alpha = min(max(guess, a_lo + 0.1 * width), alpha - 0.1 * width)
-            if accepted is None or alpha < opts.min_step:
+            accepted = self._line_search(u, d, du, dd, g0, control, dt, frozen_history)
+            if accepted is None:
                 self.newton_iterations += it
                 return StepResult(False, it, "line search failed")
             u, d, ev = accepted
@@ -386,6 +345,55 @@ class Body:
                     return StepResult(False, it, "inverted element")
         self.newton_iterations += opts.max_iterations
         return StepResult(False, opts.max_iterations, "no convergence")
+
+    def _line_search(
+        self,
+        u: np.ndarray,
+        d: float,
+        du: np.ndarray,
+        dd: float,
+        g0: float,
+        control: Control,
+        dt: float,
+        frozen_history: bool,
+    ) -> tuple[np.ndarray, float, tuple] | None:
+        """The accepted point (displacements, indenter position, its ``_evaluate``) along the
+        Newton direction (``du`` on the free dofs, ``dd``) from (``u``, ``d``); None when the
+        line search fails (no admissible trial, or a step below ``min_step``).
+
+        On the directional derivative g(a) = [du, dd] . residual(a), i.e. on the incremental
+        potential (hyperelasticity, the Prony update within a step, penalty contact and the dead
+        load on the plate are all variational; ``g0`` = g(0)). The full step is taken when it does
+        not overshoot the minimum along the line by much; otherwise the root of g is bracketed
+        (regula falsi). Inverted elements halve the step. The first trial (the full step) is
+        evaluated with its tangent, the others without."""
+        opts = self.options
+        free = self.disc.free
+        a_lo, g_lo = 0.0, g0
+        a_hi = None  # smallest step known to overshoot the minimum along the line
+        alpha = 1.0
+        for bt in range(opts.max_backtracks + 1):
+            u_try = u.copy()
+            u_try.reshape(-1)[free] += alpha * du
+            d_try = d + alpha * dd
+            trial = self._evaluate(u_try, control, d_try, dt, bt == 0, frozen_history)
+            if trial is None:
+                alpha = 0.5 * (a_lo + alpha)
+                continue
+            with np.errstate(all="ignore"):
+                g = float(du @ trial[0]) + dd * trial[4]
+            small = g0 >= 0.0 or abs(g) <= opts.line_search_eta * abs(g0)
+            if small or bt == opts.max_backtracks or (g < 0.0 and alpha >= 1.0):
+                return None if alpha < opts.min_step else (u_try, d_try, trial)
+            if g < 0.0:  # still descending: the minimum lies beyond alpha
+                a_lo, g_lo = alpha, g
+                alpha = min(1.0, 2.0 * alpha) if a_hi is None else 0.5 * (a_lo + a_hi)
+            else:  # overshoot: safeguarded regula falsi inside [a_lo, alpha]
+                a_hi = alpha
+                root = a_lo - g_lo * (alpha - a_lo) / (g - g_lo)
+                width = alpha - a_lo  # keep at least 10 % away from either end
+                alpha = min(max(root, a_lo + 0.1 * width), alpha - 0.1 * width)
+        return None
 
     def _predict(self, u, d, control):
         """Extrapolate the last increment in proportion to the change of the control value."""

@@ -28,9 +28,10 @@ import numpy as np
 from ._sweep_folder import SweepStore, read_config, write_config, write_meta
 from .errors import DesignError, SimulationError
 from .materials import Material, UserCatalogue, catalogue_from_tables, material_tables
-from .options import apply_overrides
+from .metrics import SOLVER_VERSION
+from .options import SimOptions, apply_overrides, options_from_dict
 from .provenance import check_folder_kind, json_safe, provenance
-from .simulate import SOLVER_VERSION, SimOptions, simulate
+from .simulate import simulate
 from .space import DesignSpace, point_to_design, space_from_dict
 
 __all__ = [
@@ -138,21 +139,6 @@ def evaluate_point(
         )
     record["wall_time_s"] = time.perf_counter() - t0
     return record
-
-
-def options_from_dict(d: dict[str, Any]) -> SimOptions:
-    """SimOptions from their ``dataclasses.asdict`` form (as a sweep's config.json holds).
-
-    A section missing from ``d`` (a config written before the section existed, e.g. the shipped
-    sweep's before ``validity``) keeps its defaults."""
-    base = SimOptions()
-    return dataclasses.replace(
-        base,
-        **{
-            f.name: dataclasses.replace(getattr(base, f.name), **d.get(f.name, {}))
-            for f in dataclasses.fields(base)
-        },
-    )
 
 
 def _config(space: DesignSpace, n: int, seed: int, sampler: str, options: SimOptions) -> dict:

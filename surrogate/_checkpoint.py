@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from sim.metrics import METRICS, SOLVER_VERSION, same_metrics
 from sim.provenance import json_safe, replacing
-from sim.simulate import METRICS, SOLVER_VERSION, same_metrics
 from sim.space import space_from_dict
 
 from ._encoding import (
@@ -189,7 +189,7 @@ def load_checkpoint(path: str | Path, *, allow_solver_mismatch: bool = False):
     """Load a ``Surrogate``. A ``CheckpointError`` (one-line message) for a file that is not a
     checkpoint, another schema version, a tampered file, or a model trained on FE data of
     another solver version (unless ``allow_solver_mismatch``; a version whose metrics this
-    solver reproduces, ``sim.simulate.SAME_METRICS_AS``, is accepted)."""
+    solver reproduces, ``sim.metrics.SAME_METRICS_AS``, is accepted)."""
     import torch
 
     from ._model import MODELS

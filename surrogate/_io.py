@@ -15,8 +15,8 @@ import numpy as np
 
 from sim._sweep_folder import CONFIG, TABLE, read_config
 from sim.errors import DesignError, read_toml
+from sim.metrics import METRICS, diagnostic_names
 from sim.provenance import KINDS, folder_kind
-from sim.simulate import METRICS, diagnostic_names
 from sim.space import DesignSpace, space_from_dict
 from sim.trust import TRUST_OUTPUTS, trust_values
 

@@ -9,8 +9,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from sim.metrics import METRICS
 from sim.provenance import finite_or_none
-from sim.simulate import METRICS
 from sim.space import DesignSpace
 
 from ._encoding import ELASTIC_FEATURE, Encoder

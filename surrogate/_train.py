@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 import torch
 
+from sim.metrics import METRICS
 from sim.provenance import finite_or_none, git_commit
-from sim.simulate import METRICS
 from sim.trust import TRUST_OUTPUTS
 
 from ._encoding import Encoder
@@ -145,7 +145,7 @@ def fit(
     progress: bool | Callable[[int], None] = True,
     split: Split | None = None,
     init: Surrogate | None = None,
-):
+) -> FitResult:
     """Train an ensemble on ``data`` (a sweep) and return a ``FitResult``.
 
     ``progress``: True shows a bar of the epochs, False nothing; a callable is called with 1
@@ -157,13 +157,11 @@ def fit(
     normaliser is kept (so the start is exactly the trained model); the input domain is refitted
     on the new training rows.
     """
-    from tqdm import tqdm
-
     if config.members < 1:
         raise ValueError(f"members must be >= 1, got {config.members}")
     if split is None:
         split = split_indices(len(data.points), config.seed, config.fractions)
-    _, init_seed, order_seed = _seeds(config.seed)
+    _, init_seed, _ = _seeds(config.seed)
     train_points = [data.points[i] for i in split.train]
     omega = 2.0 * math.pi * data.tapping_frequency_Hz  # the taps the sweep was made with
     encoder = Encoder(data.space, omega_rad_s=omega).fit_domain(train_points)
@@ -183,8 +181,6 @@ def fit(
             torch.from_numpy(mask_all[rows].astype(np.float32)),
         )
 
-    x_tr, z_tr, m_tr = tensors(split.train)
-    x_va, z_va, m_va = tensors(split.val)
     model = EnsembleMLP(
         x_all.shape[1],
         z_all.shape[1],
@@ -199,68 +195,17 @@ def fit(
         ):
             raise ValueError("warm start: the surrogate's encoding or metrics differ")
         model.load_state_dict(init.model.state_dict(), strict=True)
-    opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    gen = torch.Generator().manual_seed(order_seed)
-    n, members, nets, g = len(split.train), config.members, model.nets, model.n_groups
-    net_mask = model.net_mask()  # each net is trained and stopped on its group's metrics only
-    m_va = m_va.unsqueeze(0) * net_mask
-    best = torch.full((nets,), math.inf)
-    best_epoch = torch.zeros(nets, dtype=torch.long)
-    best_state = [p.detach().clone() for p in model.parameters()]
-    history: dict[str, list[float]] = {"train_nll": [], "val_nll": []}
-    epoch = 0
-    with _deterministic():
-        bar = tqdm(
-            range(config.max_epochs),
-            desc="train",
-            unit="epoch",
-            disable=progress is not True,
-            mininterval=0.5,
-        )
-        tick = progress if callable(progress) else None
-        for epoch in bar:
-            model.train()
-            order = torch.argsort(torch.rand(members, n, generator=gen), dim=1)
-            total, steps = torch.zeros(nets), 0
-            for s in range(0, n, config.batch_size):
-                idx = order[:, s : s + config.batch_size]  # each member its own minibatch
-                idx = idx.repeat_interleave(g, dim=0)  # shared by the member's group nets
-                mean, logvar = model.forward_nets(x_tr[idx])
-                loss = gaussian_nll(mean, logvar, z_tr[idx], m_tr[idx] * net_mask, config.beta_nll)
-                opt.zero_grad(set_to_none=True)
-                loss.sum().backward()
-                opt.step()
-                total += loss.detach()
-                steps += 1
-            model.eval()
-            with torch.no_grad():
-                val = gaussian_nll(*model.forward_nets(x_va), z_va, m_va)
-                better = val < best
-                if better.any():
-                    best = torch.where(better, val, best)
-                    best_epoch[better] = epoch
-                    for kept, p in zip(best_state, model.parameters(), strict=True):
-                        kept[better] = p.detach()[better]
-            history["train_nll"].append(float((total / steps).mean()))
-            history["val_nll"].append(float(val.mean()))
-            bar.set_postfix(val_nll=f"{float(best.mean()):.3f}", refresh=False)
-            if tick is not None:
-                tick(1)
-            if epoch - int(best_epoch.max()) >= config.patience:
-                break
-        bar.close()
-    with torch.no_grad():
-        for kept, p in zip(best_state, model.parameters(), strict=True):
-            p.copy_(kept)
-    model.eval()
+    train, val = tensors(split.train), tensors(split.val)
+    best, history, epochs = _train(model, config, train, val, progress)
+    best.restore(model)
     header = {
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
         "solver_version": data.solver_version,
         "git_commit": git_commit(),
         "training": {
             **config.to_dict(),
-            "epochs": epoch + 1,
-            "best_epoch": [int(e) for e in best_epoch],
+            "epochs": epochs,
+            "best_epoch": [int(e) for e in best.epoch],
         },
         "training_data": {
             "sweep": str(Path(data.folder).resolve()),
@@ -276,9 +221,121 @@ def fit(
     }
     surrogate = Surrogate(model, encoder, normaliser, data.metric_names, header)
     surrogate.header["validation"] = validation_metrics(
-        surrogate, x_all[split.val], targets[split.val], best.numpy()
+        surrogate, x_all[split.val], targets[split.val], best.loss.numpy()
     )
-    return FitResult(surrogate, split, history, tuple(int(e) for e in best_epoch), epochs=epoch + 1)
+    return FitResult(surrogate, split, history, tuple(int(e) for e in best.epoch), epochs=epochs)
+
+
+_Tensors = tuple[torch.Tensor, torch.Tensor, torch.Tensor]  # features, targets, their mask
+
+
+@dataclass(eq=False)
+class _Best:
+    """Each net's best validation NLL so far, its epoch and its weights (per-net early
+    stopping: the nets of one ensemble are kept at different epochs)."""
+
+    loss: torch.Tensor
+    epoch: torch.Tensor
+    state: list[torch.Tensor]
+
+    @classmethod
+    def start(cls, model: EnsembleMLP) -> _Best:
+        return cls(
+            torch.full((model.nets,), math.inf),
+            torch.zeros(model.nets, dtype=torch.long),
+            [p.detach().clone() for p in model.parameters()],
+        )
+
+    def update(self, val: torch.Tensor, epoch: int, model: EnsembleMLP) -> None:
+        """Keep the epoch and weights of every net whose validation NLL ``val`` is its best."""
+        better = val < self.loss
+        if better.any():
+            self.loss = torch.where(better, val, self.loss)
+            self.epoch[better] = epoch
+            for kept, p in zip(self.state, model.parameters(), strict=True):
+                kept[better] = p.detach()[better]
+
+    def restore(self, model: EnsembleMLP) -> None:
+        """Every net's kept weights back into ``model``, left in eval mode."""
+        with torch.no_grad():
+            for kept, p in zip(self.state, model.parameters(), strict=True):
+                p.copy_(kept)
+        model.eval()
+
+
+def _train(
+    model: EnsembleMLP,
+    config: TrainConfig,
+    train: _Tensors,
+    val: _Tensors,
+    progress: bool | Callable[[int], None] = True,
+) -> tuple[_Best, dict[str, list[float]], int]:
+    """Train ``model`` epoch by epoch (AdamW, the minibatch order from the seed) until no net
+    has improved its validation NLL for ``patience`` epochs, or for ``max_epochs``: the best of
+    each net (not yet restored into ``model``), the per-epoch history and the number of epochs.
+    ``progress`` as ``fit``'s."""
+    from tqdm import tqdm
+
+    opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
+    gen = torch.Generator().manual_seed(_seeds(config.seed)[2])
+    n = len(train[0])
+    net_mask = model.net_mask()  # each net is trained and stopped on its group's metrics only
+    x_va, z_va, m_va = val
+    m_va = m_va.unsqueeze(0) * net_mask
+    best = _Best.start(model)
+    history: dict[str, list[float]] = {"train_nll": [], "val_nll": []}
+    epoch = 0
+    with _deterministic():
+        bar = tqdm(
+            range(config.max_epochs),
+            desc="train",
+            unit="epoch",
+            disable=progress is not True,
+            mininterval=0.5,
+        )
+        tick = progress if callable(progress) else None
+        for epoch in bar:
+            order = torch.argsort(torch.rand(config.members, n, generator=gen), dim=1)
+            train_nll = _train_epoch(model, opt, train, net_mask, order, config)
+            model.eval()
+            with torch.no_grad():
+                val_nll = gaussian_nll(*model.forward_nets(x_va), z_va, m_va)
+                best.update(val_nll, epoch, model)
+            history["train_nll"].append(float(train_nll.mean()))
+            history["val_nll"].append(float(val_nll.mean()))
+            bar.set_postfix(val_nll=f"{float(best.loss.mean()):.3f}", refresh=False)
+            if tick is not None:
+                tick(1)
+            if epoch - int(best.epoch.max()) >= config.patience:
+                break
+        bar.close()
+    return best, history, epoch + 1
+
+
+def _train_epoch(
+    model: EnsembleMLP,
+    opt: torch.optim.Optimizer,
+    train: _Tensors,
+    net_mask: torch.Tensor,
+    order: torch.Tensor,
+    config: TrainConfig,
+) -> torch.Tensor:
+    """One pass over the training designs in minibatches, each member in its own ``order`` (a
+    row per member); the mean training loss of each net."""
+    x_tr, z_tr, m_tr = train
+    model.train()
+    total, steps = torch.zeros(model.nets), 0
+    for s in range(0, order.shape[1], config.batch_size):
+        idx = order[:, s : s + config.batch_size]  # each member its own minibatch
+        idx = idx.repeat_interleave(model.n_groups, dim=0)  # shared by the member's group nets
+        mean, logvar = model.forward_nets(x_tr[idx])
+        loss = gaussian_nll(mean, logvar, z_tr[idx], m_tr[idx] * net_mask, config.beta_nll)
+        opt.zero_grad(set_to_none=True)
+        loss.sum().backward()
+        opt.step()
+        total += loss.detach()
+        steps += 1
+    return total / steps
 
 
 def validation_metrics(

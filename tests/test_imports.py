@@ -31,6 +31,16 @@ def test_reading_a_design_and_the_default_space_stays_light():
     assert heavy == [], heavy
 
 
+def test_the_metric_registry_and_the_options_stay_light():
+    """The surrogate reads metric names and the options from their own modules (issue 16)."""
+    loaded = _loaded_after(
+        "from sim.metrics import METRICS, diagnostic_names; from sim.options import SimOptions; "
+        "diagnostic_names(); SimOptions().with_mesh_refined(2)"
+    )
+    heavy = sorted({m.split(".")[0] for m in loaded} & set(HEAVY))
+    assert heavy == [], heavy
+
+
 #: what the CLI's parser and ``--help`` must not pay for (issue 15: instant start)
 NOT_FOR_THE_PARSER = ("torch", "matplotlib", "optuna", "scipy", "skfem", "surrogate")
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from sim import SOLVER_VERSION
-from sim.simulate import SAME_METRICS_AS
+from sim.metrics import SAME_METRICS_AS
 from sim.space import load_space
 from surrogate import load_checkpoint, read_sweep
 from surrogate._evaluate import parity_data, score

@@ -22,8 +22,8 @@ from explore.cli import main
 from sim import Geometry, SimOptions, ValidityOptions, homogeneous_design, simulate
 from sim.contact import Plate
 from sim.materials import LAWS, Material
+from sim.metrics import DIAGNOSTIC_KEYS
 from sim.options import apply_overrides
-from sim.simulate import DIAGNOSTIC_KEYS
 from sim.validity import (
     DeformationTracker,
     assess,
@@ -156,7 +156,7 @@ def test_plate_contact_width_against_hertz() -> None:
     R, mu, nu = 5.0, 0.1, 0.45
     design = homogeneous_design(_neo_hookean(mu, nu), Geometry(R, R, 2.0))
     opts = _plate_options(depth_mm=0.02, steps=2)
-    res = simulate(design, ["plate"], opts)
+    res = simulate(design, ["plate"], opts, keep_fields=True)
     assert res.ok
     summary = res.validity["protocols"]["plate"]
     P = res.curves["plate"]["force_N"][-1] / opts.plate.length_mm
@@ -203,7 +203,7 @@ def test_validity_options_are_overridable() -> None:
 
 def test_stiff_paper_material_is_valid(tmp_path: Path) -> None:
     """Silicone GLS 40 under the 1 mm plate: strains well inside the characterised range."""
-    res = simulate(homogeneous_design("silicone_gls40"), ["plate"])
+    res = simulate(homogeneous_design("silicone_gls40"), ["plate"], keep_fields=True)
     assert res.ok
     v = res.validity
     assert v["valid"] is True and v["violations"] == []

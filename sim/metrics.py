@@ -1,0 +1,106 @@
+"""The metric registry: the protocols, their metrics with units, the diagnostic figures of a
+result and the solver version that keys stored results.
+
+Plain data, no numerics: the surrogate, the search and the CLI read metric names from here
+without importing the simulation itself (``sim.simulate``, the FE code)."""
+
+from __future__ import annotations
+
+__all__ = [
+    "DIAGNOSTIC_KEYS",
+    "METRICS",
+    "PROTOCOLS",
+    "SAME_METRICS_AS",
+    "SETTLE_KEYS",
+    "SOLVER_VERSION",
+    "diagnostic_names",
+    "same_metrics",
+]
+
+#: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
+SOLVER_VERSION = "2.2"
+#: Earlier solver versions whose metrics this one reproduces within its tolerances: a surrogate
+#: trained on their FE results is as good as one trained on this version's (2.1 -> 2.2 changed
+#: only when Newton gives up on a step; docs/validation.md, "Newton").
+SAME_METRICS_AS = ("2.1",)
+# 2.2: Newton abandons a stalled step early (NewtonOptions.stall_*), so the step is cut sooner:
+#      same tolerances; metrics within 0.1 % of 2.1 but for hysteresis values below 1e-3 N mm
+#      (numerical noise of nearly elastic designs; docs/validation.md, "Newton")
+# 2.1: sag_mm metric (the displacement at the start of the measured tap); catalogue silicones at
+#      nu = 0.499 (was 0.49); material families gel/foam (sim.families)
+# 2.0: tapping to the periodic state on a residual (sim.periodic), rest steps from the shortest
+#      relaxation time, 48 loaded steps, Newton started from the previous tap's increment,
+#      separate shear/bulk relaxation, validity and settling recorded
+# 1.3: profile summary = area to 2 mm (was half-width)
+
+PROTOCOLS = ("tapping", "plate", "wedge")
+
+#: Metric name -> (protocol, unit, description).
+METRICS: dict[str, tuple[str, str, str]] = {
+    "disp_at_1N_mm": (
+        "tapping",
+        "mm",
+        "loading-branch displacement at 1 N from the undeformed top",
+    ),
+    "disp_at_4N_mm": (
+        "tapping",
+        "mm",
+        "loading-branch displacement at 4 N from the undeformed top",
+    ),
+    "disp_at_1N_from_touch_mm": (
+        "tapping",
+        "mm",
+        "displacement at 1 N from first touch of the tap",
+    ),
+    "disp_at_4N_from_touch_mm": (
+        "tapping",
+        "mm",
+        "displacement at 4 N from first touch of the tap",
+    ),
+    "hysteresis_Nmm": ("tapping", "N mm", "area of the last tap's force-displacement loop"),
+    "sag_mm": (
+        "tapping",
+        "mm",
+        "displacement at the start (first touch) of the measured tap from the undeformed top: "
+        "what the earlier taps left unrecovered",
+    ),
+    "plate_force_at_1mm_N": ("plate", "N", "plate force at 1 mm indentation (L = 22 mm)"),
+    "wedge_peak_force_N": ("wedge", "N", "peak wedge force, at the end of the 1 s ramp"),
+    "wedge_force_at_100s_N": ("wedge", "N", "wedge force at t = 100 s of the hold"),
+    "profile_1s_area_2mm_mm2": (
+        "wedge",
+        "mm^2",
+        "area under the surface-deflection profile from the wedge corner to 2 mm, at 1 s",
+    ),
+    "profile_1s_defl_at_1mm_mm": ("wedge", "mm", "surface deflection 1 mm from the corner, 1 s"),
+    "profile_100s_area_2mm_mm2": ("wedge", "mm^2", "as profile_1s_area_2mm_mm2, at 100 s"),
+    "profile_100s_defl_at_1mm_mm": ("wedge", "mm", "as profile_1s_defl_at_1mm_mm, at 100 s"),
+}
+
+#: The tapping protocol's periodic-state figures in diagnostics() (as ``tapping_<key>``).
+SETTLE_KEYS = ("settled", "taps", "residual", "max_estimated_error", "touch_mm")
+
+#: diagnostics() key suffix -> key of the protocol's validity summary.
+DIAGNOSTIC_KEYS = {
+    "max_compressive_log_strain": "max_compressive_log_strain",
+    "min_J": "min_J",
+    "contact_width_mm": "contact_width_at_peak_mm",
+    "reached_base": "reached_base",
+    "folded": "folded",
+    "nominal_compression": "nominal_compression",
+}
+
+
+def same_metrics(version: str | None) -> bool:
+    """Whether FE results of solver ``version`` are those of this solver (``SAME_METRICS_AS``)."""
+    return version == SOLVER_VERSION or version in SAME_METRICS_AS
+
+
+def diagnostic_names(protocols: tuple[str, ...] | list[str] = PROTOCOLS) -> list[str]:
+    """The keys of ``SimResult.diagnostics()`` for a run of ``protocols``, in a fixed order (the
+    diagnostic columns of a sweep's table.csv)."""
+    names = ["settled", "valid"] if "tapping" in protocols else ["valid"]
+    if "tapping" in protocols:
+        names += [f"tapping_{k}" for k in SETTLE_KEYS if k != "settled"]
+    names += [f"{p}_{k}" for p in protocols for k in DIAGNOSTIC_KEYS]
+    return [*names, "violations"]
