@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import socket
 import sys
 import time
 from collections.abc import Callable
@@ -202,7 +203,7 @@ def check_storage(url: str) -> None:
     from sqlalchemy.engine import make_url
     from sqlalchemy.exc import ArgumentError, SQLAlchemyError
 
-    example = "e.g. sqlite:///path/study.db or postgresql://user:password@host/database"
+    example = "e.g. sqlite:///path/study.db or postgresql+psycopg://user:password@host/database"
     try:
         make_url(url)
     except ArgumentError:
@@ -427,6 +428,8 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         )
     resumed = (out / "config.json").exists()
     storage = _prepare(config, out, s.record)
+    # a shared storage: this worker is its run folder (resumed, it finds its trials again)
+    worker = None if config.storage is None else f"{socket.gethostname()}:{out.resolve()}"
     targets, space, options, dataset = s.targets, s.space, s.options, s.dataset
     t0 = time.perf_counter()
     timings = {"fe_s": 0.0, "search_s": 0.0, "retrain_s": 0.0}
@@ -469,7 +472,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         for search, sp, n in searches:
             name = f"{config.study}-r{r}-{search}"
             add_study(out, name, search, r, config.mode)
-            study = create_study(storage, name, dataclasses.replace(settings, trials=n))
+            study = create_study(storage, name, dataclasses.replace(settings, trials=n), worker)
             total = n + (settings.screen_keep if settings.screen else 0)  # seeds + sampled
             bar = tqdm(total=total, desc=f"round {r + 1}: search {search}", unit="trial",
                        disable=not progress)  # fmt: skip
@@ -477,7 +480,8 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             tic = time.perf_counter()
             round_rows[search] = run_study(
                 study, surrogate, sp, targets, dataclasses.replace(settings, trials=n),
-                round_=r, search=search, progress=bar.update, shared=config.storage is not None,
+                round_=r, search=search, progress=bar.update, shared=worker is not None,
+                worker=worker,
             )  # fmt: skip
             bar.close()
             timings["search_s"] += time.perf_counter() - tic
