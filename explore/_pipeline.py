@@ -198,24 +198,34 @@ def _prepare(config: OptimizeConfig, out: Path, record: dict) -> str:
 
 def check_storage(url: str) -> None:
     """Open the Optuna storage ``url`` once (creating its tables if needed), or refuse it in one
-    line naming ``--storage``: checked before any FE work or folder is made."""
+    line naming ``--storage``: checked before any FE work or folder is made. Workers starting
+    together on a new database race to create its tables: the losers try again."""
     import optuna
     from sqlalchemy.engine import make_url
-    from sqlalchemy.exc import ArgumentError, SQLAlchemyError
+    from sqlalchemy.exc import ArgumentError, IntegrityError, ProgrammingError, SQLAlchemyError
 
     example = "e.g. sqlite:///path/study.db or postgresql+psycopg://user:password@host/database"
     try:
         make_url(url)
     except ArgumentError:
         raise DesignError("--storage", f"{url!r} is not a database URL ({example})") from None
-    try:
-        optuna.logging.set_verbosity(optuna.logging.WARNING)
-        storage = optuna.storages.RDBStorage(url)
-    except (SQLAlchemyError, ImportError, ValueError, OSError, RuntimeError) as exc:
-        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise DesignError("--storage", f"cannot open {url}: {first}") from None
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    for attempt in range(5):
+        try:
+            storage = optuna.storages.RDBStorage(url)
+            break
+        except (IntegrityError, ProgrammingError) as exc:  # another worker's table or type
+            if attempt == 4:
+                raise DesignError("--storage", f"cannot open {url}: {_first_line(exc)}") from None
+            time.sleep(0.2 * (attempt + 1))
+        except (SQLAlchemyError, ImportError, ValueError, OSError, RuntimeError) as exc:
+            raise DesignError("--storage", f"cannot open {url}: {_first_line(exc)}") from None
     storage.remove_session()
     storage.engine.dispose()
+
+
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
 def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:

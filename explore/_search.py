@@ -16,6 +16,7 @@ active learning improves the surrogate where the search wants to go.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import warnings
 from collections.abc import Callable, Sequence
@@ -344,9 +345,10 @@ def run_study(
     and each batch is sized by the trials the study still lacks, whoever made the others (the
     workers together overshoot by less than a batch per extra worker). ``worker`` names this
     worker in a shared study (its run folder: the same name when it is resumed): each trial it
-    asks carries it (user attribute ``worker``), the trials a kill left running are failed when
-    it starts again (``abandoned``, not counted), and it seeds the study if it created it
-    (``create_study``).
+    asks carries it (user attribute ``worker``), its sampler is seeded by (``settings.seed``,
+    ``worker``) so that workers do not propose the same designs, the trials a kill left running
+    are failed when it starts again (``abandoned``, not counted), and it seeds the study if it
+    created it (``create_study``).
 
     Reproducible through kills (``shared=False``): each batch of ``settings.batch`` trials is
     asked from a sampler seeded by (``settings.seed``, number of trials before the batch), so
@@ -365,6 +367,8 @@ def run_study(
     states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
     if shared and worker is not None:
         _abandon(study, worker)
+        # a sampler of its own: workers seeded alike would propose the same designs
+        study.sampler = _sampler(settings, _worker_seed(settings.seed, worker))
     stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
     seeder = shared and worker is not None and study.user_attrs.get("seeder") == worker
     n_seeds = _seed(study, stored, surrogate, space, targets, settings, round_, search,
@@ -530,6 +534,12 @@ def _batch_seed(seed: int, done: int) -> int:
     if done == 0:
         return seed
     return int(np.random.SeedSequence([seed, done]).generate_state(1)[0])
+
+
+def _worker_seed(seed: int, worker: str) -> int:
+    """The sampler seed of ``worker`` in a shared study (``seed`` and the worker's name)."""
+    name = int.from_bytes(hashlib.sha256(worker.encode()).digest()[:8], "little")
+    return int(np.random.SeedSequence([seed, name]).generate_state(1)[0])
 
 
 def _twin(study, settings: SearchSettings, trials: Sequence | None = None):
