@@ -391,10 +391,8 @@ def run_study(
             break
         if not shared:  # a fresh sampler per batch, seeded by the trials before it
             target.sampler = _sampler(settings, _batch_seed(settings.seed, done))
-        batch = [target.ask() for _ in range(min(settings.batch, left))]
-        if shared and worker is not None:  # before anything a kill could cut
-            for t in batch:
-                t.set_user_attr("worker", worker)
+        ask = target.ask if not shared or worker is None else lambda: _ask(study, worker)
+        batch = [ask() for _ in range(min(settings.batch, left))]
         points = [suggest_point(t, space) for t in batch]
         rows = predict_rows(
             surrogate, points, targets, round_=round_, trials=[t.number for t in batch],
@@ -560,6 +558,18 @@ def _finished(study) -> int:
 
     states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
     return len(study.get_trials(deepcopy=False, states=states))
+
+
+def _ask(study, worker: str):
+    """``study.ask()``, the new trial carrying ``worker`` (user attribute) from its creation: one
+    transaction, so a kill never leaves a running trial without its worker's name."""
+    import optuna
+
+    template = optuna.trial.create_trial(
+        state=optuna.trial.TrialState.RUNNING, user_attrs={"worker": worker}
+    )
+    study._thread_local.cached_all_trials = None  # as Study.ask: the sampler reads every trial
+    return optuna.Trial(study, study._storage.create_new_trial(study._study_id, template))
 
 
 def _sampled(study) -> int:
