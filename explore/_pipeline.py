@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import socket
 import sys
 import time
 from collections.abc import Callable
@@ -198,24 +199,34 @@ def _prepare(config: OptimizeConfig, out: Path, record: dict) -> str:
 
 def check_storage(url: str) -> None:
     """Open the Optuna storage ``url`` once (creating its tables if needed), or refuse it in one
-    line naming ``--storage``: checked before any FE work or folder is made."""
+    line naming ``--storage``: checked before any FE work or folder is made. Workers starting
+    together on a new database race to create its tables: the losers try again."""
     import optuna
     from sqlalchemy.engine import make_url
-    from sqlalchemy.exc import ArgumentError, SQLAlchemyError
+    from sqlalchemy.exc import ArgumentError, IntegrityError, ProgrammingError, SQLAlchemyError
 
-    example = "e.g. sqlite:///path/study.db or postgresql://user:password@host/database"
+    example = "e.g. sqlite:///path/study.db or postgresql+psycopg://user:password@host/database"
     try:
         make_url(url)
     except ArgumentError:
         raise DesignError("--storage", f"{url!r} is not a database URL ({example})") from None
-    try:
-        optuna.logging.set_verbosity(optuna.logging.WARNING)
-        storage = optuna.storages.RDBStorage(url)
-    except (SQLAlchemyError, ImportError, ValueError, OSError, RuntimeError) as exc:
-        first = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        raise DesignError("--storage", f"cannot open {url}: {first}") from None
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    for attempt in range(5):
+        try:
+            storage = optuna.storages.RDBStorage(url)
+            break
+        except (IntegrityError, ProgrammingError) as exc:  # another worker's table or type
+            if attempt == 4:
+                raise DesignError("--storage", f"cannot open {url}: {_first_line(exc)}") from None
+            time.sleep(0.2 * (attempt + 1))
+        except (SQLAlchemyError, ImportError, ValueError, OSError, RuntimeError) as exc:
+            raise DesignError("--storage", f"cannot open {url}: {_first_line(exc)}") from None
     storage.remove_session()
     storage.engine.dispose()
+
+
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
 def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:
@@ -428,6 +439,8 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         )
     resumed = (out / "config.json").exists()
     storage = _prepare(config, out, s.record)
+    # a shared storage: this worker is its run folder (resumed, it finds its trials again)
+    worker = None if config.storage is None else f"{socket.gethostname()}:{out.resolve()}"
     targets, space, options, dataset = s.targets, s.space, s.options, s.dataset
     t0 = time.perf_counter()
     timings = {"fe_s": 0.0, "search_s": 0.0, "retrain_s": 0.0}
@@ -470,7 +483,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         for search, sp, n in searches:
             name = f"{config.study}-r{r}-{search}"
             add_study(out, name, search, r, config.mode)
-            study = create_study(storage, name, dataclasses.replace(settings, trials=n))
+            study = create_study(storage, name, dataclasses.replace(settings, trials=n), worker)
             total = n + (settings.screen_keep if settings.screen else 0)  # seeds + sampled
             bar = tqdm(total=total, desc=f"round {r + 1}: search {search}", unit="trial",
                        disable=not progress)  # fmt: skip
@@ -478,7 +491,8 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
             tic = time.perf_counter()
             round_rows[search] = run_study(
                 study, surrogate, sp, targets, dataclasses.replace(settings, trials=n),
-                round_=r, search=search, progress=bar.update, shared=config.storage is not None,
+                round_=r, search=search, progress=bar.update, shared=worker is not None,
+                worker=worker,
             )  # fmt: skip
             bar.close()
             timings["search_s"] += time.perf_counter() - tic

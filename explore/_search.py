@@ -16,6 +16,7 @@ active learning improves the surrogate where the search wants to go.
 
 from __future__ import annotations
 
+import hashlib
 import math
 import warnings
 from collections.abc import Callable, Sequence
@@ -328,18 +329,26 @@ def run_study(
     round_: int,
     search: str,
     shared: bool = False,
+    worker: str | None = None,
     progress: Callable[[int], None] | None = None,
     flush: int = 128,
 ) -> list[TrialRow]:
-    """Run ``study`` (new or resumed) until it holds ``settings.trials`` finished trials and
-    return its complete trials as ``TrialRow``s.
+    """Run ``study`` (new or resumed) until it holds ``settings.trials`` finished trials besides
+    its seeds and return its complete trials as ``TrialRow``s.
 
     The surrogate scores a batch of asked trials at once. By default (``shared=False``, the
     run folder's SQLite file, one writer) the sampler works on an in-memory twin of the study
     that starts from every stored trial, and finished trials are written to ``study`` every
     ``flush`` trials: the same sampling at a fraction of the cost of a database transaction
     per call; a kill loses at most the unwritten batch. ``shared=True`` (a database several
-    workers share) asks and tells on ``study`` itself, so the workers see each other's trials.
+    workers share) asks and tells on ``study`` itself, so the workers see each other's trials,
+    and each batch is sized by the trials the study still lacks, whoever made the others (the
+    workers together overshoot by less than a batch per extra worker). ``worker`` names this
+    worker in a shared study (its run folder: the same name when it is resumed): each trial it
+    asks carries it (user attribute ``worker``), its sampler is seeded by (``settings.seed``,
+    ``worker``) so that workers do not propose the same designs, the trials a kill left running
+    are failed when it starts again (``abandoned``, not counted), and it seeds the study if it
+    created it (``create_study``).
 
     Reproducible through kills (``shared=False``): each batch of ``settings.batch`` trials is
     asked from a sampler seeded by (``settings.seed``, number of trials before the batch), so
@@ -350,14 +359,20 @@ def run_study(
 
     With ``settings.screen``, the study's first trials are the best designs of a quasi-random
     screen (``screen``), and ``settings.trials`` sampled trials follow them (``_seed``; in a
-    shared study the first worker to find it empty seeds it).
+    shared study only the worker that created it adds them, so they are added once).
     """
     import optuna
 
     multi = settings.mode == "multi"
     states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
+    if shared and worker is not None:
+        _abandon(study, worker)
+        # a sampler of its own: workers seeded alike would propose the same designs
+        study.sampler = _sampler(settings, _worker_seed(settings.seed, worker))
     stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
-    n_seeds = _seed(study, stored, surrogate, space, targets, settings, round_, search)
+    seeder = shared and worker is not None and study.user_attrs.get("seeder") == worker
+    n_seeds = _seed(study, stored, surrogate, space, targets, settings, round_, search,
+                    shared=shared, seeder=seeder)  # fmt: skip
     if n_seeds > sum(_is_seed(t) for t in stored):  # seeds were added: read them back
         stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
     total = n_seeds + settings.trials
@@ -369,10 +384,15 @@ def run_study(
         done = n_seeds + min(sampled - sampled % settings.batch, settings.trials)
         target = _twin(study, settings, stored[:done])
     pending: list = []
-    while done < total:
+    while True:
+        # a shared study: what it still lacks, counting the other workers' trials
+        left = settings.trials - _sampled(study) if shared else total - done
+        if left <= 0:
+            break
         if not shared:  # a fresh sampler per batch, seeded by the trials before it
             target.sampler = _sampler(settings, _batch_seed(settings.seed, done))
-        batch = [target.ask() for _ in range(min(settings.batch, total - done))]
+        ask = target.ask if not shared or worker is None else lambda: _ask(study, worker)
+        batch = [ask() for _ in range(min(settings.batch, left))]
         points = [suggest_point(t, space) for t in batch]
         rows = predict_rows(
             surrogate, points, targets, round_=round_, trials=[t.number for t in batch],
@@ -433,13 +453,27 @@ def _is_seed(trial) -> bool:
     return trial.user_attrs.get("source") == "screen"
 
 
-def _seed(study, stored, surrogate, space, targets, settings, round_, search) -> int:
+def _seed(
+    study, stored, surrogate, space, targets, settings, round_, search, *, shared=False,
+    seeder=False,
+) -> int:  # fmt: skip
     """Seed ``study`` with the screen's best designs (``_seed_trials``) unless it holds sampled
     trials already, and return how many seeds it holds. The seeds are its first trials; a kill
     may have cut them, and the screen is deterministic, so the missing ones are added. A
-    resumed study past its seeds is never screened again (the screen is the costly part)."""
+    resumed study past its seeds is never screened again (the screen is the costly part).
+
+    A shared study is seeded by its ``seeder`` alone (the worker that created it: one worker,
+    so each seed is added once), whatever the other workers added meanwhile; the study records
+    when its seeds are complete (user attribute ``seeds``)."""
     n_seeds = sum(_is_seed(t) for t in stored)
     keep = settings.screen_keep if settings.screen > 0 else 0
+    if shared:
+        if not seeder or keep == 0 or "seeds" in study.user_attrs:
+            return n_seeds
+        seeds = _seed_trials(surrogate, space, targets, settings, round_, search)
+        study.add_trials(seeds[n_seeds:])  # the stored ones are the first (one writer)
+        study.set_user_attr("seeds", len(seeds))
+        return len(seeds)
     if n_seeds < len(stored) or n_seeds >= keep:
         return n_seeds
     seeds = _seed_trials(surrogate, space, targets, settings, round_, search)
@@ -500,6 +534,12 @@ def _batch_seed(seed: int, done: int) -> int:
     return int(np.random.SeedSequence([seed, done]).generate_state(1)[0])
 
 
+def _worker_seed(seed: int, worker: str) -> int:
+    """The sampler seed of ``worker`` in a shared study (``seed`` and the worker's name)."""
+    name = int.from_bytes(hashlib.sha256(worker.encode()).digest()[:8], "little")
+    return int(np.random.SeedSequence([seed, name]).generate_state(1)[0])
+
+
 def _twin(study, settings: SearchSettings, trials: Sequence | None = None):
     """An in-memory study with the same sampler and directions, holding ``trials`` (default:
     every finished trial of ``study``)."""
@@ -518,6 +558,40 @@ def _finished(study) -> int:
 
     states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
     return len(study.get_trials(deepcopy=False, states=states))
+
+
+def _ask(study, worker: str):
+    """``study.ask()``, the new trial carrying ``worker`` (user attribute) from its creation: one
+    transaction, so a kill never leaves a running trial without its worker's name."""
+    import optuna
+
+    template = optuna.trial.create_trial(
+        state=optuna.trial.TrialState.RUNNING, user_attrs={"worker": worker}
+    )
+    study._thread_local.cached_all_trials = None  # as Study.ask: the sampler reads every trial
+    return optuna.Trial(study, study._storage.create_new_trial(study._study_id, template))
+
+
+def _sampled(study) -> int:
+    """Finished trials of ``study`` besides its seeds and the abandoned ones (``_abandon``)."""
+    import optuna
+
+    states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
+    trials = study.get_trials(deepcopy=False, states=states)
+    return sum(not _is_seed(t) and not t.user_attrs.get("abandoned") for t in trials)
+
+
+def _abandon(study, worker: str) -> int:
+    """Fail the trials ``worker`` left running in ``study`` (a kill cut its batch), marked
+    ``abandoned``; returns how many."""
+    import optuna
+
+    running = study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,))
+    mine = [t for t in running if t.user_attrs.get("worker") == worker]
+    for t in mine:
+        optuna.trial.Trial(study, t._trial_id).set_user_attr("abandoned", True)
+        study.tell(t.number, state=optuna.trial.TrialState.FAIL)
+    return len(mine)
 
 
 def _store(trial, row: TrialRow) -> None:
@@ -569,9 +643,14 @@ def _sampler(settings: SearchSettings, seed: int):
         )
 
 
-def create_study(storage, name: str, settings: SearchSettings):
+def create_study(storage, name: str, settings: SearchSettings, worker: str | None = None):
     """A new or resumed study with a seeded sampler (``_sampler``). Resuming an existing study
-    writes nothing to its storage (a finished run re-run leaves its files as they are)."""
+    writes nothing to its storage (a finished run re-run leaves its files as they are).
+
+    ``worker`` (a shared storage): when this call creates the study, it records ``worker`` as
+    the one that seeds it (user attribute ``seeder``, read by ``run_study``). The database's
+    unique study name makes creation atomic: of workers starting together, one creates the
+    study, the others load it."""
     import optuna
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
@@ -584,13 +663,15 @@ def create_study(storage, name: str, settings: SearchSettings):
         except KeyError:  # no such study yet
             study = None
     if study is None:
-        study = optuna.create_study(
-            storage=storage,
-            study_name=name,
-            sampler=sampler,
-            directions=directions,
-            load_if_exists=True,  # another worker of a shared storage may have just made it
-        )
+        try:
+            study = optuna.create_study(
+                storage=storage, study_name=name, sampler=sampler, directions=directions
+            )
+        except optuna.exceptions.DuplicatedStudyError:  # another worker has just made it
+            study = optuna.load_study(study_name=name, storage=storage, sampler=sampler)
+        else:
+            if worker is not None:
+                study.set_user_attr("seeder", worker)
     if settings.mode == "multi" and study.metric_names != list(OBJECTIVE_NAMES):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)

@@ -666,6 +666,7 @@ def test_an_empty_file_as_out_is_called_a_file(tmp_path: Path, capsys) -> None:
         ("notaurl", "is not a database URL"),
         ("foo://", "cannot open foo://"),
         ("postgresql://nobody@127.0.0.1:1/nodb", "cannot open postgresql://"),
+        ("postgresql+psycopg://nobody@127.0.0.1:1/nodb", "cannot open postgresql+psycopg://"),
         ("sqlite:////nonexistent/folder/study.db", "cannot open sqlite:////nonexistent"),
     ],
 )
