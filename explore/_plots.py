@@ -281,6 +281,13 @@ def _score_of(trial: Any) -> float:
     return float(value) if isinstance(value, int | float) else math.inf
 
 
+def _ranked(importances: Mapping[str, float]) -> list[tuple[str, float]]:
+    """(name, importance), most important first; ties by name. Optuna returns tied parameters
+    (those that never vary among the best trials) in an order that follows string hashing,
+    which changes from one process to the next: a re-run would redraw the figure."""
+    return sorted(importances.items(), key=lambda kv: (-kv[1], kv[0]))
+
+
 def importance_info(run: RunData) -> ImportanceInfo:
     """Parameter importances of the score in the first continuous study (Optuna's default
     evaluator, PED-ANOVA, which draws nothing at random; target ``trial.user_attrs["score"]``;
@@ -300,7 +307,7 @@ def importance_info(run: RunData) -> ImportanceInfo:
             imp = optuna.importance.get_param_importances(study, target=_score_of)
     except (ValueError, RuntimeError) as exc:  # e.g. no parameter varies
         return ImportanceInfo((), (), study.study_name, n, f"importance failed: {exc}")
-    ordered = sorted(imp.items(), key=lambda kv: -kv[1])
+    ordered = _ranked(imp)
     return ImportanceInfo(
         tuple(k for k, _ in ordered), tuple(float(v) for _, v in ordered), study.study_name, n
     )

@@ -529,3 +529,22 @@ def test_wedge_profiles_point_down_in_the_report_as_in_simulate(run_dir: Path) -
     assert all(ax.yaxis_inverted() for ax in profile_axes)
     assert all("downward" in ax.get_ylabel() for ax in profile_axes)
     assert "downward" in simulate["ylabel"]
+
+
+def test_tied_importances_are_ranked_by_name_whatever_the_string_hashing():
+    """Optuna returns tied importances in hash order (here: a set's order, which follows
+    PYTHONHASHSEED); the figure must not change between runs."""
+    import subprocess
+    import sys
+
+    code = (
+        "from explore._plots import _ranked; "
+        "imp = {n: 0.0 for n in {'skin.material', 'core.material', 'layers.count'}}; "
+        "imp['geometry.height_mm'] = 0.9; print([n for n, _ in _ranked(imp)])"
+    )
+    runs = {
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                       env={**__import__("os").environ, "PYTHONHASHSEED": seed}).stdout
+        for seed in ("1", "2", "3", "4", "5")
+    }  # fmt: skip
+    assert runs == {"['geometry.height_mm', 'core.material', 'layers.count', 'skin.material']\n"}
