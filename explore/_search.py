@@ -79,6 +79,8 @@ class SearchSettings:
     #: designs of a scrambled Sobol sample the surrogate scores before the sampler starts
     #: (0: none), and how many of the best of them seed the study as its first trials
     screen: int = 0
+    #: 64 = TPE's own n_startup_trials (``_sampler``): the seeds take the place of its random
+    #: start-up trials, so the model is fitted from the first asked trial on
     screen_keep: int = 64
 
 

@@ -1,4 +1,11 @@
-"""A tiny design space and fast options shared by the sweep and surrogate tests."""
+"""A tiny design space, fast options and a tiny trained surrogate shared by the tests."""
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
 
 TINY = """
 [geometry]
@@ -27,3 +34,20 @@ FAST = [
     "--set", "tapping.settle_tol=0.1",
     "--set", "wedge.hold_s=5",
 ]  # fmt: skip
+
+
+def tiny_surrogate(root: Path, space_toml: str) -> Path:
+    """A real FE sweep of ``space_toml`` (10 designs, ``FAST`` options) in ``root`` and a small
+    surrogate trained on it by the CLI; the checkpoint's path."""
+    import explore.cli
+
+    (root / "space.toml").write_text(space_toml)
+    sweep = root / "sweep"
+    argv = ["sweep", root / "space.toml", "--n", "10", "--out", sweep, "--no-progress", *FAST]
+    assert explore.cli.main([str(a) for a in argv]) == 0
+    train = ["train", sweep, "--out", root / "model", "--max-epochs", "30", "--no-progress"]
+    env = {**os.environ, "MPLBACKEND": "Agg", "OMP_NUM_THREADS": "1"}
+    proc = subprocess.run([sys.executable, "-m", "explore.cli", *map(str, train)], cwd=REPO,
+                          capture_output=True, text=True, timeout=600, env=env)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    return root / "model" / "model.safetensors"

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import optuna
 import pytest
-from sweep_fixtures import FAST
+from sweep_fixtures import FAST, tiny_surrogate
 
 import explore.cli
 from explore._confirm import compare, confirm, reference_point
@@ -294,16 +294,7 @@ def test_study_sampler_is_seeded():
 @pytest.fixture(scope="module")
 def tiny_model(tmp_path_factory) -> Path:
     """A real FE sweep of TINY_OPT (10 designs, fast options) and a small surrogate on it."""
-    root = tmp_path_factory.mktemp("explore")
-    (root / "space.toml").write_text(TINY_OPT)
-    sweep = root / "sweep"
-    argv = ["sweep", root / "space.toml", "--n", "10", "--out", sweep, "--no-progress", *FAST]
-    assert explore.cli.main([str(a) for a in argv]) == 0
-    train = ["train", sweep, "--out", root / "model", "--max-epochs", "30", "--no-progress"]
-    proc = subprocess.run([sys.executable, "-m", "explore.cli", *map(str, train)], cwd=REPO,
-                          capture_output=True, text=True, timeout=600, env=_env())  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
-    return root / "model" / "model.safetensors"
+    return tiny_surrogate(tmp_path_factory.mktemp("explore"), TINY_OPT)
 
 
 def _run(args: list[str], threads: int = 1) -> subprocess.CompletedProcess:

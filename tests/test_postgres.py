@@ -25,7 +25,7 @@ from pathlib import Path
 
 import optuna
 import pytest
-from sweep_fixtures import FAST, TINY
+from sweep_fixtures import TINY, tiny_surrogate
 
 import explore.cli
 
@@ -118,16 +118,7 @@ def _env() -> dict[str, str]:
 @pytest.fixture(scope="module")
 def model(tmp_path_factory) -> Path:
     """A real FE sweep of the tiny space (10 designs, fast options) and a small surrogate."""
-    root = tmp_path_factory.mktemp("pg")
-    (root / "space.toml").write_text(TINY)
-    sweep = root / "sweep"
-    argv = ["sweep", root / "space.toml", "--n", "10", "--out", sweep, "--no-progress", *FAST]
-    assert explore.cli.main([str(a) for a in argv]) == 0
-    train = ["train", sweep, "--out", root / "model", "--max-epochs", "30", "--no-progress"]
-    proc = subprocess.run([sys.executable, "-m", "explore.cli", *map(str, train)], cwd=REPO,
-                          capture_output=True, text=True, timeout=600, env=_env())  # fmt: skip
-    assert proc.returncode == 0, proc.stderr
-    return root / "model" / "model.safetensors"
+    return tiny_surrogate(tmp_path_factory.mktemp("pg"), TINY)
 
 
 def _optimize(ckpt: Path, out: Path, url: str, trials: int) -> list[str]:
