@@ -66,7 +66,7 @@ from typing import Any
 
 import numpy as np
 
-from ._lazy import exprel
+from ._special import exprel
 from .errors import DesignError, read_bytes
 from .materials import LAWS, MAX_PRONY_TERMS, Material, Prony
 from .materials._law import MAX_TERMS

@@ -461,3 +461,17 @@ def test_split_relaxation_tangent_and_frozen_history_in_the_assembly():
     # from the perturbed field, Newton with the history held returns to the committed state
     assert body.advance(body.t, Control.free(), frozen_history=True).converged
     np.testing.assert_allclose(body.u, committed, rtol=0, atol=1e-11)
+
+
+def test_mesh_size_distance_matches_a_kd_tree_bit_for_bit():
+    """The mesh-size function's distance to the contact part of the outline (numpy, brute
+    force) is the KD-tree's it replaced: the same meshes, without importing scipy.spatial."""
+    from scipy.spatial import cKDTree
+
+    from sim.mesh import _nearest_distance
+
+    rng = np.random.default_rng(3)
+    theta = np.linspace(0.0, np.pi / 2, 600)
+    curve = np.column_stack([5.84 * np.cos(theta) ** 0.8, 5.48 * np.sin(theta) ** 0.8])
+    points = rng.uniform([0.0, 0.0], [6.0, 5.5], size=(9000, 2))  # more than one chunk
+    assert np.array_equal(_nearest_distance(points, curve), cKDTree(curve).query(points)[0])

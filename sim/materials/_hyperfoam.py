@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from sim._lazy import exprel
+from sim._special import exprel
 from sim.materials import _validate as v
 from sim.materials._law import (
     Array,

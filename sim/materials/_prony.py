@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from sim._lazy import exprel
+from sim._special import exprel
 from sim.errors import DesignError
 from sim.materials import _validate as v
 
