@@ -20,7 +20,8 @@ from ._objective import WEDGE_REFERENCE_N, WEDGE_WEIGHT, Closeness, closeness, o
 from ._types import Candidate, Confirmation, Summary
 
 if TYPE_CHECKING:
-    from ._pipeline import DEFAULT_CHECKPOINT, OptimizeConfig, optimize
+    from ._config import DEFAULT_CHECKPOINT, OptimizeConfig
+    from ._pipeline import optimize
     from ._plots import write_figures
     from ._report import write_report
 
@@ -41,8 +42,8 @@ __all__ = [
 ]
 
 _LAZY = {
-    "DEFAULT_CHECKPOINT": "_pipeline",
-    "OptimizeConfig": "_pipeline",
+    "DEFAULT_CHECKPOINT": "_config",
+    "OptimizeConfig": "_config",
     "optimize": "_pipeline",
     "write_figures": "_plots",
     "write_report": "_report",

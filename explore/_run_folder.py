@@ -2,7 +2,7 @@
 that the search writes and the report reads, with its form, written and read here.
 
 - ``config.json`` (:func:`write_config`, :func:`read_config`, :func:`add_study`): the resolved
-  configuration (``explore._pipeline.OptimizeConfig`` and the targets, simulation options,
+  configuration (``explore._config.OptimizeConfig`` and the targets, simulation options,
   storage URL), and ``studies``: one entry per Optuna study as it starts (``name``,
   ``search``, ``round``, ``directions``); ``meta.json``: provenance.
 - ``study.db``: the Optuna studies (SQLite; ``optuna-dashboard sqlite:///runs/NAME/study.db``).
@@ -18,8 +18,9 @@ that the search writes and the report reads, with its form, written and read her
   polyurethane on the reference geometry (same form) for the plots.
 - ``rounds/round-<r>-candidates.json`` (:func:`write_candidates`, :func:`read_candidates`):
   the designs round r sent to FE (``Candidate``s; a resumed run reuses them);
-  ``surrogates/round-<r>.safetensors``: the retrained surrogate that round r searched with
-  (round 0: the given checkpoint).
+  ``surrogates/round-<r>.safetensors`` (:func:`surrogate_path`): the retrained surrogate that
+  round r searched with (round 0: the given checkpoint; written by
+  ``surrogate.save_checkpoint``, atomically).
 - ``confirmations.json`` (:func:`write_confirmations`, :func:`read_confirmations`): a list of
   ``Confirmation.to_json()``.
 - ``rounds/buildable-fe-candidates.json`` and ``buildable_fe.json``: the FE-only screen of
@@ -65,6 +66,7 @@ __all__ = [
     "read_json",
     "read_summary",
     "read_trials",
+    "surrogate_path",
     "trials_header",
     "write_candidates",
     "write_config",
@@ -237,6 +239,13 @@ def write_candidates(out: Path, r: int, chosen: list[Candidate]) -> None:
     path = _candidates_path(out, r)
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write(path, json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
+
+
+# ----------------------------------------------------------------------------- surrogates
+def surrogate_path(out: Path, r: int) -> Path:
+    """The checkpoint round ``r`` (>= 1) searches with: the surrogate retrained after round
+    ``r - 1``."""
+    return out / "surrogates" / f"round-{r}.safetensors"
 
 
 # ----------------------------------------------------------------------------- confirmations

@@ -319,7 +319,7 @@ def _add_predict(sub) -> None:
 
 
 def _optimize_config(args: argparse.Namespace):
-    from explore._pipeline import OptimizeConfig
+    from explore._config import OptimizeConfig
 
     fields = {
         "surrogate": str(args.surrogate) if args.surrogate else None,
@@ -401,7 +401,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 def _add_search_options(p, *, defaults_note: str = "") -> None:
     from pathlib import Path
 
-    from explore._pipeline import OptimizeConfig
+    from explore._config import OptimizeConfig
 
     d = OptimizeConfig()
     p.add_argument("--surrogate", type=Path, help="checkpoint (default: the shipped one)")
@@ -483,7 +483,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
     progress = not args.no_progress
     if args.from_scratch:
-        from explore._pipeline import check_inputs, check_storage
+        from explore._config import check_inputs, check_storage
         from sim.space import load_space
         from sim.sweep import run_sweep
         from surrogate import train_surrogate

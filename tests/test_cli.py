@@ -701,7 +701,7 @@ def test_run_from_scratch_checks_its_inputs_before_the_sweep(
 
 # --- one --workers default, documented seeds ----------------------------------------------------
 def test_one_workers_default_and_every_seed_documented() -> None:
-    from explore._pipeline import OptimizeConfig
+    from explore._config import OptimizeConfig
     from explore.cli import build_parser
     from sim.sweep import default_workers
 

@@ -197,7 +197,7 @@ def test_confirmation_bookkeeping_compares_prediction_with_fe():
 
 
 def test_rounds_stop_only_when_an_fe_design_meets_every_tapping_target():
-    from explore._pipeline import _target_met
+    from explore._summary import target_met
 
     targets = load_targets()
     cand = Candidate({"x": 1.0}, "best", 0, 7, "continuous", 0.1, {}, True, 0.05)
@@ -210,21 +210,21 @@ def test_rounds_stop_only_when_an_fe_design_meets_every_tapping_target():
 
     near = conf({targets.metric("hysteresis_Nmm"): 1.04})
     far = conf({targets.metric("disp_at_1N_mm"): 1.06})
-    assert _target_met([far, near], targets, 0.05)
-    assert not _target_met([far], targets, 0.05)
-    assert not _target_met([conf({}, status="failed")], targets, 0.05)
+    assert target_met([far, near], targets, 0.05)
+    assert not target_met([far], targets, 0.05)
+    assert not target_met([conf({}, status="failed")], targets, 0.05)
     # an FE result whose taps did not reach the periodic state, or that went beyond the
     # validity limits, never meets a target, however close its numbers
     for flag in ("settled", "valid"):
         untrusted = dataclasses.replace(near, diagnostics={flag: False})
-        assert not untrusted.trusted and not _target_met([untrusted], targets, 0.05)
+        assert not untrusted.trusted and not target_met([untrusted], targets, 0.05)
     # nor does a skin that does not recover between taps (sag over the targets' limit)
     putty = conf({targets.metric("hysteresis_Nmm"): 1.04}, sag=2 * targets.max_sag_mm)
-    assert putty.trusted and not _target_met([putty], targets, 0.05)
+    assert putty.trusted and not target_met([putty], targets, 0.05)
 
 
 def test_an_untrusted_fe_result_is_never_an_answer():
-    from explore._pipeline import summarise
+    from explore._summary import summarise
 
     targets = load_targets()
     space = load_space()
@@ -625,7 +625,7 @@ def test_a_smaller_n_is_refused_and_the_table_stays(tiny_model, tmp_path, capsys
 
 def test_retraining_reports_every_epoch_to_its_progress_bar(tiny_model):
     """fingertip run's retraining drives a bar through a callback (the library prints nothing)."""
-    from explore._pipeline import retrain
+    from explore._retrain import retrain
     from surrogate import load_checkpoint
 
     ticks: list[int] = []
