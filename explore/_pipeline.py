@@ -19,6 +19,7 @@ The jobs, one module each: the configuration and the checks of every input befor
 
 from __future__ import annotations
 
+import dataclasses
 import socket
 import sys
 import time
@@ -38,7 +39,8 @@ __all__ = ["optimize"]
 
 
 def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) -> Summary:
-    """Run (or resume) a search in ``out``; returns the summary (also written to disk).
+    """Run (or resume) a search in ``out``; returns the summary (also written to disk, with
+    the timing of the invocation that wrote it: ``Summary.timing``).
 
     Resumable at any point, with the same answer as an uninterrupted run: what each round has
     done is read from its own files (its studies, ``rounds/round-<r>-candidates.json``, the FE
@@ -69,8 +71,8 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         summary.notes.append(screen_summary(screen, len(s.catalogue)))
     if s.build_note:
         summary.notes.append(s.build_note)
-    write_summary(out, summary, time.perf_counter() - t0, search.timings, resumed)
-    return summary
+    timing = write_summary(out, summary, time.perf_counter() - t0, search.timings, resumed)
+    return dataclasses.replace(summary, timing=timing)
 
 
 def _warn_of_another_solver(config: OptimizeConfig, s: Setup) -> None:

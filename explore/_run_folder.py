@@ -281,11 +281,12 @@ def read_summary(out: Path) -> dict[str, Any]:
 
 def write_summary(
     out: Path, summary: Summary, wall_time_s: float, timings: dict[str, float], resumed: bool
-) -> None:
+) -> dict[str, Any]:
     """summary.json: the answer, and how long the invocation that wrote it took
     (``wall_time_s``, ``timings``; ``resumed``: it continued a run folder, so the time of the
     killed invocations before it is not counted). Left as it is when the answer is the one it
-    holds already (a finished run re-run)."""
+    holds already (a finished run re-run). Returns the timing the file holds (``TIMING_KEYS``:
+    this invocation's, or the one of the invocation that wrote the answer first)."""
     data = summary.to_json()
     path = out / SUMMARY
     if path.exists():
@@ -296,6 +297,7 @@ def write_summary(
         if isinstance(old, dict):
             answer = {k: v for k, v in old.items() if k not in TIMING_KEYS}
             if answer == json.loads(json.dumps(data, allow_nan=False)):
-                return
-    data = {**data, "wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
-    write_if_changed(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
+                return {k: old[k] for k in TIMING_KEYS if k in old}
+    timing = {"wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
+    write_if_changed(path, json.dumps({**data, **timing}, indent=1, allow_nan=False) + "\n")
+    return timing

@@ -350,11 +350,10 @@ def _optimize_config(args: argparse.Namespace):
     )
 
 
-def _finish(out, progress: bool) -> int:
+def _finish(summary, out) -> int:
+    """Report a search's ``Summary`` (the one ``optimize`` returned) and write its report."""
     from explore._report import write_report
-    from explore._run_folder import read_summary
 
-    summary = read_summary(out)
     report = write_report(out)
     labels = {
         "best": "best design",
@@ -363,7 +362,7 @@ def _finish(out, progress: bool) -> int:
         "buildable": "best buildable design",
     }
     for kind, label in labels.items():
-        a = summary["answers"].get(kind)
+        a = summary.answers.get(kind)
         if a is None:
             print(f"{label}: none credible confirmed by FE")
             continue
@@ -378,13 +377,14 @@ def _finish(out, progress: bool) -> int:
             f"{label} (FE){flag}: {errs}; wedge peak "
             f"{a['fe_metrics']['wedge_peak_force_N']:.3g} N{sag_text}"
         )
-    for note in summary["notes"]:
+    for note in summary.notes:
         print(f"  {note}")
-    t = summary.get("timings") or {}
+    t = summary.timing.get("timings") or {}
     if t:  # where the time went (this invocation; a resumed run counts its own part only)
         print(
             f"time: search {t.get('search_s', 0):.0f} s, FE {t.get('fe_s', 0):.0f} s, "
-            f"retraining {t.get('retrain_s', 0):.0f} s; {summary['wall_time_s']:.0f} s in all"
+            f"retraining {t.get('retrain_s', 0):.0f} s; "
+            f"{summary.timing['wall_time_s']:.0f} s in all"
         )
     print(f"report: {report}")
     return 0
@@ -394,8 +394,8 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     from explore._pipeline import optimize
 
     config = _optimize_config(args)
-    optimize(config, args.out, progress=not args.no_progress)
-    return _finish(args.out, not args.no_progress)
+    summary = optimize(config, args.out, progress=not args.no_progress)
+    return _finish(summary, args.out)
 
 
 def _add_search_options(p, *, defaults_note: str = "") -> None:
@@ -505,8 +505,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
             train_surrogate(sweep, trained, seed=0, progress=progress)
         args.surrogate, args.dataset = ckpt, sweep
     config = _optimize_config(args)
-    optimize(config, args.out, progress=progress)
-    return _finish(args.out, progress)
+    summary = optimize(config, args.out, progress=progress)
+    return _finish(summary, args.out)
 
 
 def _add_run(sub) -> None:

@@ -12,12 +12,16 @@ import pytest
 
 from explore._run_folder import (
     OBJECTIVE_NAMES,
+    TIMING_KEYS,
     parameter_columns,
+    read_summary,
     read_trials,
     trials_header,
+    write_summary,
     write_trials,
 )
 from explore._search import TrialRow
+from explore._types import Summary
 from sim.families import family_uses
 from sim.provenance import atomic_write, json_safe, write_if_changed, write_json
 from sim.space import DEFAULT_SPACE_PATH, LAYER_ROLES, PARAM_MATERIAL_KEYS, active_roles, load_space
@@ -87,6 +91,22 @@ def test_trials_csv_round_trips_its_parameter_columns(tmp_path):
                 assert cell == pytest.approx(value)
     assert np.isinf(columns["hysteresis_error"]).sum() == 0  # non-finite: an empty cell
     assert set(OBJECTIVE_NAMES) <= set(columns)
+
+
+# ---------------------------------------------------------------------------- summary.json
+def test_write_summary_returns_the_timing_the_file_keeps(tmp_path):
+    """summary.json's timing is the invocation's that wrote the answer: a re-run with the same
+    answer keeps the first one (and returns it, for ``Summary.timing``), a new answer its own."""
+    summary = Summary({"best": None}, {"disp_at_1N_mm": 1.83}, 0.05, [], ["a note"])
+    first = write_summary(tmp_path, summary, 3.5, {"fe_s": 2.0}, False)
+    assert first == {"wall_time_s": 3.5, "timings": {"fe_s": 2.0}, "resumed": False}
+    assert write_summary(tmp_path, summary, 9.0, {"fe_s": 0.0}, True) == first
+    stored = read_summary(tmp_path)
+    assert {k: stored[k] for k in TIMING_KEYS} == first
+    assert {k: v for k, v in stored.items() if k not in TIMING_KEYS} == summary.to_json()
+    other = Summary({"best": None}, {"disp_at_1N_mm": 1.83}, 0.05, [], ["another note"])
+    assert write_summary(tmp_path, other, 1.0, {}, True)["wall_time_s"] == 1.0
+    assert read_summary(tmp_path)["notes"] == ["another note"]
 
 
 # ---------------------------------------------------------------------------- the one rule
