@@ -119,15 +119,16 @@ class OptimizeConfig:
 
 # ----------------------------------------------------------------------------- config.json
 #: configuration entries that never change the answer: a run may be resumed with others
-_FREE = ("workers", "studies")
+_FREE = ("workers",)
+#: what config.json held beside the configuration before studies.json (``explore._run_folder``)
+_OLD_LOG = ("studies",)
 
 
 def config_record(
     config: OptimizeConfig, out: Path, targets: Targets, options: SimOptions, user: tuple = ()
 ) -> dict:
-    """What config.json holds (without the studies, added as they start): the configuration,
-    the FE options, the storage URL, the targets and the ``--catalogue`` files ``user`` by
-    content (only when given: older runs had none)."""
+    """What config.json holds: the configuration, the FE options, the storage URL, the targets
+    and the ``--catalogue`` files ``user`` by content (only when given: older runs had none)."""
     record = {
         **dataclasses.asdict(config),
         "sim_options": dataclasses.asdict(options),
@@ -147,11 +148,12 @@ def _storage_url(config: OptimizeConfig, out: Path) -> str:
 
 
 def _check_resume(out: Path, record: dict) -> None:
-    """A run folder is resumed only with the configuration it was made with (``_FREE`` aside)."""
+    """A run folder is resumed only with the configuration it was made with (``_FREE`` aside;
+    an older folder's study log in config.json is no configuration)."""
     old = read_config(out)
     if old is None:
         return
-    keys = sorted((set(old) | set(record)) - set(_FREE))
+    keys = sorted((set(old) | set(record)) - set(_FREE) - set(_OLD_LOG))
     diff = [k for k in keys if old.get(k) != record.get(k)]
     if diff:
         raise DesignError(

@@ -1,10 +1,13 @@
 """The search-run folder: every file of ``runs/NAME`` made by ``fingertip optimize`` / ``run``
 that the search writes and the report reads, with its form, written and read here.
 
-- ``config.json`` (:func:`write_config`, :func:`read_config`, :func:`add_study`): the resolved
-  configuration (``explore._config.OptimizeConfig`` and the targets, simulation options,
-  storage URL), and ``studies``: one entry per Optuna study as it starts (``name``,
-  ``search``, ``round``, ``directions``); ``meta.json``: provenance.
+- ``config.json`` (:func:`write_config`, :func:`read_config`): the resolved configuration
+  (``explore._config.OptimizeConfig`` and the targets, simulation options, storage URL),
+  written once when the folder is made and never changed; ``meta.json``: provenance.
+- ``studies.json`` (:func:`add_study`, :func:`read_studies`): the log of the rounds' Optuna
+  studies, one entry per study as it starts (``name``, ``search``, ``round``, ``directions``).
+  A folder made before this file kept the list in config.json (``studies``): it is read from
+  there, and a resumed run continues it in studies.json.
 - ``study.db``: the Optuna studies (SQLite; ``optuna-dashboard sqlite:///runs/NAME/study.db``).
 - ``trials.csv`` (:func:`write_trials`, :func:`read_trials`): every finished trial of every
   round, one row each: ``round``, ``trial``, ``search`` ("continuous" | "buildable" | a
@@ -64,6 +67,7 @@ __all__ = [
     "read_config",
     "read_confirmations",
     "read_json",
+    "read_studies",
     "read_summary",
     "read_trials",
     "surrogate_path",
@@ -75,9 +79,10 @@ __all__ = [
     "write_trials",
 ]
 
-CONFIG, META, TRIALS, CONFIRMATIONS, SUMMARY = (
+CONFIG, META, STUDIES, TRIALS, CONFIRMATIONS, SUMMARY = (
     "config.json",
     "meta.json",
+    "studies.json",
     "trials.csv",
     "confirmations.json",
     "summary.json",
@@ -114,28 +119,42 @@ def read_config(out: Path) -> dict[str, Any] | None:
         cfg = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DesignError("--out", f"{path} is not readable JSON ({exc})") from None
-    if not isinstance(cfg, dict) or not isinstance(cfg.get("studies"), list):
+    if not isinstance(cfg, dict) or not isinstance(cfg.get("storage"), str):
         raise DesignError("--out", f"{path} is not the configuration of a search run")
     return cfg
 
 
 def write_config(out: Path, record: dict[str, Any], meta: dict[str, Any]) -> None:
-    """A new run folder's config.json (``record``, no study yet) and meta.json (``meta``)."""
+    """A new run folder's config.json (``record``) and meta.json (``meta``)."""
     out.mkdir(parents=True, exist_ok=True)
-    write_json(out / CONFIG, {**record, "studies": []})
+    write_json(out / CONFIG, record)
     write_json(out / META, meta)
 
 
+# ----------------------------------------------------------------------------- studies.json
+def read_studies(out: Path) -> list[dict[str, Any]]:
+    """The studies the rounds started, in order: studies.json, else the ``studies`` of an older
+    folder's config.json, else none; a damaged file: one error line."""
+    path = out / STUDIES
+    if path.is_file():
+        studies = read_json(path)
+    elif (out / CONFIG).is_file():
+        cfg = read_json(out / CONFIG)
+        studies = cfg.get("studies", []) if isinstance(cfg, dict) else []
+    else:
+        studies = []
+    if not isinstance(studies, list):
+        raise DesignError(str(path), "not a list of studies")
+    return studies
+
+
 def add_study(out: Path, name: str, search: str, round_: int, mode: str) -> None:
-    """Record a study in config.json (once)."""
-    path = out / CONFIG
-    cfg = json.loads(path.read_text())
-    if not any(s["name"] == name for s in cfg["studies"]):
+    """Record a study in studies.json (once)."""
+    studies = read_studies(out)
+    if not any(s["name"] == name for s in studies):
         directions = ["minimize"] * (3 if mode == "multi" else 1)
-        cfg["studies"].append(
-            {"name": name, "search": search, "round": round_, "directions": directions}
-        )
-        write_json(path, cfg)
+        studies.append({"name": name, "search": search, "round": round_, "directions": directions})
+        write_json(out / STUDIES, studies)
 
 
 # ----------------------------------------------------------------------------- trials.csv

@@ -355,9 +355,11 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     assert best["fe_score"] == pytest.approx(min(scores))
     assert len(summary["rounds"]) == 2 and (out / "surrogates" / "round-1.safetensors").exists()
     assert {c["candidate"]["round"] for c in confs} == {0, 1}
-    # the study opens in Optuna (what optuna-dashboard reads)
+    # the study opens in Optuna (what optuna-dashboard reads); config.json holds the fixed
+    # configuration, studies.json the studies as the rounds started them
     cfg = json.loads((out / "config.json").read_text())
-    names = [s["name"] for s in cfg["studies"]]
+    assert "studies" not in cfg
+    names = [s["name"] for s in json.loads((out / "studies.json").read_text())]
     assert len(names) == 6  # per round: continuous, gel (one-layer gel cores), buildable
     study = optuna.load_study(study_name=names[0], storage=cfg["storage"])
     assert len(study.trials) == SearchSettings().screen_keep + 60  # the screen's seeds first
@@ -474,7 +476,8 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     cfg_b = json.loads((out / "config.json").read_text().replace(str(out), str(ref)))
     assert cfg_a["workers"] == 1 and cfg_b["workers"] == 2  # the one entry that may differ
     assert _without(cfg_a, "workers") == _without(cfg_b, "workers")
-    assert {"trials.csv", "confirmations.json", "report.md", "config.json"} <= set(files)
+    expected = {"trials.csv", "confirmations.json", "report.md", "config.json", "studies.json"}
+    assert expected <= set(files)
     assert "rounds/round-1-candidates.json" in files and "figures/importance.png" in files
     timing = ("wall_time_s", "timings", "resumed")
     a, b = (json.loads((d / "summary.json").read_text()) for d in (ref, out))
@@ -494,8 +497,7 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
         mb.header, "created_utc", "sha256"
     )
     # every study holds the same trials
-    cfg = json.loads((ref / "config.json").read_text())
-    for st in cfg["studies"]:
+    for st in json.loads((ref / "studies.json").read_text()):
         ta, tb = (optuna.load_study(study_name=st["name"], storage=f"sqlite:///{d}/study.db")
                   .trials for d in (ref, out))  # fmt: skip
         assert [(t.params, t.values) for t in ta] == [(t.params, t.values) for t in tb]
