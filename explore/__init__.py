@@ -3,7 +3,8 @@ active learning, design-space plots and the ``fingertip`` command line.
 
 Public API::
 
-    optimize(OptimizeConfig(...), out) -> Summary     # fingertip optimize / run
+    optimize(OptimizeConfig(...), out) -> Summary     # fingertip optimize
+    run(OptimizeConfig(...), out, from_scratch=N)      # fingertip run (--from-scratch)
     closeness(metrics, targets), objectives(c)         # the documented closeness score
     write_figures(run_dir), write_report(run_dir)      # fingertip report
     Candidate, Confirmation, Summary                   # the data of a run folder
@@ -21,7 +22,7 @@ from ._types import Candidate, Confirmation, Summary
 
 if TYPE_CHECKING:
     from ._config import DEFAULT_CHECKPOINT, OptimizeConfig
-    from ._pipeline import optimize
+    from ._pipeline import optimize, run
     from ._plots import write_figures
     from ._report import write_report
 
@@ -37,6 +38,7 @@ __all__ = [
     "closeness",
     "objectives",
     "optimize",
+    "run",
     "write_figures",
     "write_report",
 ]
@@ -45,6 +47,7 @@ _LAZY = {
     "DEFAULT_CHECKPOINT": "_config",
     "OptimizeConfig": "_config",
     "optimize": "_pipeline",
+    "run": "_pipeline",
     "write_figures": "_plots",
     "write_report": "_report",
 }

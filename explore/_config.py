@@ -199,7 +199,8 @@ def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:
     """Everything a search can check without its surrogate, before any work: the options, the
     run folder (absent, empty or a search run's), the targets file, the ``--catalogue`` files
     and the space file (the storage URL: ``check_storage``). Returns the targets.
-    ``fingertip run --from-scratch`` calls it before its sweep; :func:`setup` calls it first."""
+    ``explore._pipeline.run`` calls it before a ``--from-scratch`` sweep; :func:`setup` calls
+    it first."""
     config.check()
     out = Path(out)
     check_folder_kind(out, "optimize")

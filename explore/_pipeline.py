@@ -14,7 +14,8 @@ The jobs, one module each: the configuration and the checks of every input befor
 (``explore._config``), the rounds (``explore._rounds``), the retraining
 (``explore._retrain``), the answer and its notes (``explore._summary``), the run folder's files
 (``explore._run_folder``). Here: the whole pipeline, from the inputs to the ``Summary``
-(:func:`optimize`).
+(:func:`optimize`), after a sweep and a training for ``fingertip run --from-scratch``
+(:func:`run`).
 """
 
 from __future__ import annotations
@@ -26,16 +27,16 @@ import time
 from pathlib import Path
 
 from sim.metrics import SOLVER_VERSION, same_metrics
-from sim.provenance import provenance
+from sim.provenance import check_folder_kind, provenance
 
 from ._buildable import screen_summary
-from ._config import OptimizeConfig, Setup, setup
+from ._config import OptimizeConfig, Setup, check_inputs, check_storage, setup
 from ._rounds import Search, fe_only_screen, run_references, run_rounds
 from ._run_folder import CONFIG, write_config, write_confirmations, write_summary, write_trials
 from ._summary import summarise
 from ._types import Summary
 
-__all__ = ["optimize"]
+__all__ = ["optimize", "run", "scratch_folders"]
 
 
 def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) -> Summary:
@@ -87,3 +88,45 @@ def _warn_of_another_solver(config: OptimizeConfig, s: Setup) -> None:
             "answers are confirmed with this solver",
             file=sys.stderr,
         )
+
+
+def scratch_folders(out: str | Path) -> tuple[Path, Path]:
+    """The sweep and training folders of ``run --from-scratch`` beside the run folder ``out``:
+    ``<out>-sweep`` and ``<out>-surrogate``."""
+    out = Path(out)
+    return out.parent / f"{out.name}-sweep", out.parent / f"{out.name}-surrogate"
+
+
+def run(
+    config: OptimizeConfig,
+    out: str | Path,
+    *,
+    from_scratch: int | None = None,
+    progress: bool = True,
+) -> Summary:
+    """``fingertip run``: :func:`optimize`, or with ``from_scratch`` (a number of designs) the
+    whole pipeline: a sweep of the default space (``from_scratch`` designs, seed 0) and a
+    surrogate trained on it (seed 0), in :func:`scratch_folders`, then the search with them
+    (``config``'s ``surrogate`` and ``dataset`` replaced). Every input is checked before the
+    sweep; a resumed run finds its sweep and its surrogate done."""
+    if from_scratch is None:
+        return optimize(config, out, progress=progress)
+    from sim.space import load_space
+    from sim.sweep import run_sweep
+    from surrogate import train_surrogate
+    from surrogate._run import CHECKPOINT_NAME
+
+    sweep, trained = scratch_folders(out)
+    # every input is checked before hours of sweep and training, not after
+    check_inputs(config, out)
+    check_folder_kind(sweep, "sweep")
+    check_folder_kind(trained, "train")
+    if config.storage is not None:
+        check_storage(config.storage)
+    run_sweep(load_space(), from_scratch, sweep, workers=config.workers, seed=0,
+              progress=progress)  # fmt: skip
+    ckpt = trained / CHECKPOINT_NAME
+    if not ckpt.exists():
+        train_surrogate(sweep, trained, seed=0, progress=progress)
+    config = dataclasses.replace(config, surrogate=str(ckpt), dataset=str(sweep))
+    return optimize(config, out, progress=progress)

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from sim import DesignError, homogeneous_design, load_design, simulate
 from sim.metrics import METRICS, PROTOCOLS
 from sim.options import SimOptions, apply_overrides, parse_override
-from sim.provenance import check_folder_kind, check_new_folder
+from sim.provenance import check_new_folder
 from sim.sweep import default_workers
 
 __all__ = ["main"]
@@ -479,33 +479,11 @@ def _add_optimize(sub) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from explore._pipeline import optimize
+    from explore._pipeline import run
 
-    progress = not args.no_progress
-    if args.from_scratch:
-        from explore._config import check_inputs, check_storage
-        from sim.space import load_space
-        from sim.sweep import run_sweep
-        from surrogate import train_surrogate
-        from surrogate._run import CHECKPOINT_NAME
-
-        sweep = args.out.parent / f"{args.out.name}-sweep"
-        trained = args.out.parent / f"{args.out.name}-surrogate"
-        # every input is checked before hours of sweep and training, not after
-        config = _optimize_config(args)
-        check_inputs(config, args.out)
-        check_folder_kind(sweep, "sweep")
-        check_folder_kind(trained, "train")
-        if config.storage is not None:
-            check_storage(config.storage)
-        run_sweep(load_space(), args.n, sweep, workers=config.workers, seed=0,
-                  progress=progress)  # fmt: skip
-        ckpt = trained / CHECKPOINT_NAME
-        if not ckpt.exists():
-            train_surrogate(sweep, trained, seed=0, progress=progress)
-        args.surrogate, args.dataset = ckpt, sweep
-    config = _optimize_config(args)
-    summary = optimize(config, args.out, progress=progress)
+    scratch = args.n if args.from_scratch else None
+    summary = run(_optimize_config(args), args.out, from_scratch=scratch,
+                  progress=not args.no_progress)  # fmt: skip
     return _finish(summary, args.out)
 
 

@@ -740,7 +740,7 @@ def _a_summary():
 
 @pytest.mark.parametrize(
     ("argv", "scratch"),
-    [(["optimize"], None)],
+    [(["optimize"], None), (["run"], None), (["run", "--from-scratch", "--n", "5"], 5)],
 )
 def test_optimize_and_run_call_the_pipeline_once_and_report_its_summary(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys, argv: list[str], scratch
@@ -776,3 +776,47 @@ def test_optimize_and_run_call_the_pipeline_once_and_report_its_summary(
         f"report: {out / 'report.md'}",
     ]
     assert not out.exists()
+
+
+def test_run_from_scratch_sweeps_trains_then_searches_with_them(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``explore._pipeline.run(..., from_scratch=n)``: the sweep (seed 0) and the training
+    (seed 0) beside the run folder, then the search on that surrogate and dataset; a surrogate
+    already trained there is not trained again (a resumed run)."""
+    import explore._pipeline
+    import sim.sweep
+    import surrogate
+    from explore._config import OptimizeConfig
+
+    calls = []
+
+    def sweep_(space, n, out, **kw):
+        calls.append(("sweep", n, out, kw["seed"], kw["workers"]))
+
+    def train_(sweep, out, **kw):
+        calls.append(("train", sweep, out, kw["seed"]))
+
+    def optimize_(config, out, **kw):
+        calls.append(("optimize", config.surrogate, config.dataset, config.trials, out))
+        return "summary"
+
+    monkeypatch.setattr(sim.sweep, "run_sweep", sweep_)
+    monkeypatch.setattr(surrogate, "train_surrogate", train_)
+    monkeypatch.setattr(explore._pipeline, "optimize", optimize_)
+    out = tmp_path / "main"
+    sweep, trained = tmp_path / "main-sweep", tmp_path / "main-surrogate"
+    config = OptimizeConfig(trials=9, workers=1)
+    assert explore._pipeline.run(config, out, from_scratch=6, progress=False) == "summary"
+    ckpt = str(trained / "model.safetensors")
+    assert calls == [("sweep", 6, sweep, 0, 1), ("train", sweep, trained, 0),
+                     ("optimize", ckpt, str(sweep), 9, out)]  # fmt: skip
+    calls.clear()
+    trained.mkdir()
+    (trained / "model.safetensors").write_bytes(b"")
+    (trained / "meta.json").write_text(json.dumps({"kind": "train"}))
+    explore._pipeline.run(config, out, from_scratch=6, progress=False)
+    assert [c[0] for c in calls] == ["sweep", "optimize"]
+    calls.clear()
+    explore._pipeline.run(config, out, progress=False)  # no --from-scratch: the search alone
+    assert calls == [("optimize", config.surrogate, None, 9, out)]
