@@ -30,7 +30,7 @@ import warnings  # noqa: E402
 
 import torch  # noqa: E402
 
-from explore._pipeline import DEFAULT_CHECKPOINT  # noqa: E402
+from explore._config import DEFAULT_CHECKPOINT  # noqa: E402
 from explore._search import SearchSettings, create_study, run_study  # noqa: E402
 from sim.space import load_space  # noqa: E402
 from sim.targets import load_targets  # noqa: E402

@@ -3,7 +3,8 @@ active learning, design-space plots and the ``fingertip`` command line.
 
 Public API::
 
-    optimize(OptimizeConfig(...), out) -> Summary     # fingertip optimize / run
+    optimize(OptimizeConfig(...), out) -> Summary     # fingertip optimize
+    run(OptimizeConfig(...), out, from_scratch=N)      # fingertip run (--from-scratch)
     closeness(metrics, targets), objectives(c)         # the documented closeness score
     write_figures(run_dir), write_report(run_dir)      # fingertip report
     Candidate, Confirmation, Summary                   # the data of a run folder
@@ -20,7 +21,8 @@ from ._objective import WEDGE_REFERENCE_N, WEDGE_WEIGHT, Closeness, closeness, o
 from ._types import Candidate, Confirmation, Summary
 
 if TYPE_CHECKING:
-    from ._pipeline import DEFAULT_CHECKPOINT, OptimizeConfig, optimize
+    from ._config import DEFAULT_CHECKPOINT, OptimizeConfig
+    from ._pipeline import optimize, run
     from ._plots import write_figures
     from ._report import write_report
 
@@ -36,14 +38,16 @@ __all__ = [
     "closeness",
     "objectives",
     "optimize",
+    "run",
     "write_figures",
     "write_report",
 ]
 
 _LAZY = {
-    "DEFAULT_CHECKPOINT": "_pipeline",
-    "OptimizeConfig": "_pipeline",
+    "DEFAULT_CHECKPOINT": "_config",
+    "OptimizeConfig": "_config",
     "optimize": "_pipeline",
+    "run": "_pipeline",
     "write_figures": "_plots",
     "write_report": "_report",
 }

@@ -37,6 +37,7 @@ from ._run_folder import (
     OBJECTIVE_NAMES,
     read_confirmations,
     read_json,
+    read_studies,
     read_summary,
     read_trials,
 )
@@ -120,7 +121,8 @@ class RunData:
     (empty cell = inactive/missing -> NaN), the others arrays of str. ``params``: the
     design-space parameter columns (``explore._run_folder.parameter_columns``).
     ``records`` / ``references``: FE records (``curves``, ``metrics``) by confirmation key /
-    by reference name (file stem). ``summary`` and ``config``: the parsed JSON ({} if absent).
+    by reference name (file stem). ``summary`` and ``config``: the parsed JSON ({} if absent);
+    ``studies``: the rounds' Optuna studies (``explore._run_folder.read_studies``).
     """
 
     run_dir: Path
@@ -131,6 +133,7 @@ class RunData:
     references: dict[str, dict[str, Any]] = field(default_factory=dict)
     summary: dict[str, Any] = field(default_factory=dict)
     config: dict[str, Any] = field(default_factory=dict)
+    studies: tuple[dict[str, Any], ...] = ()
 
     @property
     def n_trials(self) -> int:
@@ -158,7 +161,7 @@ def _read_folder(folder: Path) -> dict[str, dict[str, Any]]:
 
 def load_run(run_dir: str | Path) -> RunData:
     """Read a run folder: trials.csv, confirmations.json, the FE records of the confirmations,
-    the references, summary.json and config.json. Any of them may be missing."""
+    the references, summary.json, config.json and studies.json. Any of them may be missing."""
     run_dir = Path(run_dir)
     trials, params = read_trials(run_dir)
     confirmations = read_confirmations(run_dir)
@@ -177,6 +180,7 @@ def load_run(run_dir: str | Path) -> RunData:
         references=_read_folder(run_dir / "fe" / "references"),
         summary=read_summary(run_dir),
         config=read_json(config_path) if config_path.is_file() else {},
+        studies=tuple(read_studies(run_dir)),
     )
 
 
@@ -256,7 +260,7 @@ def _storage_urls(run: RunData) -> list[str]:
 
 
 def _continuous_study_name(run: RunData) -> str | None:
-    for study in run.config.get("studies", ()):
+    for study in run.studies:
         if isinstance(study, Mapping) and study.get("search") == "continuous":
             return study.get("name")
     return None

@@ -1,10 +1,13 @@
 """The search-run folder: every file of ``runs/NAME`` made by ``fingertip optimize`` / ``run``
 that the search writes and the report reads, with its form, written and read here.
 
-- ``config.json`` (:func:`write_config`, :func:`read_config`, :func:`add_study`): the resolved
-  configuration (``explore._pipeline.OptimizeConfig`` and the targets, simulation options,
-  storage URL), and ``studies``: one entry per Optuna study as it starts (``name``,
-  ``search``, ``round``, ``directions``); ``meta.json``: provenance.
+- ``config.json`` (:func:`write_config`, :func:`read_config`): the resolved configuration
+  (``explore._config.OptimizeConfig`` and the targets, simulation options, storage URL),
+  written once when the folder is made and never changed; ``meta.json``: provenance.
+- ``studies.json`` (:func:`add_study`, :func:`read_studies`): the log of the rounds' Optuna
+  studies, one entry per study as it starts (``name``, ``search``, ``round``, ``directions``).
+  A folder made before this file kept the list in config.json (``studies``): it is read from
+  there, and a resumed run continues it in studies.json.
 - ``study.db``: the Optuna studies (SQLite; ``optuna-dashboard sqlite:///runs/NAME/study.db``).
 - ``trials.csv`` (:func:`write_trials`, :func:`read_trials`): every finished trial of every
   round, one row each: ``round``, ``trial``, ``search`` ("continuous" | "buildable" | a
@@ -18,8 +21,9 @@ that the search writes and the report reads, with its form, written and read her
   polyurethane on the reference geometry (same form) for the plots.
 - ``rounds/round-<r>-candidates.json`` (:func:`write_candidates`, :func:`read_candidates`):
   the designs round r sent to FE (``Candidate``s; a resumed run reuses them);
-  ``surrogates/round-<r>.safetensors``: the retrained surrogate that round r searched with
-  (round 0: the given checkpoint).
+  ``surrogates/round-<r>.safetensors`` (:func:`surrogate_path`): the retrained surrogate that
+  round r searched with (round 0: the given checkpoint; written by
+  ``surrogate.save_checkpoint``, atomically).
 - ``confirmations.json`` (:func:`write_confirmations`, :func:`read_confirmations`): a list of
   ``Confirmation.to_json()``.
 - ``rounds/buildable-fe-candidates.json`` and ``buildable_fe.json``: the FE-only screen of
@@ -63,8 +67,10 @@ __all__ = [
     "read_config",
     "read_confirmations",
     "read_json",
+    "read_studies",
     "read_summary",
     "read_trials",
+    "surrogate_path",
     "trials_header",
     "write_candidates",
     "write_config",
@@ -73,9 +79,10 @@ __all__ = [
     "write_trials",
 ]
 
-CONFIG, META, TRIALS, CONFIRMATIONS, SUMMARY = (
+CONFIG, META, STUDIES, TRIALS, CONFIRMATIONS, SUMMARY = (
     "config.json",
     "meta.json",
+    "studies.json",
     "trials.csv",
     "confirmations.json",
     "summary.json",
@@ -112,28 +119,42 @@ def read_config(out: Path) -> dict[str, Any] | None:
         cfg = json.loads(path.read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise DesignError("--out", f"{path} is not readable JSON ({exc})") from None
-    if not isinstance(cfg, dict) or not isinstance(cfg.get("studies"), list):
+    if not isinstance(cfg, dict) or not isinstance(cfg.get("storage"), str):
         raise DesignError("--out", f"{path} is not the configuration of a search run")
     return cfg
 
 
 def write_config(out: Path, record: dict[str, Any], meta: dict[str, Any]) -> None:
-    """A new run folder's config.json (``record``, no study yet) and meta.json (``meta``)."""
+    """A new run folder's config.json (``record``) and meta.json (``meta``)."""
     out.mkdir(parents=True, exist_ok=True)
-    write_json(out / CONFIG, {**record, "studies": []})
+    write_json(out / CONFIG, record)
     write_json(out / META, meta)
 
 
+# ----------------------------------------------------------------------------- studies.json
+def read_studies(out: Path) -> list[dict[str, Any]]:
+    """The studies the rounds started, in order: studies.json, else the ``studies`` of an older
+    folder's config.json, else none; a damaged file: one error line."""
+    path = out / STUDIES
+    if path.is_file():
+        studies = read_json(path)
+    elif (out / CONFIG).is_file():
+        cfg = read_json(out / CONFIG)
+        studies = cfg.get("studies", []) if isinstance(cfg, dict) else []
+    else:
+        studies = []
+    if not isinstance(studies, list):
+        raise DesignError(str(path), "not a list of studies")
+    return studies
+
+
 def add_study(out: Path, name: str, search: str, round_: int, mode: str) -> None:
-    """Record a study in config.json (once)."""
-    path = out / CONFIG
-    cfg = json.loads(path.read_text())
-    if not any(s["name"] == name for s in cfg["studies"]):
+    """Record a study in studies.json (once)."""
+    studies = read_studies(out)
+    if not any(s["name"] == name for s in studies):
         directions = ["minimize"] * (3 if mode == "multi" else 1)
-        cfg["studies"].append(
-            {"name": name, "search": search, "round": round_, "directions": directions}
-        )
-        write_json(path, cfg)
+        studies.append({"name": name, "search": search, "round": round_, "directions": directions})
+        write_json(out / STUDIES, studies)
 
 
 # ----------------------------------------------------------------------------- trials.csv
@@ -239,6 +260,13 @@ def write_candidates(out: Path, r: int, chosen: list[Candidate]) -> None:
     atomic_write(path, json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
 
 
+# ----------------------------------------------------------------------------- surrogates
+def surrogate_path(out: Path, r: int) -> Path:
+    """The checkpoint round ``r`` (>= 1) searches with: the surrogate retrained after round
+    ``r - 1``."""
+    return out / "surrogates" / f"round-{r}.safetensors"
+
+
 # ----------------------------------------------------------------------------- confirmations
 def read_confirmations(out: Path) -> tuple[Confirmation, ...]:
     """confirmations.json (none without the file; a damaged one: one error line)."""
@@ -272,11 +300,12 @@ def read_summary(out: Path) -> dict[str, Any]:
 
 def write_summary(
     out: Path, summary: Summary, wall_time_s: float, timings: dict[str, float], resumed: bool
-) -> None:
+) -> dict[str, Any]:
     """summary.json: the answer, and how long the invocation that wrote it took
     (``wall_time_s``, ``timings``; ``resumed``: it continued a run folder, so the time of the
     killed invocations before it is not counted). Left as it is when the answer is the one it
-    holds already (a finished run re-run)."""
+    holds already (a finished run re-run). Returns the timing the file holds (``TIMING_KEYS``:
+    this invocation's, or the one of the invocation that wrote the answer first)."""
     data = summary.to_json()
     path = out / SUMMARY
     if path.exists():
@@ -287,6 +316,7 @@ def write_summary(
         if isinstance(old, dict):
             answer = {k: v for k, v in old.items() if k not in TIMING_KEYS}
             if answer == json.loads(json.dumps(data, allow_nan=False)):
-                return
-    data = {**data, "wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
-    write_if_changed(path, json.dumps(data, indent=1, allow_nan=False) + "\n")
+                return {k: old[k] for k in TIMING_KEYS if k in old}
+    timing = {"wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
+    write_if_changed(path, json.dumps({**data, **timing}, indent=1, allow_nan=False) + "\n")
+    return timing

@@ -142,7 +142,10 @@ class Summary:
     metric), ``fe_metrics`` (as ``fingertip simulate --json``), ``fe_score``, ``errors_vs_targets``
     (relative error per tapping target, FE) and ``within_tolerance`` (per target, bool), or None
     when no design of that kind was confirmed. ``targets``: the target values; ``notes``: what
-    was missed and why.
+    was missed and why. ``timing``: how long the invocation that wrote summary.json took
+    (``wall_time_s``, ``timings``, ``resumed``: ``explore._run_folder.write_summary``; a
+    finished run re-run keeps the first one); empty until it is written, and not part of
+    ``to_json`` (the answer).
     """
 
     answers: dict[str, dict[str, Any] | None]
@@ -150,6 +153,7 @@ class Summary:
     tolerance: float
     rounds: list[dict[str, Any]]
     notes: list[str]
+    timing: dict[str, Any] = field(default_factory=dict)
 
     def to_json(self) -> dict[str, Any]:
         return {

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from sim import DesignError, homogeneous_design, load_design, simulate
 from sim.metrics import METRICS, PROTOCOLS
 from sim.options import SimOptions, apply_overrides, parse_override
-from sim.provenance import check_folder_kind, check_new_folder
+from sim.provenance import check_new_folder
 from sim.sweep import default_workers
 
 __all__ = ["main"]
@@ -319,7 +319,7 @@ def _add_predict(sub) -> None:
 
 
 def _optimize_config(args: argparse.Namespace):
-    from explore._pipeline import OptimizeConfig
+    from explore._config import OptimizeConfig
 
     fields = {
         "surrogate": str(args.surrogate) if args.surrogate else None,
@@ -350,11 +350,10 @@ def _optimize_config(args: argparse.Namespace):
     )
 
 
-def _finish(out, progress: bool) -> int:
+def _finish(summary, out) -> int:
+    """Report a search's ``Summary`` (the one ``optimize`` returned) and write its report."""
     from explore._report import write_report
-    from explore._run_folder import read_summary
 
-    summary = read_summary(out)
     report = write_report(out)
     labels = {
         "best": "best design",
@@ -363,7 +362,7 @@ def _finish(out, progress: bool) -> int:
         "buildable": "best buildable design",
     }
     for kind, label in labels.items():
-        a = summary["answers"].get(kind)
+        a = summary.answers.get(kind)
         if a is None:
             print(f"{label}: none credible confirmed by FE")
             continue
@@ -378,13 +377,14 @@ def _finish(out, progress: bool) -> int:
             f"{label} (FE){flag}: {errs}; wedge peak "
             f"{a['fe_metrics']['wedge_peak_force_N']:.3g} N{sag_text}"
         )
-    for note in summary["notes"]:
+    for note in summary.notes:
         print(f"  {note}")
-    t = summary.get("timings") or {}
+    t = summary.timing.get("timings") or {}
     if t:  # where the time went (this invocation; a resumed run counts its own part only)
         print(
             f"time: search {t.get('search_s', 0):.0f} s, FE {t.get('fe_s', 0):.0f} s, "
-            f"retraining {t.get('retrain_s', 0):.0f} s; {summary['wall_time_s']:.0f} s in all"
+            f"retraining {t.get('retrain_s', 0):.0f} s; "
+            f"{summary.timing['wall_time_s']:.0f} s in all"
         )
     print(f"report: {report}")
     return 0
@@ -394,14 +394,14 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     from explore._pipeline import optimize
 
     config = _optimize_config(args)
-    optimize(config, args.out, progress=not args.no_progress)
-    return _finish(args.out, not args.no_progress)
+    summary = optimize(config, args.out, progress=not args.no_progress)
+    return _finish(summary, args.out)
 
 
 def _add_search_options(p, *, defaults_note: str = "") -> None:
     from pathlib import Path
 
-    from explore._pipeline import OptimizeConfig
+    from explore._config import OptimizeConfig
 
     d = OptimizeConfig()
     p.add_argument("--surrogate", type=Path, help="checkpoint (default: the shipped one)")
@@ -479,34 +479,12 @@ def _add_optimize(sub) -> None:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from explore._pipeline import optimize
+    from explore._pipeline import run
 
-    progress = not args.no_progress
-    if args.from_scratch:
-        from explore._pipeline import check_inputs, check_storage
-        from sim.space import load_space
-        from sim.sweep import run_sweep
-        from surrogate import train_surrogate
-        from surrogate._run import CHECKPOINT_NAME
-
-        sweep = args.out.parent / f"{args.out.name}-sweep"
-        trained = args.out.parent / f"{args.out.name}-surrogate"
-        # every input is checked before hours of sweep and training, not after
-        config = _optimize_config(args)
-        check_inputs(config, args.out)
-        check_folder_kind(sweep, "sweep")
-        check_folder_kind(trained, "train")
-        if config.storage is not None:
-            check_storage(config.storage)
-        run_sweep(load_space(), args.n, sweep, workers=config.workers, seed=0,
-                  progress=progress)  # fmt: skip
-        ckpt = trained / CHECKPOINT_NAME
-        if not ckpt.exists():
-            train_surrogate(sweep, trained, seed=0, progress=progress)
-        args.surrogate, args.dataset = ckpt, sweep
-    config = _optimize_config(args)
-    optimize(config, args.out, progress=progress)
-    return _finish(args.out, progress)
+    scratch = args.n if args.from_scratch else None
+    summary = run(_optimize_config(args), args.out, from_scratch=scratch,
+                  progress=not args.no_progress)  # fmt: skip
+    return _finish(summary, args.out)
 
 
 def _add_run(sub) -> None:

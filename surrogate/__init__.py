@@ -4,6 +4,7 @@ uncertainty, from a deep ensemble trained on a sweep.
 Public API::
 
     train_surrogate(sweep_dir, out_dir=None, seed=0, members=5, ...) -> Path   # checkpoint
+    fine_tune(surrogate, data, points, targets, epochs=, seed=, weight=1) -> Surrogate
     load_checkpoint(path, allow_solver_mismatch=False) -> Surrogate
     Surrogate.predict(points | table) -> Prediction(mean, std, lower_90, upper_90, in_domain)
     read_points(path, space) / check_point(space, point)   # TOML / CSV design points
@@ -26,7 +27,7 @@ if TYPE_CHECKING:
     from ._io import SweepData, check_point, read_points, read_sweep
     from ._run import train_surrogate
     from ._surrogate import Prediction, Surrogate
-    from ._train import TrainConfig
+    from ._train import TrainConfig, fine_tune
 
 __all__ = [
     "CheckpointError",
@@ -38,6 +39,7 @@ __all__ = [
     "SweepData",
     "TrainConfig",
     "check_point",
+    "fine_tune",
     "load_checkpoint",
     "read_points",
     "read_sweep",
@@ -54,6 +56,7 @@ _LAZY = {
     "SweepData": "_io",
     "TrainConfig": "_train",
     "check_point": "_io",
+    "fine_tune": "_train",
     "load_checkpoint": "_checkpoint",
     "read_points": "_io",
     "read_sweep": "_io",

@@ -7,7 +7,7 @@ import hashlib
 import json
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -186,6 +186,22 @@ class SweepData:
     unchecked: int = 0
     #: the tapping frequency the sweep was made at (its recorded options; default if absent)
     tapping_frequency_Hz: float = 0.5
+
+    def with_rows(self, points: list[dict[str, Any]], targets: np.ndarray) -> SweepData:
+        """These designs and, after them, ``points`` with their ``targets`` (one row per
+        point, the columns of ``metric_names``; NaN: not learnt): one training set. The added
+        designs are in no table: their indices are -1, -2, ... and they count in ``n_rows``;
+        everything else (the space, the solver, the tap frequency...) is this sweep's."""
+        targets = np.asarray(targets, dtype=np.float64).reshape(-1, len(self.metric_names))
+        if len(targets) != len(points):
+            raise ValueError(f"{len(points)} points but {len(targets)} rows of targets")
+        return replace(
+            self,
+            points=[*self.points, *points],
+            targets=np.vstack([self.targets, targets]),
+            index=np.concatenate([self.index, -1 - np.arange(len(points))]),
+            n_rows=self.n_rows + len(points),
+        )
 
 
 def _number(text: str, field_name: str, *, integer: bool = False) -> float:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -34,6 +34,7 @@ __all__ = [
     "FitResult",
     "Split",
     "TrainConfig",
+    "fine_tune",
     "fit",
     "metric_groups",
     "split_indices",
@@ -224,6 +225,48 @@ def fit(
         surrogate, x_all[split.val], targets[split.val], best.loss.numpy()
     )
     return FitResult(surrogate, split, history, tuple(int(e) for e in best.epoch), epochs=epochs)
+
+
+def fine_tune(
+    surrogate: Surrogate,
+    data: SweepData,
+    points: Sequence[dict[str, Any]],
+    targets: np.ndarray,
+    *,
+    epochs: int,
+    seed: int,
+    weight: int = 1,
+    progress: bool | Callable[[int], None] = False,
+) -> Surrogate:
+    """``surrogate`` trained further (warm-started, ``fit``'s ``init``) on its training sweep
+    ``data`` and new designs: ``points`` with their ``targets`` (one row per point, the columns
+    of ``data.metric_names``; NaN: not learnt), each counted ``weight`` times.
+
+    The split is the one the checkpoint records (its train/validation/test designs, found in
+    ``data`` by table index); the new designs join the training designs. The hyper-parameters
+    are the checkpoint's but ``seed`` and ``epochs`` (at most this many, and the patience).
+    ``progress`` as ``fit``'s."""
+    if weight < 1:
+        raise ValueError(f"weight must be >= 1, got {weight}")
+    extra = [p for p in points for _ in range(weight)]
+    rows = np.asarray(targets, dtype=np.float64).reshape(-1, len(data.metric_names))
+    aug = data.with_rows(extra, np.repeat(rows, weight, axis=0))
+    split_idx = surrogate.header.get("training_data", {}).get("split_table_index", {})
+    row_of = {int(i): r for r, i in enumerate(data.index)}
+
+    def split_rows(key: str) -> np.ndarray:
+        return np.array([row_of[i] for i in split_idx.get(key, []) if i in row_of], dtype=int)
+
+    train, val, test = split_rows("train"), split_rows("val"), split_rows("test")
+    if len(train) == 0 or len(val) == 0:
+        raise ValueError("the checkpoint does not record its training split")
+    train = np.concatenate([train, len(data.points) + np.arange(len(extra))])
+    names = {f.name for f in fields(TrainConfig)}
+    old = {k: v for k, v in surrogate.header.get("training", {}).items() if k in names}
+    old = {k: tuple(v) if isinstance(v, list) else v for k, v in old.items()}
+    config = TrainConfig(**{**old, "seed": seed, "max_epochs": epochs, "patience": epochs})
+    split = Split(train, val, test)
+    return fit(aug, config, progress=progress, split=split, init=surrogate).surrogate
 
 
 _Tensors = tuple[torch.Tensor, torch.Tensor, torch.Tensor]  # features, targets, their mask

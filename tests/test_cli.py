@@ -701,7 +701,7 @@ def test_run_from_scratch_checks_its_inputs_before_the_sweep(
 
 # --- one --workers default, documented seeds ----------------------------------------------------
 def test_one_workers_default_and_every_seed_documented() -> None:
-    from explore._pipeline import OptimizeConfig
+    from explore._config import OptimizeConfig
     from explore.cli import build_parser
     from sim.sweep import default_workers
 
@@ -718,3 +718,105 @@ def test_one_workers_default_and_every_seed_documented() -> None:
     for name in ("sweep", "train", "optimize", "run"):
         helps = {a.dest: a.help or "" for a in sub.choices[name]._actions}
         assert "seed" in helps["seed"] and "default" in helps["seed"], name
+
+
+# --- optimize / run: the pipeline is explore's, the CLI parses and reports ----------------------
+def _a_summary():
+    from explore._types import Summary
+
+    answer = {
+        "errors_vs_targets": {"disp_at_1N_mm": 0.012, "hysteresis_Nmm": -0.2},
+        "within_tolerance": {"disp_at_1N_mm": True, "hysteresis_Nmm": False},
+        "fe_metrics": {"wedge_peak_force_N": 0.123456},
+        "readings": {"sag_mm": 0.0456},
+        "credible": True,
+    }
+    timing = {"wall_time_s": 12.4, "timings": {"search_s": 3.2, "fe_s": 8.9, "retrain_s": 0.0},
+              "resumed": False}  # fmt: skip
+    answers = {"best": answer, "gel": None, "foam": {**answer, "credible": False},
+               "buildable": None}  # fmt: skip
+    return Summary(answers, {}, 0.05, [], ["best: hysteresis is missed"], timing)
+
+
+@pytest.mark.parametrize(
+    ("argv", "scratch"),
+    [(["optimize"], None), (["run"], None), (["run", "--from-scratch", "--n", "5"], 5)],
+)
+def test_optimize_and_run_call_the_pipeline_once_and_report_its_summary(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys, argv: list[str], scratch
+) -> None:
+    """``fingertip optimize`` / ``run`` hand their options to ``explore._pipeline.optimize`` /
+    ``run`` (with ``--from-scratch`` the number of designs of the sweep) and report the
+    ``Summary`` it returns: no summary.json is read (there is none here)."""
+    import explore._pipeline
+    import explore._report
+
+    calls = []
+
+    def fake(config, out, *, from_scratch=None, progress=True):
+        calls.append((config, out, from_scratch, progress))
+        return _a_summary()
+
+    monkeypatch.setattr(explore._pipeline, argv[0], fake)
+    monkeypatch.setattr(explore._report, "write_report", lambda out: out / "report.md")
+    out = tmp_path / "main"
+    assert main([*argv, "--out", str(out), "--trials", "7", "--no-progress"]) == 0
+    ((config, given_out, from_scratch, progress),) = calls
+    assert config.trials == 7 and given_out == out and progress is False
+    assert from_scratch == scratch
+    assert capsys.readouterr().out.splitlines() == [
+        "best design (FE): disp_at_1N_mm +1.2 %, hysteresis_Nmm -20.0 % (outside); wedge peak "
+        "0.123 N; sag 0.0456 mm",
+        "best gel-only design: none credible confirmed by FE",
+        "best foam-core design (FE) [NOT CREDIBLE: --allow-untrusted]: disp_at_1N_mm +1.2 %, "
+        "hysteresis_Nmm -20.0 % (outside); wedge peak 0.123 N; sag 0.0456 mm",
+        "best buildable design: none credible confirmed by FE",
+        "  best: hysteresis is missed",
+        "time: search 3 s, FE 9 s, retraining 0 s; 12 s in all",
+        f"report: {out / 'report.md'}",
+    ]
+    assert not out.exists()
+
+
+def test_run_from_scratch_sweeps_trains_then_searches_with_them(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``explore._pipeline.run(..., from_scratch=n)``: the sweep (seed 0) and the training
+    (seed 0) beside the run folder, then the search on that surrogate and dataset; a surrogate
+    already trained there is not trained again (a resumed run)."""
+    import explore._pipeline
+    import sim.sweep
+    import surrogate
+    from explore._config import OptimizeConfig
+
+    calls = []
+
+    def sweep_(space, n, out, **kw):
+        calls.append(("sweep", n, out, kw["seed"], kw["workers"]))
+
+    def train_(sweep, out, **kw):
+        calls.append(("train", sweep, out, kw["seed"]))
+
+    def optimize_(config, out, **kw):
+        calls.append(("optimize", config.surrogate, config.dataset, config.trials, out))
+        return "summary"
+
+    monkeypatch.setattr(sim.sweep, "run_sweep", sweep_)
+    monkeypatch.setattr(surrogate, "train_surrogate", train_)
+    monkeypatch.setattr(explore._pipeline, "optimize", optimize_)
+    out = tmp_path / "main"
+    sweep, trained = tmp_path / "main-sweep", tmp_path / "main-surrogate"
+    config = OptimizeConfig(trials=9, workers=1)
+    assert explore._pipeline.run(config, out, from_scratch=6, progress=False) == "summary"
+    ckpt = str(trained / "model.safetensors")
+    assert calls == [("sweep", 6, sweep, 0, 1), ("train", sweep, trained, 0),
+                     ("optimize", ckpt, str(sweep), 9, out)]  # fmt: skip
+    calls.clear()
+    trained.mkdir()
+    (trained / "model.safetensors").write_bytes(b"")
+    (trained / "meta.json").write_text(json.dumps({"kind": "train"}))
+    explore._pipeline.run(config, out, from_scratch=6, progress=False)
+    assert [c[0] for c in calls] == ["sweep", "optimize"]
+    calls.clear()
+    explore._pipeline.run(config, out, progress=False)  # no --from-scratch: the search alone
+    assert calls == [("optimize", config.surrogate, None, 9, out)]

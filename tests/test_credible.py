@@ -1,6 +1,6 @@
 """Credible answers: what the surrogate learns of an FE result's trust (sim.trust), how the
 search keeps away from designs predicted not credible (explore._objective.infeasibility), which
-FE results may be answers (explore._pipeline.credible, per family) and the sensitivities that
+FE results may be answers (explore._summary.credible, per family) and the sensitivities that
 say what would close a missed target (explore._sensitivity)."""
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from explore._objective import infeasibility
-from explore._pipeline import credible, summarise
 from explore._search import design_family, family_space, predict_rows
 from explore._sensitivity import STEP, sensitivities, sensitivity_notes
+from explore._summary import credible, summarise
 from explore._types import Candidate, Confirmation
 from sim.protocols import TappingOptions
 from sim.space import load_space, point_to_design

@@ -197,7 +197,7 @@ def test_confirmation_bookkeeping_compares_prediction_with_fe():
 
 
 def test_rounds_stop_only_when_an_fe_design_meets_every_tapping_target():
-    from explore._pipeline import _target_met
+    from explore._summary import target_met
 
     targets = load_targets()
     cand = Candidate({"x": 1.0}, "best", 0, 7, "continuous", 0.1, {}, True, 0.05)
@@ -210,21 +210,21 @@ def test_rounds_stop_only_when_an_fe_design_meets_every_tapping_target():
 
     near = conf({targets.metric("hysteresis_Nmm"): 1.04})
     far = conf({targets.metric("disp_at_1N_mm"): 1.06})
-    assert _target_met([far, near], targets, 0.05)
-    assert not _target_met([far], targets, 0.05)
-    assert not _target_met([conf({}, status="failed")], targets, 0.05)
+    assert target_met([far, near], targets, 0.05)
+    assert not target_met([far], targets, 0.05)
+    assert not target_met([conf({}, status="failed")], targets, 0.05)
     # an FE result whose taps did not reach the periodic state, or that went beyond the
     # validity limits, never meets a target, however close its numbers
     for flag in ("settled", "valid"):
         untrusted = dataclasses.replace(near, diagnostics={flag: False})
-        assert not untrusted.trusted and not _target_met([untrusted], targets, 0.05)
+        assert not untrusted.trusted and not target_met([untrusted], targets, 0.05)
     # nor does a skin that does not recover between taps (sag over the targets' limit)
     putty = conf({targets.metric("hysteresis_Nmm"): 1.04}, sag=2 * targets.max_sag_mm)
-    assert putty.trusted and not _target_met([putty], targets, 0.05)
+    assert putty.trusted and not target_met([putty], targets, 0.05)
 
 
 def test_an_untrusted_fe_result_is_never_an_answer():
-    from explore._pipeline import summarise
+    from explore._summary import summarise
 
     targets = load_targets()
     space = load_space()
@@ -355,9 +355,11 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     assert best["fe_score"] == pytest.approx(min(scores))
     assert len(summary["rounds"]) == 2 and (out / "surrogates" / "round-1.safetensors").exists()
     assert {c["candidate"]["round"] for c in confs} == {0, 1}
-    # the study opens in Optuna (what optuna-dashboard reads)
+    # the study opens in Optuna (what optuna-dashboard reads); config.json holds the fixed
+    # configuration, studies.json the studies as the rounds started them
     cfg = json.loads((out / "config.json").read_text())
-    names = [s["name"] for s in cfg["studies"]]
+    assert "studies" not in cfg
+    names = [s["name"] for s in json.loads((out / "studies.json").read_text())]
     assert len(names) == 6  # per round: continuous, gel (one-layer gel cores), buildable
     study = optuna.load_study(study_name=names[0], storage=cfg["storage"])
     assert len(study.trials) == SearchSettings().screen_keep + 60  # the screen's seeds first
@@ -474,7 +476,8 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     cfg_b = json.loads((out / "config.json").read_text().replace(str(out), str(ref)))
     assert cfg_a["workers"] == 1 and cfg_b["workers"] == 2  # the one entry that may differ
     assert _without(cfg_a, "workers") == _without(cfg_b, "workers")
-    assert {"trials.csv", "confirmations.json", "report.md", "config.json"} <= set(files)
+    expected = {"trials.csv", "confirmations.json", "report.md", "config.json", "studies.json"}
+    assert expected <= set(files)
     assert "rounds/round-1-candidates.json" in files and "figures/importance.png" in files
     timing = ("wall_time_s", "timings", "resumed")
     a, b = (json.loads((d / "summary.json").read_text()) for d in (ref, out))
@@ -494,8 +497,7 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
         mb.header, "created_utc", "sha256"
     )
     # every study holds the same trials
-    cfg = json.loads((ref / "config.json").read_text())
-    for st in cfg["studies"]:
+    for st in json.loads((ref / "studies.json").read_text()):
         ta, tb = (optuna.load_study(study_name=st["name"], storage=f"sqlite:///{d}/study.db")
                   .trials for d in (ref, out))  # fmt: skip
         assert [(t.params, t.values) for t in ta] == [(t.params, t.values) for t in tb]
@@ -625,7 +627,7 @@ def test_a_smaller_n_is_refused_and_the_table_stays(tiny_model, tmp_path, capsys
 
 def test_retraining_reports_every_epoch_to_its_progress_bar(tiny_model):
     """fingertip run's retraining drives a bar through a callback (the library prints nothing)."""
-    from explore._pipeline import retrain
+    from explore._retrain import retrain
     from surrogate import load_checkpoint
 
     ticks: list[int] = []

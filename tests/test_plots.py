@@ -236,8 +236,9 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
         {"name": "r0-buildable", "search": "buildable", "round": 0, "directions": ["minimize"]},
         {"name": "r0-continuous", "search": "continuous", "round": 0, "directions": ["minimize"]},
     ]
-    config = {"targets": HUMAN, "storage": storage, "studies": studies}
+    config = {"targets": HUMAN, "storage": storage}
     (run / "config.json").write_text(json.dumps(config))
+    (run / "studies.json").write_text(json.dumps(studies))
     return run
 
 
@@ -380,6 +381,21 @@ def test_importance_ranks_the_dominant_parameter_first(run_dir: Path) -> None:
     assert info.names[0] == "skin.thickness_mm"
     assert sum(info.importances) == pytest.approx(1.0)
     assert list(info.importances) == sorted(info.importances, reverse=True)
+
+
+def test_an_older_run_folder_finds_its_study_in_config_json(run_dir: Path, tmp_path) -> None:
+    """Folders made before studies.json kept the studies' log in config.json."""
+    import shutil
+
+    old = tmp_path / "old"
+    shutil.copytree(run_dir, old)
+    studies = json.loads((old / "studies.json").read_text())
+    (old / "studies.json").unlink()
+    config = json.loads((old / "config.json").read_text())
+    (old / "config.json").write_text(json.dumps({**config, "studies": studies}))
+    run = load_run(old)
+    assert run.studies == tuple(studies)
+    assert importance_info(run).study_name == "r0-continuous"
 
 
 def test_projections_follow_importance_and_drop_infinite_scores(run_dir: Path) -> None:

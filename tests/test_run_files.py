@@ -12,12 +12,21 @@ import pytest
 
 from explore._run_folder import (
     OBJECTIVE_NAMES,
+    TIMING_KEYS,
+    add_study,
     parameter_columns,
+    read_config,
+    read_studies,
+    read_summary,
     read_trials,
     trials_header,
+    write_config,
+    write_summary,
     write_trials,
 )
 from explore._search import TrialRow
+from explore._types import Summary
+from sim.errors import DesignError
 from sim.families import family_uses
 from sim.provenance import atomic_write, json_safe, write_if_changed, write_json
 from sim.space import DEFAULT_SPACE_PATH, LAYER_ROLES, PARAM_MATERIAL_KEYS, active_roles, load_space
@@ -87,6 +96,86 @@ def test_trials_csv_round_trips_its_parameter_columns(tmp_path):
                 assert cell == pytest.approx(value)
     assert np.isinf(columns["hysteresis_error"]).sum() == 0  # non-finite: an empty cell
     assert set(OBJECTIVE_NAMES) <= set(columns)
+
+
+# ---------------------------------------------------------------------------- config and studies
+def test_config_json_is_fixed_and_the_studies_have_their_own_log(tmp_path):
+    """config.json is written once; the studies the rounds start go to studies.json (once
+    each), which reads back in order."""
+    record = {"storage": "sqlite:///x.db", "seed": 0}
+    write_config(tmp_path, record, {"kind": "optimize"})
+    config = (tmp_path / "config.json").read_bytes()
+    assert read_config(tmp_path) == record and read_studies(tmp_path) == []
+    add_study(tmp_path, "s-r0-continuous", "continuous", 0, "single")
+    add_study(tmp_path, "s-r0-gel", "gel", 0, "multi")
+    add_study(tmp_path, "s-r0-continuous", "continuous", 0, "single")  # a resume: once
+    assert read_studies(tmp_path) == [
+        {"name": "s-r0-continuous", "search": "continuous", "round": 0,
+         "directions": ["minimize"]},
+        {"name": "s-r0-gel", "search": "gel", "round": 0, "directions": ["minimize"] * 3},
+    ]  # fmt: skip
+    assert json.loads((tmp_path / "studies.json").read_text()) == read_studies(tmp_path)
+    assert (tmp_path / "config.json").read_bytes() == config  # never rewritten
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "config.json",
+        "meta.json",
+        "studies.json",
+    ]
+
+
+def test_an_older_folder_keeps_its_studies_in_config_json(tmp_path):
+    """A folder made before studies.json: its studies are read from config.json, and a resumed
+    run continues them in studies.json, leaving config.json as it is."""
+    old = {
+        "name": "s-r0-continuous",
+        "search": "continuous",
+        "round": 0,
+        "directions": ["minimize"],
+    }
+    (tmp_path / "config.json").write_text(
+        json.dumps({"storage": "sqlite:///x.db", "studies": [old]})
+    )
+    config = (tmp_path / "config.json").read_bytes()
+    assert read_studies(tmp_path) == [old]
+    add_study(tmp_path, "s-r1-continuous", "continuous", 1, "single")
+    assert [s["name"] for s in read_studies(tmp_path)] == ["s-r0-continuous", "s-r1-continuous"]
+    assert (tmp_path / "config.json").read_bytes() == config
+
+
+def test_an_older_folder_resumes_with_the_same_configuration(tmp_path):
+    """Its config.json holds the studies beside the configuration: no reason to refuse it;
+    another configuration is still refused in one line."""
+    from explore._config import _check_resume
+
+    record = {"storage": "sqlite:///x.db", "seed": 0, "workers": 2}
+    studies = [{"name": "s-r0-continuous", "search": "continuous", "round": 0,
+                "directions": ["minimize"]}]  # fmt: skip
+    (tmp_path / "config.json").write_text(json.dumps({**record, "studies": studies}))
+    _check_resume(tmp_path, {**record, "workers": 1})  # --workers may differ too
+    with pytest.raises(DesignError, match=r"another configuration \(seed\)"):
+        _check_resume(tmp_path, {**record, "seed": 1})
+
+
+def test_a_config_json_that_is_no_search_configuration_is_one_error(tmp_path):
+    (tmp_path / "config.json").write_text(json.dumps({"space": {}, "sampler": "sobol"}))
+    with pytest.raises(DesignError, match="not the configuration of a search run"):
+        read_config(tmp_path)
+
+
+# ---------------------------------------------------------------------------- summary.json
+def test_write_summary_returns_the_timing_the_file_keeps(tmp_path):
+    """summary.json's timing is the invocation's that wrote the answer: a re-run with the same
+    answer keeps the first one (and returns it, for ``Summary.timing``), a new answer its own."""
+    summary = Summary({"best": None}, {"disp_at_1N_mm": 1.83}, 0.05, [], ["a note"])
+    first = write_summary(tmp_path, summary, 3.5, {"fe_s": 2.0}, False)
+    assert first == {"wall_time_s": 3.5, "timings": {"fe_s": 2.0}, "resumed": False}
+    assert write_summary(tmp_path, summary, 9.0, {"fe_s": 0.0}, True) == first
+    stored = read_summary(tmp_path)
+    assert {k: stored[k] for k in TIMING_KEYS} == first
+    assert {k: v for k, v in stored.items() if k not in TIMING_KEYS} == summary.to_json()
+    other = Summary({"best": None}, {"disp_at_1N_mm": 1.83}, 0.05, [], ["another note"])
+    assert write_summary(tmp_path, other, 1.0, {}, True)["wall_time_s"] == 1.0
+    assert read_summary(tmp_path)["notes"] == ["another note"]
 
 
 # ---------------------------------------------------------------------------- the one rule

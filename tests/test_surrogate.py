@@ -352,6 +352,77 @@ def test_training_is_reproducible_from_the_seed(data):
     np.testing.assert_array_equal(a.split.train, b.split.train)
 
 
+def _warm_start_as_before(surrogate, data, points, targets, weight, epochs, seed):
+    """What ``explore``'s retraining did before ``fine_tune`` (commit fb8dc93, with
+    ``surrogate._train.fit`` and the sweep copied field by field): the reference."""
+    import dataclasses
+
+    from surrogate._train import Split
+
+    new_points = [p for p in points for _ in range(weight)]
+    new_targets = np.array([t for t in targets for _ in range(weight)]).reshape(
+        -1, len(data.metric_names)
+    )
+    base = len(data.points)
+    aug = dataclasses.replace(
+        data,
+        points=[*data.points, *new_points],
+        targets=np.vstack([data.targets, new_targets]),
+        index=np.concatenate([data.index, -1 - np.arange(len(new_points))]),
+        n_rows=data.n_rows + len(new_points),
+    )
+    split_idx = surrogate.header["training_data"]["split_table_index"]
+    row_of = {int(i): r for r, i in enumerate(data.index)}
+
+    def rows(key: str) -> np.ndarray:
+        return np.array([row_of[i] for i in split_idx.get(key, []) if i in row_of], dtype=int)
+
+    train = np.concatenate([rows("train"), base + np.arange(len(new_points))])
+    fields = {f.name for f in dataclasses.fields(TrainConfig)}
+    old = {k: v for k, v in surrogate.header["training"].items() if k in fields}
+    old = {k: tuple(v) if isinstance(v, list) else v for k, v in old.items()}
+    config = TrainConfig(**{**old, "seed": seed, "max_epochs": epochs, "patience": epochs})
+    split = Split(train, rows("val"), rows("test"))
+    return fit(aug, config, progress=False, split=split, init=surrogate).surrogate
+
+
+def test_fine_tune_is_the_warm_start_explore_made_before(data):
+    """``surrogate.fine_tune`` (the public entry explore's retraining calls) gives the very
+    weights, header and training rows of the private warm start it replaces."""
+    from surrogate import fine_tune
+
+    base = fit(data, SHORT, progress=False).surrogate
+    points = [dict(data.points[0]), dict(data.points[3])]
+    targets = data.targets[[0, 3]] * 1.05
+    targets[1, 0] = np.nan  # a metric not learnt
+    ticks: list[int] = []
+    tuned = fine_tune(base, data, points, targets, epochs=7, seed=2, weight=3,
+                      progress=ticks.append)  # fmt: skip
+    before = _warm_start_as_before(base, data, points, targets, 3, 7, 2)
+    sa, sb = tuned.model.state_dict(), before.model.state_dict()
+    assert sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
+    drop = ("created_utc", "git_commit")
+    assert {k: v for k, v in tuned.header.items() if k not in drop} == {
+        k: v for k, v in before.header.items() if k not in drop
+    }
+    assert tuned.header["training_data"]["n_rows"] == data.n_rows + 6
+    added = tuned.header["training_data"]["split_table_index"]["train"][-6:]
+    assert added == [-1, -2, -3, -4, -5, -6]  # each new design three times, after the sweep's
+    assert ticks == [1] * tuned.header["training"]["epochs"]
+    with pytest.raises(ValueError, match="weight"):
+        fine_tune(base, data, points, targets, epochs=1, seed=0, weight=0)
+
+
+def test_sweep_data_with_rows_appends_designs_outside_the_table(data):
+    more = data.with_rows([dict(data.points[1])], data.targets[[1]])
+    assert len(more.points) == len(data.points) + 1 and more.n_rows == data.n_rows + 1
+    assert more.index[-1] == -1 and np.array_equal(more.index[:-1], data.index)
+    np.testing.assert_array_equal(more.targets[-1], data.targets[1])
+    assert (more.space, more.table_sha256) == (data.space, data.table_sha256)
+    with pytest.raises(ValueError, match="2 points but 1 rows"):
+        data.with_rows([data.points[0], data.points[1]], data.targets[[1]])
+
+
 # ----------------------------------------------------------------------------- checkpoints
 def test_checkpoint_round_trip_gives_identical_predictions(data, sweep, tmp_path):
     trained = fit(data, SHORT, progress=False).surrogate

@@ -1,0 +1,317 @@
+"""The configuration of a search (``fingertip optimize`` / ``run``) and its inputs, checked
+before any work: ``OptimizeConfig``, what the run folder's config.json holds of it
+(:func:`config_record`) and the refusal of a resume with another one, the storage URL, the
+targets, space and ``--catalogue`` files (:func:`check_inputs`, :func:`check_storage`), and
+:func:`setup`: the loaded surrogate, the searched spaces, its training sweep and its FE options.
+
+Importing this module is cheap (the CLI's parser reads ``OptimizeConfig``'s defaults).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from sim.errors import DesignError
+from sim.options import SimOptions
+from sim.provenance import check_folder_kind
+from sim.space import load_space
+from sim.sweep import default_workers
+from sim.targets import Targets, load_targets
+
+from ._buildable import DEFAULT_FE_BUDGET
+from ._run_folder import read_config
+from ._search import catalogue_only, check_subspace
+
+__all__ = [
+    "DEFAULT_CHECKPOINT",
+    "OptimizeConfig",
+    "Setup",
+    "check_inputs",
+    "check_storage",
+    "config_record",
+    "setup",
+]
+
+PRETRAINED = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained" / "default"
+DEFAULT_CHECKPOINT = PRETRAINED / "model.safetensors"
+
+
+@dataclass(frozen=True)
+class OptimizeConfig:
+    """Everything a search run depends on (stored in the run folder's config.json).
+
+    ``trials`` / ``buildable_trials``: surrogate evaluations per round of the continuous and
+    the catalogue-only study; ``confirm``: best distinct designs sent to FE per round;
+    ``uncertain``: promising designs the trust guard flagged, also sent to FE; ``rounds``: at
+    most this many search/confirm/retrain rounds; ``tolerance``: agreement needed to stop
+    (|surrogate - FE| / FE on the tapping metrics, together with an FE-confirmed design within
+    it of every tapping target) and the closeness counted as "within" a target;
+    ``max_disagreement``: the trust guard's limit on the ensemble's std/|mean|; ``workers``: FE
+    processes (``sim.sweep.default_workers``: one per usable core), which never change the
+    answer, so a run may be resumed with another number of them; ``catalogues``: the user's
+    ``--catalogue`` files (recorded with their sha256; a resume with others is refused);
+    ``buildable_fe``: buildable stacks of the merged catalogue simulated by FE only, for the
+    materials the surrogate cannot predict (``explore._buildable``); ``family_trials``:
+    surrogate evaluations per round of each family's own study (gel only, foam core:
+    ``explore._search.family_space``), whose best design is confirmed too; ``allow_untrusted``:
+    let designs that are not credible (an FE result beyond the validity limits or unsettled,
+    or a sag over the targets' limit) compete for the answers, flagged as such; ``screen``:
+    designs of a quasi-random sample the surrogate scores at the start of every study, whose
+    best (``SearchSettings.screen_keep``) seed the sampler (``explore._search.screen``), so
+    ``trials`` counts the sampler's trials after them.
+    """
+
+    surrogate: str = str(DEFAULT_CHECKPOINT)
+    space: str | None = None
+    targets: str | None = None
+    # after the screen's 64 seeds: 128 TPE trials found a better design than 1000 TPE trials
+    # alone, in a tenth of the time (benchmarks/bench_search.py, README "Search"); families
+    # and the buildable search, smaller spaces, take half
+    trials: int = 128
+    buildable_trials: int = 64
+    confirm: int = 3
+    uncertain: int = 1
+    rounds: int = 3
+    tolerance: float = 0.05
+    mode: str = "single"
+    max_disagreement: float = 0.10
+    storage: str | None = None
+    study: str = "fingertip"
+    seed: int = 0
+    workers: int = field(default_factory=default_workers)
+    dataset: str | None = None
+    retrain_epochs: int = 150
+    catalogues: tuple[str, ...] = ()
+    buildable_fe: int = DEFAULT_FE_BUDGET
+    family_trials: int = 64
+    allow_untrusted: bool = False
+    # 2^16 designs: ~2-3 s per study at the surrogate's ~65 000 designs/s on one thread
+    # (benchmarks/bench_predict.py), so a round of four studies stays within 30 s (issue 15)
+    screen: int = 65536
+
+    def check(self) -> None:
+        def at_least(name: str, value: int, low: int) -> None:
+            if value < low:
+                raise DesignError(f"--{name.replace('_', '-')}", f"must be >= {low}, got {value}")
+
+        at_least("trials", self.trials, 1)
+        at_least("buildable_trials", self.buildable_trials, 0)
+        at_least("confirm", self.confirm, 1)
+        at_least("uncertain", self.uncertain, 0)
+        at_least("rounds", self.rounds, 1)
+        at_least("workers", self.workers, 1)
+        at_least("retrain_epochs", self.retrain_epochs, 1)
+        at_least("buildable_fe", self.buildable_fe, 0)
+        at_least("family_trials", self.family_trials, 0)
+        at_least("screen", self.screen, 0)
+        if self.mode not in ("single", "multi"):
+            raise DesignError("--mode", f"must be single or multi, got {self.mode!r}")
+        for name in ("tolerance", "max_disagreement"):
+            v = getattr(self, name)
+            if not 0 < v < 1:
+                raise DesignError(f"--{name.replace('_', '-')}", f"must be in (0, 1), got {v}")
+
+
+# ----------------------------------------------------------------------------- config.json
+#: configuration entries that never change the answer: a run may be resumed with others
+_FREE = ("workers",)
+#: what config.json held beside the configuration before studies.json (``explore._run_folder``)
+_OLD_LOG = ("studies",)
+
+
+def config_record(
+    config: OptimizeConfig, out: Path, targets: Targets, options: SimOptions, user: tuple = ()
+) -> dict:
+    """What config.json holds: the configuration, the FE options, the storage URL, the targets
+    and the ``--catalogue`` files ``user`` by content (only when given: older runs had none)."""
+    record = {
+        **dataclasses.asdict(config),
+        "sim_options": dataclasses.asdict(options),
+        "storage": _storage_url(config, out),
+        "targets": dict(targets.values),
+        "displacement_reading": targets.reading,
+        "max_sag_mm": targets.max_sag_mm,
+    }
+    record.pop("catalogues")
+    if user:
+        record["catalogues"] = [c.record() for c in user]
+    return json.loads(json.dumps(record))  # as config.json holds it (lists, not tuples)
+
+
+def _storage_url(config: OptimizeConfig, out: Path) -> str:
+    return config.storage or f"sqlite:///{(out / 'study.db').resolve()}"
+
+
+def _check_resume(out: Path, record: dict) -> None:
+    """A run folder is resumed only with the configuration it was made with (``_FREE`` aside;
+    an older folder's study log in config.json is no configuration)."""
+    old = read_config(out)
+    if old is None:
+        return
+    keys = sorted((set(old) | set(record)) - set(_FREE) - set(_OLD_LOG))
+    diff = [k for k in keys if old.get(k) != record.get(k)]
+    if diff:
+        raise DesignError(
+            "--out",
+            f"{out} holds a run with another configuration ({', '.join(diff)}); "
+            "use another --out or the same options to resume",
+        )
+
+
+def check_storage(url: str) -> None:
+    """Open the Optuna storage ``url`` once (creating its tables if needed), or refuse it in one
+    line naming ``--storage``: checked before any FE work or folder is made. Workers starting
+    together on a new database race to create its tables: the losers try again."""
+    import optuna
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import ArgumentError, IntegrityError, ProgrammingError, SQLAlchemyError
+
+    example = "e.g. sqlite:///path/study.db or postgresql+psycopg://user:password@host/database"
+    try:
+        make_url(url)
+    except ArgumentError:
+        raise DesignError("--storage", f"{url!r} is not a database URL ({example})") from None
+    optuna.logging.set_verbosity(optuna.logging.WARNING)
+    for attempt in range(5):
+        try:
+            storage = optuna.storages.RDBStorage(url)
+            break
+        except (IntegrityError, ProgrammingError) as exc:  # another worker's table or type
+            if attempt == 4:
+                raise DesignError("--storage", f"cannot open {url}: {_first_line(exc)}") from None
+            time.sleep(0.2 * (attempt + 1))
+        except (SQLAlchemyError, ImportError, ValueError, OSError, RuntimeError) as exc:
+            raise DesignError("--storage", f"cannot open {url}: {_first_line(exc)}") from None
+    storage.remove_session()
+    storage.engine.dispose()
+
+
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+
+
+def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:
+    """Everything a search can check without its surrogate, before any work: the options, the
+    run folder (absent, empty or a search run's), the targets file, the ``--catalogue`` files
+    and the space file (the storage URL: ``check_storage``). Returns the targets.
+    ``explore._pipeline.run`` calls it before a ``--from-scratch`` sweep; :func:`setup` calls
+    it first."""
+    config.check()
+    out = Path(out)
+    check_folder_kind(out, "optimize")
+    read_config(out)
+    targets = load_targets(config.targets)
+    from sim.materials import load_user_catalogues
+
+    catalogue = load_user_catalogues(config.catalogues)[1]  # the --catalogue files, checked
+    if config.space:
+        load_space(config.space, catalogue)
+    return targets
+
+
+# ----------------------------------------------------------------------------- setup
+def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
+    """The surrogate's training sweep: --dataset, the checkpoint's folder (a shipped checkpoint
+    carries its table.csv), or the sweep named in its header, whichever holds the table whose
+    sha256 the header records."""
+    from sim import _sweep_folder as sweep_folder
+    from surrogate._io import sha256_file
+
+    want = surrogate.header.get("training_data", {}).get("table_sha256")
+    places = [config.dataset, str(Path(config.surrogate).parent),
+              surrogate.header.get("training_data", {}).get("sweep")]  # fmt: skip
+    for p in places:
+        if not p:
+            continue
+        table = Path(p) / sweep_folder.TABLE
+        if table.exists() and (Path(p) / sweep_folder.CONFIG).exists():
+            if config.dataset or sha256_file(table) == want:
+                return Path(p)
+    return None
+
+
+def _sim_options(dataset: Path | None) -> SimOptions:
+    """The FE options of the surrogate's training sweep (so FE confirms like with like), else
+    the defaults."""
+    from sim._sweep_folder import read_config as read_sweep_config
+    from sim.options import options_from_dict
+
+    if dataset is None:
+        return SimOptions()
+    cfg = read_sweep_config(dataset)
+    return options_from_dict(cfg["options"]) if "options" in cfg else SimOptions()
+
+
+@dataclass(frozen=True)
+class Setup:
+    """The checked inputs of a search (:func:`setup`): the surrogate it starts from, the space
+    it searches (and its catalogue-only part, or why there is none), the targets, the
+    surrogate's training sweep (None: not found, no retraining) and its FE options, what
+    config.json holds (``record``) and the merged catalogue."""
+
+    surrogate: Any
+    space: Any
+    build_space: Any
+    build_note: str | None
+    targets: Targets
+    dataset: Path | None
+    options: SimOptions
+    record: dict
+    catalogue: dict = field(default_factory=dict)  # shipped + user materials, by name
+
+
+def setup(config: OptimizeConfig, out: Path) -> Setup:
+    """Check every input before any work and before the run folder is made: the options, the
+    folder, the targets, the space (inside the surrogate's), the configuration of a resumed
+    run, the storage URL."""
+    from surrogate import load_checkpoint
+
+    targets = check_inputs(config, out)
+    # a surrogate trained on FE results of another solver version still searches (the shipped
+    # one until it is re-made), with a warning: every answer is confirmed by this solver's FE
+    surrogate = load_checkpoint(config.surrogate, allow_solver_mismatch=True)
+    user, catalogue = _catalogues(config, surrogate.space)
+    space = load_space(config.space, catalogue) if config.space else surrogate.space
+    try:
+        check_subspace(space, surrogate.space)
+    except ValueError as exc:
+        name, _, msg = str(exc).partition(": ")
+        raise DesignError(f"space {name}", msg) from None
+    build_space, build_note = None, None
+    if config.buildable_trials:
+        try:
+            build_space = catalogue_only(space)
+        except ValueError as exc:  # e.g. a core that must be "param"
+            build_note = f"no buildable search: {exc}"
+    dataset = _find_dataset(config, surrogate)
+    options = _sim_options(dataset)
+    record = config_record(config, out, targets, options, user)
+    _check_resume(out, record)
+    if config.storage is not None:
+        check_storage(config.storage)
+    return Setup(
+        surrogate, space, build_space, build_note, targets, dataset, options, record, catalogue
+    )
+
+
+def _catalogues(config: OptimizeConfig, trained) -> tuple[tuple, dict]:
+    """The ``--catalogue`` files and the merged catalogue: shipped, the user materials the
+    surrogate's space holds (it was trained on them) and the files' (a name must mean one
+    material)."""
+    from sim.materials import load_user_catalogues
+
+    user, catalogue = load_user_catalogues(config.catalogues)
+    for mat in trained.materials:
+        name = str(mat.name)
+        if name in catalogue and catalogue[name] != mat:
+            raise DesignError(
+                "--catalogue",
+                f"material {name!r} differs from the one the surrogate was trained on; rename it",
+            )
+        catalogue[name] = mat
+    return user, catalogue

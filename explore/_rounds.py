@@ -1,0 +1,303 @@
+"""The rounds of a search: each searches the surrogate (one Optuna study per search: the
+continuous one, each family's, the catalogue-only one), sends the best distinct trusted designs,
+promising flagged ones and the best of each other search to FE, and then stops (the surrogate
+agrees with FE and an FE-confirmed design meets every tapping target, or the last round) or
+retrains the surrogate on every FE result so far (``explore._retrain``) and searches again.
+
+Resumable: each round's work is read back from its own files (its studies, its candidates, the
+FE records, the retrained checkpoint), and each round decides from the confirmations of the
+rounds up to it only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sim.targets import Targets
+
+from ._buildable import fe_screen, predictable_materials
+from ._config import OptimizeConfig, Setup
+from ._confirm import REFERENCES, confirm, reference_point, run_fe
+from ._objective import TAPPING
+from ._retrain import retrain
+from ._run_folder import (
+    add_study,
+    read_candidates,
+    surrogate_path,
+    write_candidates,
+    write_confirmations,
+    write_trials,
+)
+from ._search import (
+    FAMILY_SEARCHES,
+    SearchSettings,
+    TrialRow,
+    _finished,
+    create_study,
+    family_space,
+    run_study,
+    select_candidates,
+)
+from ._summary import credible, target_met
+from ._types import Candidate, Confirmation
+
+__all__ = ["Search", "choose", "fe_only_screen", "run_references", "run_rounds"]
+
+
+@dataclass(eq=False)
+class Search:
+    """A search in progress: its configuration, run folder and checked inputs, and what its
+    rounds have made so far (in order): the confirmations, the scored trials, the rounds' log
+    (``Summary.rounds``) and the time spent searching, in FE and retraining."""
+
+    config: OptimizeConfig
+    out: Path
+    setup: Setup
+    storage: str
+    worker: str | None  # a shared storage: this worker's name (its run folder)
+    progress: bool = True
+    confirmations: list[Confirmation] = field(default_factory=list)
+    rows: list[TrialRow] = field(default_factory=list)
+    rounds: list[dict[str, Any]] = field(default_factory=list)
+    timings: dict[str, float] = field(
+        default_factory=lambda: {"fe_s": 0.0, "search_s": 0.0, "retrain_s": 0.0}
+    )
+
+    @contextmanager
+    def timed(self, what: str) -> Iterator[None]:
+        """Count the time of the block in ``timings[what]``."""
+        tic = time.perf_counter()
+        yield
+        self.timings[what] += time.perf_counter() - tic
+
+
+def run_references(run: Search) -> None:
+    """FE of silicone and polyurethane on the reference geometry (for the figures)."""
+    with run.timed("fe_s"):
+        run_fe(
+            [(run.out / "fe" / "references" / f"{m}.json", reference_point(m)) for m in REFERENCES],
+            run.setup.options,
+            workers=run.config.workers,
+            progress=run.progress,
+            desc="FE references",
+        )
+
+
+def run_rounds(run: Search):
+    """Every round, as far as it goes; returns the surrogate the last round searched with."""
+    from surrogate import load_checkpoint
+
+    surrogate = run.setup.surrogate
+    for r in range(run.config.rounds):
+        if r > 0:  # the surrogate retrained after round r - 1, as stored (resumed or not)
+            surrogate = load_checkpoint(surrogate_path(run.out, r), allow_solver_mismatch=True)
+        round_rows = _search_round(run, surrogate, r)
+        new = _confirm_round(run, round_rows, surrogate, r)
+        info = _log_round(run, r, new)
+        # done when the surrogate can be trusted AND an FE-confirmed design meets every tapping
+        # target; a trusted surrogate whose best design misses searches again (new seed)
+        if (info["agreed"] and info["target_met"]) or r == run.config.rounds - 1:
+            break
+        if run.setup.dataset is None:
+            info["note"] = "no training data found beside the checkpoint: not retrained"
+            break
+        _retrain_after(run, surrogate, r)
+    return surrogate
+
+
+def _searches(config: OptimizeConfig, s: Setup) -> list[tuple[str, Any, int]]:
+    """A round's searches: (name, space, trials), the continuous one first."""
+    searches = [("continuous", s.space, config.trials)]
+    for fam in FAMILY_SEARCHES if config.family_trials else ():
+        sub = family_space(s.space, fam)
+        if sub is not None:
+            searches.append((fam, sub, config.family_trials))
+    if s.build_space is not None:
+        searches.append(("buildable", s.build_space, config.buildable_trials))
+    return searches
+
+
+def _search_round(run: Search, surrogate, r: int) -> dict[str, list[TrialRow]]:
+    """Round ``r``'s studies, each run (or resumed) to its trials; their scored trials."""
+    config = run.config
+    settings = SearchSettings(
+        trials=config.trials,
+        mode=config.mode,
+        seed=config.seed + r,
+        max_disagreement=config.max_disagreement,
+        allow_untrusted=config.allow_untrusted,
+        options=run.setup.options,
+        screen=config.screen,
+    )
+    round_rows: dict[str, list[TrialRow]] = {}
+    for search, space, n in _searches(config, run.setup):
+        rows = _study(run, surrogate, r, search, space, dataclasses.replace(settings, trials=n))
+        round_rows[search] = rows
+        run.rows += rows
+    return round_rows
+
+
+def _study(
+    run: Search, surrogate, r: int, search: str, space, settings: SearchSettings
+) -> list[TrialRow]:
+    """One study of round ``r``, recorded in the run folder as it starts, with its bar."""
+    from tqdm import tqdm
+
+    name = f"{run.config.study}-r{r}-{search}"
+    add_study(run.out, name, search, r, run.config.mode)
+    study = create_study(run.storage, name, settings, run.worker)
+    total = settings.trials + (settings.screen_keep if settings.screen else 0)  # seeds + sampled
+    bar = tqdm(total=total, desc=f"round {r + 1}: search {search}", unit="trial",
+               disable=not run.progress)  # fmt: skip
+    bar.update(min(total, _finished(study)))
+    with run.timed("search_s"):
+        rows = run_study(
+            study, surrogate, space, run.setup.targets, settings, round_=r, search=search,
+            progress=bar.update, shared=run.worker is not None, worker=run.worker,
+        )  # fmt: skip
+        bar.close()
+    return rows
+
+
+def _confirm_round(
+    run: Search, round_rows: dict[str, list[TrialRow]], surrogate, r: int
+) -> list[Confirmation]:
+    """FE of round ``r``'s candidates (chosen once: a resumed run keeps its earlier choice),
+    added to the confirmations; the round's own."""
+    s = run.setup
+    chosen = read_candidates(run.out, r)
+    if chosen is None:
+        chosen = choose(round_rows, surrogate, run.config, run.confirmations)
+        write_candidates(run.out, r, chosen)
+    with run.timed("fe_s"):
+        new = confirm(
+            chosen, run.out, s.targets, s.options, workers=run.config.workers,
+            progress=run.progress, materials=_user_tables(s.catalogue), catalogue=s.catalogue,
+        )  # fmt: skip
+    known = {c.key for c in run.confirmations}
+    run.confirmations += [c for c in new if c.key not in known]
+    write_confirmations(run.out, run.confirmations, final=False)
+    return new
+
+
+def _log_round(run: Search, r: int, new: list[Confirmation]) -> dict[str, Any]:
+    """Round ``r``'s entry of the rounds' log (``_round_info`` and ``target_met``), and the
+    trials so far in trials.csv."""
+    s, tol = run.setup, run.config.tolerance
+    info = _round_info(r, new, s.targets, tol)
+    run.rounds.append(info)
+    write_trials(run.out, run.rows, s.space.names, list(s.surrogate.metric_names), final=False)
+    info["target_met"] = target_met(run.confirmations, s.targets, tol)
+    return info
+
+
+def _retrain_after(run: Search, surrogate, r: int) -> None:
+    """The surrogate round ``r + 1`` searches with, retrained on every FE result so far (once:
+    a resumed run finds it stored, written whole or not at all)."""
+    from tqdm import tqdm
+
+    from surrogate import save_checkpoint
+
+    nxt = surrogate_path(run.out, r + 1)
+    if nxt.exists():
+        return
+    config = run.config
+    with run.timed("retrain_s"):
+        label = f"round {r + 2}: retrain on {len(run.confirmations)} FE designs"
+        bar = tqdm(total=config.retrain_epochs, desc=label, unit="epoch",
+                   disable=not run.progress)  # fmt: skip
+        try:
+            model = retrain(surrogate, run.setup.dataset, run.confirmations,
+                            config.retrain_epochs, config.seed, progress=bar.update)  # fmt: skip
+        finally:
+            bar.close()
+    nxt.parent.mkdir(parents=True, exist_ok=True)
+    save_checkpoint(model, nxt)  # atomic: a kill never leaves half a checkpoint
+
+
+def fe_only_screen(run: Search) -> list[Confirmation]:
+    """After the rounds: the FE-only screen of buildable stacks of the catalogue materials the
+    surrogate cannot predict (``explore._buildable``), when there are such and it is asked."""
+    s, config = run.setup, run.config
+    fe_only = set(s.catalogue) - predictable_materials(s.surrogate.space)
+    if not (config.buildable_trials and config.buildable_fe and fe_only):
+        return []
+    trusted = [c for c in run.confirmations if credible(c, s.targets, config.allow_untrusted)]
+    with run.timed("fe_s"):
+        return fe_screen(
+            run.out, min(trusted, key=lambda c: c.fe_score, default=None), s.space, s.catalogue,
+            s.targets, s.options, budget=config.buildable_fe, seed=config.seed,
+            workers=config.workers, progress=run.progress,
+        )  # fmt: skip
+
+
+def choose(
+    round_rows: dict[str, list[TrialRow]],
+    surrogate,
+    config: OptimizeConfig,
+    confirmations: list[Confirmation],
+) -> list[Candidate]:
+    """This round's FE candidates: the best distinct trusted designs, promising flagged ones,
+    and the best buildable design; none that earlier rounds confirmed."""
+    done = [c.candidate.point for c in confirmations]
+    encoder = surrogate.encoder
+
+    def features(pts: list[dict[str, Any]]) -> np.ndarray:
+        return encoder.encode(pts).features  # unit-scaled columns + active flags
+
+    chosen = select_candidates(
+        round_rows["continuous"], features, best=config.confirm,
+        uncertain=config.uncertain, exclude=done,
+    )  # fmt: skip
+    for search in (*FAMILY_SEARCHES, "buildable"):  # the best of each family's own search
+        if search not in round_rows:
+            continue
+        best = select_candidates(
+            round_rows[search], features, best=1, uncertain=0,
+            exclude=done + [c.point for c in chosen], reason_best=search,
+        )  # fmt: skip
+        if not best:  # every design of the family flagged: FE decides anyway
+            flagged = sorted(
+                (x for x in round_rows[search] if math.isfinite(x.score)),
+                key=lambda x: x.score,
+            )
+            best = [flagged[0].candidate(search)] if flagged else []
+        chosen += best
+    return chosen
+
+
+def _round_info(r: int, new: list[Confirmation], targets: Targets, tol: float) -> dict[str, Any]:
+    """How round ``r``'s FE results ``new`` compare with the surrogate's predictions."""
+    errs = [
+        abs(c.rel_error[targets.metric(m)])
+        for c in new
+        if c.status == "ok"
+        for m in TAPPING
+        if c.rel_error.get(targets.metric(m)) is not None
+    ]
+    ok = [c for c in new if c.status == "ok"]
+    return {
+        "round": r,
+        "n_confirmed": len(new),
+        "n_failed": len(new) - len(ok),
+        "max_rel_error": max(errs) if errs else None,
+        "median_rel_error": float(np.median(errs)) if errs else None,
+        "agreed": bool(errs) and max(errs) <= tol,
+        "best_fe_score": min((c.fe_score for c in ok), default=None),
+    }
+
+
+def _user_tables(catalogue: dict) -> dict | None:
+    """The user materials of a merged catalogue as tables, for the FE worker processes."""
+    from sim.materials import material_tables, user_materials
+
+    return material_tables(user_materials(catalogue)) or None
