@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,6 +25,7 @@ from sim.targets import Targets, load_targets
 from ._buildable import DEFAULT_FE_BUDGET
 from ._run_folder import read_config
 from ._search import catalogue_only, check_subspace
+from ._storage import check_storage, default_storage
 
 __all__ = [
     "DEFAULT_CHECKPOINT",
@@ -144,7 +144,15 @@ def config_record(
 
 
 def _storage_url(config: OptimizeConfig, out: Path) -> str:
-    return config.storage or f"sqlite:///{(out / 'study.db').resolve()}"
+    """``--storage``, else the run folder's own journal file; a folder made before journals
+    keeps its own SQLite file (config.json names it), so that it resumes where it was."""
+    if config.storage is not None:
+        return config.storage
+    old = read_config(out)
+    own_sqlite = f"sqlite:///{(out / 'study.db').resolve()}"
+    if old is not None and old.get("storage") == own_sqlite:
+        return own_sqlite
+    return default_storage(out)
 
 
 def _check_resume(out: Path, record: dict) -> None:
@@ -161,38 +169,6 @@ def _check_resume(out: Path, record: dict) -> None:
             f"{out} holds a run with another configuration ({', '.join(diff)}); "
             "use another --out or the same options to resume",
         )
-
-
-def check_storage(url: str) -> None:
-    """Open the Optuna storage ``url`` once (creating its tables if needed), or refuse it in one
-    line naming ``--storage``: checked before any FE work or folder is made. Workers starting
-    together on a new database race to create its tables: the losers try again."""
-    import optuna
-    from sqlalchemy.engine import make_url
-    from sqlalchemy.exc import ArgumentError, IntegrityError, ProgrammingError, SQLAlchemyError
-
-    example = "e.g. sqlite:///path/study.db or postgresql+psycopg://user:password@host/database"
-    try:
-        make_url(url)
-    except ArgumentError:
-        raise DesignError("--storage", f"{url!r} is not a database URL ({example})") from None
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    for attempt in range(5):
-        try:
-            storage = optuna.storages.RDBStorage(url)
-            break
-        except (IntegrityError, ProgrammingError) as exc:  # another worker's table or type
-            if attempt == 4:
-                raise DesignError("--storage", f"cannot open {url}: {_first_line(exc)}") from None
-            time.sleep(0.2 * (attempt + 1))
-        except (SQLAlchemyError, ImportError, ValueError, OSError, RuntimeError) as exc:
-            raise DesignError("--storage", f"cannot open {url}: {_first_line(exc)}") from None
-    storage.remove_session()
-    storage.engine.dispose()
-
-
-def _first_line(exc: BaseException) -> str:
-    return (str(exc).strip().splitlines() or [type(exc).__name__])[0]
 
 
 def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:

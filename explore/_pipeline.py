@@ -33,6 +33,7 @@ from ._buildable import screen_summary
 from ._config import OptimizeConfig, Setup, check_inputs, check_storage, setup
 from ._rounds import Search, fe_only_screen, run_references, run_rounds
 from ._run_folder import CONFIG, write_config, write_confirmations, write_summary, write_trials
+from ._storage import is_database_url, open_storage, repair_journal
 from ._summary import summarise
 from ._types import Summary
 
@@ -56,7 +57,8 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         write_config(out, s.record, provenance(s.record, config.seed, kind="optimize"))
     # a shared storage: this worker is its run folder (resumed, it finds its trials again)
     worker = None if config.storage is None else f"{socket.gethostname()}:{out.resolve()}"
-    search = Search(config, out, s, s.record["storage"], worker, progress)
+    search = Search(config, out, s, _open_own_storage(config, s.record["storage"]), worker,
+                    progress)  # fmt: skip
     t0 = time.perf_counter()
     run_references(search)
     surrogate = run_rounds(search)
@@ -88,6 +90,16 @@ def _warn_of_another_solver(config: OptimizeConfig, s: Setup) -> None:
             "answers are confirmed with this solver",
             file=sys.stderr,
         )
+
+
+def _open_own_storage(config: OptimizeConfig, spec: str):
+    """The Optuna storage of the run: a journal the run folder owns is first repaired of what a
+    kill may have left (``repair_journal``: only its writer may do that)."""
+    if config.storage is None and not is_database_url(spec):
+        done = repair_journal(Path(spec))
+        if done is not None:
+            print(f"note: {spec}: {done} (left by a killed run)", file=sys.stderr)
+    return open_storage(spec)
 
 
 def scratch_folders(out: str | Path) -> tuple[Path, Path]:

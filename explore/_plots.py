@@ -238,22 +238,29 @@ class ImportanceInfo:
         return not self.names
 
 
-def _sqlite_file(url: str) -> Path | None:
+def _storage_file(spec: str) -> Path | None:
+    """The file a storage lives in (a journal, or an SQLite database), None for a server's."""
+    from ._storage import is_database_url
+
+    if not is_database_url(spec):
+        return Path(spec)
     prefix = "sqlite:///"
-    return Path(url[len(prefix) :]) if url.startswith(prefix) else None
+    return Path(spec[len(prefix) :]) if spec.startswith(prefix) else None
 
 
 def _storage_urls(run: RunData) -> list[str]:
-    """The configured storage, then the run folder's study.db; SQLite files must exist (loading
-    a missing one would create an empty database)."""
+    """The configured storage, then the run folder's journal and its older study.db; files
+    must exist (loading a missing one would create an empty storage)."""
+    from ._storage import JOURNAL_NAME
+
     urls = []
     configured = run.config.get("storage")
     if isinstance(configured, str):
         urls.append(configured)
-    urls.append(f"sqlite:///{run.run_dir / 'study.db'}")
+    urls += [str(run.run_dir / JOURNAL_NAME), f"sqlite:///{run.run_dir / 'study.db'}"]
     out = []
     for url in urls:
-        path = _sqlite_file(url)
+        path = _storage_file(url)
         if path is None or path.is_file():
             out.append(url)
     return out
@@ -272,9 +279,11 @@ def _load_study(run: RunData) -> Any | None:
     name = _continuous_study_name(run)
     if name is None:
         return None
+    from ._storage import open_storage
+
     for url in _storage_urls(run):
         try:
-            return optuna.load_study(study_name=name, storage=url)
+            return optuna.load_study(study_name=name, storage=open_storage(url))
         except Exception:  # a missing or foreign storage just means "no study"
             continue
     return None

@@ -300,12 +300,17 @@ def _figures_section(paths: Mapping[str, Path]) -> list[str]:
     return lines
 
 
-def _study_section(run_dir: Path) -> list[str]:
+def _study_section(run_dir: Path, storage: object) -> list[str]:
+    """Where the studies are and the command that opens them (the configured storage; a run
+    folder without one in its config.json: its own journal)."""
+    from ._storage import JOURNAL_NAME, dashboard_command
+
+    spec = storage if isinstance(storage, str) else (run_dir / JOURNAL_NAME).as_posix()
     return [
         "## Explore the study",
         "",
-        "Every trial of every round is in the Optuna study (`study.db`). Open it with "
-        f"`optuna-dashboard sqlite:///{run_dir.as_posix()}/study.db`; the raw data are in "
+        f"Every trial of every round is in the Optuna studies (`{spec}`). Open them with "
+        f"`{dashboard_command(spec)}`; the raw data are in "
         "`trials.csv`, `confirmations.json` and `fe/records/`.",
         "",
     ]
@@ -362,7 +367,7 @@ def write_report(run_dir: str | Path) -> Path:
         *_rounds_section(run),
         *_confirmations_section(run),
         *_notes_section(run),
-        *_study_section(run_dir),
+        *_study_section(run_dir, run.config.get("storage")),
         *_figures_section(paths),
     ]
     path = run_dir / "report.md"

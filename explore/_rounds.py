@@ -62,7 +62,7 @@ class Search:
     config: OptimizeConfig
     out: Path
     setup: Setup
-    storage: str
+    storage: Any  # an Optuna storage (explore._storage.open_storage) or a database URL
     worker: str | None  # a shared storage: this worker's name (its run folder)
     progress: bool = True
     confirmations: list[Confirmation] = field(default_factory=list)

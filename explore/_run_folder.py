@@ -8,7 +8,9 @@ that the search writes and the report reads, with its form, written and read her
   studies, one entry per study as it starts (``name``, ``search``, ``round``, ``directions``).
   A folder made before this file kept the list in config.json (``studies``): it is read from
   there, and a resumed run continues it in studies.json.
-- ``study.db``: the Optuna studies (SQLite; ``optuna-dashboard sqlite:///runs/NAME/study.db``).
+- ``study.log``: the Optuna studies, a journal file (``explore._storage``;
+  ``optuna-dashboard runs/NAME/study.log``), or the database ``--storage`` names; folders
+  made before journals keep their ``study.db`` (``optuna-dashboard sqlite:///runs/NAME/study.db``).
 - ``trials.csv`` (:func:`write_trials`, :func:`read_trials`): every finished trial of every
   round, one row each: ``round``, ``trial``, ``search`` ("continuous" | "buildable" | a
   family), the design-space parameters (inactive = empty), ``score``, the objectives

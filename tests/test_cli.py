@@ -663,7 +663,8 @@ def test_an_empty_file_as_out_is_called_a_file(tmp_path: Path, capsys) -> None:
 @pytest.mark.parametrize(
     ("url", "words"),
     [
-        ("notaurl", "is not a database URL"),
+        ("notaurl", "is neither a journal file (*.log) nor a database URL"),
+        ("/nonexistent/folder/study.log", "cannot open /nonexistent/folder/study.log"),
         ("foo://", "cannot open foo://"),
         ("postgresql://nobody@127.0.0.1:1/nodb", "cannot open postgresql://"),
         ("postgresql+psycopg://nobody@127.0.0.1:1/nodb", "cannot open postgresql+psycopg://"),
@@ -820,3 +821,18 @@ def test_run_from_scratch_sweeps_trains_then_searches_with_them(
     calls.clear()
     explore._pipeline.run(config, out, progress=False)  # no --from-scratch: the search alone
     assert calls == [("optimize", config.surrogate, None, 9, out)]
+
+
+def test_an_sqlite_file_given_as_a_journal_is_refused_with_its_url(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import sqlite3
+    from contextlib import closing
+
+    db = tmp_path / "old.log"
+    with closing(sqlite3.connect(db)) as con:
+        con.execute("CREATE TABLE t (x)")
+    out = tmp_path / "run"
+    assert main(["optimize", "--storage", str(db), "--out", str(out), "--no-progress"]) == 2
+    line = assert_one_line_error(capsys.readouterr().err, "--storage")
+    assert f"give it as sqlite:///{db}" in line and not out.exists()

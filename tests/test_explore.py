@@ -10,11 +10,9 @@ import math
 import os
 import shutil
 import signal
-import sqlite3
 import subprocess
 import sys
 import time
-from contextlib import closing
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +34,7 @@ from explore._search import (
     select_candidates,
     suggest_point,
 )
+from explore._storage import open_storage
 from explore._types import Candidate, Confirmation
 from sim import METRICS, SimOptions
 from sim.families import is_family
@@ -361,7 +360,7 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     assert "studies" not in cfg
     names = [s["name"] for s in json.loads((out / "studies.json").read_text())]
     assert len(names) == 6  # per round: continuous, gel (one-layer gel cores), buildable
-    study = optuna.load_study(study_name=names[0], storage=cfg["storage"])
+    study = optuna.load_study(study_name=names[0], storage=open_storage(cfg["storage"]))
     assert len(study.trials) == SearchSettings().screen_keep + 60  # the screen's seeds first
     assert study.trials[0].user_attrs["source"] == "screen"
     # the README's answer block is made from a run folder by scripts/readme_answer.py
@@ -406,18 +405,30 @@ def _layers(design: dict) -> list[dict]:
     return design.get("layers", [])
 
 
-def _stored_trials(db: Path, study: str | None = None) -> int:
-    """Finished trials in an Optuna SQLite file (of one study, or of all), read with plain SQL
-    (0 while it has none)."""
-    if not db.exists():
+def _stored_trials(journal: Path, study: str | None = None) -> int:
+    """Finished trials in a run folder's Optuna journal (of one study, or of all), read while
+    the search may be appending to it (0 while it has none)."""
+    from explore._storage import open_storage
+
+    if not journal.exists():
         return 0
-    sql = "SELECT COUNT(*) FROM trials JOIN studies USING (study_id) WHERE state IN "
-    sql += "('COMPLETE', 'FAIL')" + (" AND study_name = ?" if study else "")
+    states = (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.FAIL)
     try:
-        with closing(sqlite3.connect(db, timeout=5)) as con:
-            return con.execute(sql, (study,) if study else ()).fetchone()[0]
-    except sqlite3.Error:  # the schema is not written yet, or the file is busy
+        storage = open_storage(str(journal))
+        names = [study] if study else [s.study_name for s in storage.get_all_studies()]
+        total = 0
+        for name in names:
+            sid = storage.get_study_id_from_name(name)
+            total += len(storage.get_all_trials(sid, deepcopy=False, states=states))
+        return total
+    except (KeyError, ValueError):  # no such study yet, or a line being written
         return 0
+
+
+def _study_trials(journal: Path, name: str) -> list:
+    from explore._storage import open_storage
+
+    return optuna.load_study(study_name=name, storage=open_storage(str(journal))).trials
 
 
 def _kill_when(args: list[str], db: Path, study: str, low: int, high: int) -> int:
@@ -454,7 +465,7 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     proc = _run(ref_args, threads=2)
     assert proc.returncode == 0, proc.stderr
     args = [sys.executable, "-m", "explore.cli", *_optimize_args(tiny_model, out, n)]
-    stored = _kill_when(args, out / "study.db", "fingertip-r1-continuous", 128, n)
+    stored = _kill_when(args, out / "study.log", "fingertip-r1-continuous", 128, n)
     assert 128 <= stored < n, f"could not catch round 2's search mid-way ({stored} trials)"
     assert not (out / "summary.json").exists()
     proc = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=900,
@@ -468,7 +479,7 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     files = sorted(str(p.relative_to(ref)) for p in ref.rglob("*") if p.is_file())
     assert files == sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     # byte for byte: everything but the files that record when or how long (checked below)
-    timed = ("meta.json", "summary.json", "study.db", "surrogates/", "fe/", "config.json")
+    timed = ("meta.json", "summary.json", "study.log", "surrogates/", "fe/", "config.json")
     for name in files:
         if not name.startswith(timed):
             same_bytes(name)
@@ -498,8 +509,7 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     )
     # every study holds the same trials
     for st in json.loads((ref / "studies.json").read_text()):
-        ta, tb = (optuna.load_study(study_name=st["name"], storage=f"sqlite:///{d}/study.db")
-                  .trials for d in (ref, out))  # fmt: skip
+        ta, tb = (_study_trials(d / "study.log", st["name"]) for d in (ref, out))
         assert [(t.params, t.values) for t in ta] == [(t.params, t.values) for t in tb]
 
 
@@ -561,7 +571,7 @@ def test_search_resumes_after_kill(tiny_model, tmp_path):
     args = [sys.executable, "-m", "explore.cli", *_optimize_args(tiny_model, out, n, rounds=1)]
     proc = subprocess.Popen(args, cwd=REPO, env=_env(), stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL)  # fmt: skip
-    db = out / "study.db"
+    db = out / "study.log"
     name = "fingertip-r0-continuous"
     stored = 0
     deadline = time.monotonic() + 300
@@ -570,12 +580,12 @@ def test_search_resumes_after_kill(tiny_model, tmp_path):
         stored = _stored_trials(db)  # a cheap read, so the kill lands right after a flush
     proc.send_signal(signal.SIGKILL)
     proc.wait()
-    before = optuna.load_study(study_name=name, storage=f"sqlite:///{db}").trials
+    before = _study_trials(db, name)
     assert 128 <= len(before) < total, f"could not catch the search mid-way ({len(before)})"
     proc = subprocess.run(args, cwd=REPO, capture_output=True, text=True, timeout=900,
                           env=_env())  # fmt: skip
     assert proc.returncode == 0, proc.stderr
-    after = optuna.load_study(study_name=name, storage=f"sqlite:///{db}").trials
+    after = _study_trials(db, name)
     assert len(after) == total
     for old, new in zip(before, after, strict=False):
         assert old.params == new.params and old.values == new.values
@@ -642,15 +652,19 @@ def test_report_of_a_folder_that_is_not_a_run_is_one_line(tmp_path, capsys):
     assert code == 2 and err.count("\n") == 1 and "not a search run folder" in err
 
 
-@pytest.mark.parametrize("mode", ["single", "multi"])
-def test_shared_storage_study_by_trial_and_both_modes(tiny_model, tmp_path, mode):
-    """--storage URL: several workers share one study trial by trial (here two in turn);
-    multi-objective mode keeps the three objectives apart."""
+@pytest.mark.parametrize(("mode", "kind"), [("single", "database"), ("multi", "journal")])
+def test_shared_storage_study_by_trial_and_both_modes(tiny_model, tmp_path, mode, kind):
+    """--storage URL or journal file: several workers share one study trial by trial (here two
+    in turn); multi-objective mode keeps the three objectives apart."""
     from explore._search import run_study
+    from explore._storage import open_storage
     from surrogate import load_checkpoint
 
     model = load_checkpoint(tiny_model)
-    storage = f"sqlite:///{tmp_path / 'shared.db'}"
+    if kind == "database":
+        storage = f"sqlite:///{tmp_path / 'shared.db'}"
+    else:
+        storage = open_storage(str(tmp_path / "shared.log"))
     settings = SearchSettings(trials=20, mode=mode, seed=0)
     targets = load_targets()
     first = create_study(storage, "team", settings)

@@ -28,6 +28,7 @@ from explore._plots import (
     write_figures,
 )
 from explore._report import write_report
+from explore._storage import open_storage
 from explore._types import Candidate, Confirmation
 from sim.targets import Targets
 
@@ -217,12 +218,11 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     run = tmp_path_factory.mktemp("run")
     (run / "fe" / "records").mkdir(parents=True)
     (run / "fe" / "references").mkdir()
-    storage = f"sqlite:///{run}/study.db"
+    storage = str(run / "study.log")  # the run folder's journal (explore._storage)
     optuna.logging.set_verbosity(optuna.logging.WARNING)
-    # optimised in memory, then stored in one go: a trial-by-trial SQLite commit is ~10x slower
     scratch = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=3))
     scratch.optimize(_objective, n_trials=N_TRIALS)
-    study = optuna.create_study(storage=storage, study_name="r0-continuous")
+    study = optuna.create_study(storage=open_storage(storage), study_name="r0-continuous")
     study.add_trials(scratch.trials)
     _write_trials(run, study)
     confirmations = _confirmations(run)
@@ -416,6 +416,23 @@ def test_projections_follow_importance_and_drop_infinite_scores(run_dir: Path) -
     assert (mu.x_log, mu.y_log) == (mu.x_name == "core.mu0_MPa", mu.y_name == "core.mu0_MPa")
 
 
+def test_an_older_run_folder_reads_its_sqlite_study(tmp_path: Path, run_dir: Path) -> None:
+    """Run folders made before the journal keep their study.db (config.json names it)."""
+    import shutil
+
+    old = tmp_path / "old"
+    shutil.copytree(run_dir, old, ignore=shutil.ignore_patterns("study.log*", "figures"))
+    trials = optuna.load_study(study_name="r0-continuous", storage=open_storage(
+        str(run_dir / "study.log"))).trials  # fmt: skip
+    url = f"sqlite:///{old / 'study.db'}"
+    optuna.create_study(storage=url, study_name="r0-continuous").add_trials(trials)
+    config = json.loads((old / "config.json").read_text())
+    (old / "config.json").write_text(json.dumps({**config, "storage": url}))
+    run = load_run(old)
+    assert importance_info(run).study_name == "r0-continuous"
+    assert importance_info(run).names == importance_info(load_run(run_dir)).names
+
+
 def test_projections_fall_back_to_variation_without_a_study(tmp_path: Path, run_dir: Path) -> None:
     run = load_run(run_dir)
     missing = tmp_path / "nowhere.db"
@@ -438,7 +455,7 @@ def test_report_writes_every_figure_and_links_it(run_dir: Path) -> None:
     assert "| `hysteresis_Nmm` | 2.26 | 2.71 | +20.0 % | ✗ |" in text
     for name in FIGURES:
         assert f"(figures/{name}.png)" in text
-    assert f"optuna-dashboard sqlite:///{run_dir.as_posix()}/study.db" in text
+    assert f"`optuna-dashboard {run_dir.as_posix()}/study.log`" in text
     assert "high disagreement 0.12 > 0.05" in text and "20 % above the target" in text
     # one row per confirmed design in the surrogate-vs-FE table, errors as the run recorded
     table = text.split("## Confirmed designs: surrogate vs FE")[1].split("\n## ")[0]
