@@ -16,7 +16,6 @@ from sim import DesignError, homogeneous_design, load_design, simulate
 from sim.metrics import METRICS, PROTOCOLS
 from sim.options import SimOptions, apply_overrides, parse_override
 from sim.provenance import check_new_folder
-from sim.sweep import default_workers
 
 __all__ = ["main"]
 
@@ -25,10 +24,13 @@ class UsageError(Exception):
     """Bad command-line input: printed as one line, exit code 2."""
 
 
-WORKERS_HELP = (
-    f"FE processes (default {default_workers()}: one per usable core; one design's FE runs on "
-    "one core, and the answer never depends on the number)"
-)
+def _workers_help() -> str:
+    from sim.sweep import default_workers
+
+    return (
+        f"FE processes (default {default_workers()}: one per usable core; one design's FE runs "
+        "on one core, and the answer never depends on the number)"
+    )
 
 
 def _add_catalogue_option(p) -> None:
@@ -137,10 +139,9 @@ def _validity_line(protocol: str, summary: dict) -> str:
     )
 
 
-def _add_simulate(sub) -> None:
+def _add_simulate(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p = sub.add_parser("simulate", help="simulate one design under the paper's protocols")
     p.add_argument("design", nargs="?", type=Path, help="design TOML file")
     p.add_argument("--material", help="a catalogue material on the reference geometry")
     p.add_argument("--protocol", choices=[*PROTOCOLS, "all"], default="all")
@@ -188,14 +189,15 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_sweep(sub) -> None:
+def _add_sweep(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p = sub.add_parser("sweep", help="evaluate a sampled design space by FE (resumable)")
     p.add_argument("space", nargs="?", type=Path, help="design-space TOML (default: shipped)")
     p.add_argument("--n", type=int, required=True, help="number of designs")
     p.add_argument("--out", type=Path, required=True, help="sweep folder, e.g. runs/NAME")
-    p.add_argument("--workers", type=int, default=default_workers(), help=WORKERS_HELP)
+    from sim.sweep import default_workers
+
+    p.add_argument("--workers", type=int, default=default_workers(), help=_workers_help())
     p.add_argument("--scheduler", help="Dask distributed scheduler address (tcp://host:port)")
     p.add_argument(
         "--seed",
@@ -248,10 +250,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_train(sub) -> None:
+def _add_train(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p = sub.add_parser("train", help="train the neural surrogate (deep ensemble) on a sweep")
     p.add_argument("sweep", type=Path, help="sweep folder (runs/NAME with table.csv)")
     p.add_argument("--out", type=Path, help="run folder (default: runs/<sweep>-surrogate)")
     p.add_argument(
@@ -301,10 +302,9 @@ def _cmd_predict(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_predict(sub) -> None:
+def _add_predict(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p = sub.add_parser("predict", help="predict metrics of designs with a trained surrogate")
     p.add_argument("checkpoint", type=Path, help="surrogate checkpoint (model.safetensors)")
     p.add_argument(
         "designs", type=Path, help="design-point TOML (name = value) or CSV (one point per row)"
@@ -429,7 +429,11 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
         type=float,
         help=f"trust guard: ensemble std/|mean| above this is flagged ({d.max_disagreement})",
     )
-    p.add_argument("--storage", help="Optuna storage URL (default: sqlite in the run folder)")
+    p.add_argument(
+        "--storage",
+        help="Optuna storage several workers share: a journal file path or a database URL "
+        "(default: the run folder's own journal, study.log)",
+    )
     p.add_argument("--study", help=f"study name prefix (default {d.study})")
     p.add_argument(
         "--seed",
@@ -437,7 +441,7 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
         help=f"seed of the searches (round r uses seed + r; default {d.seed}): the same seed "
         "gives the same answer, whatever --workers",
     )
-    p.add_argument("--workers", type=int, help=WORKERS_HELP)
+    p.add_argument("--workers", type=int, help=_workers_help())
     p.add_argument("--dataset", type=Path, help="the surrogate's training sweep (retraining)")
     p.add_argument(
         "--buildable-fe",
@@ -467,12 +471,9 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
-def _add_optimize(sub) -> None:
+def _add_optimize(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p = sub.add_parser(
-        "optimize", help="search the surrogate, confirm with FE, retrain (resumable)"
-    )
     _add_search_options(p)
     p.add_argument("--out", type=Path, required=True, help="run folder (resumes if it exists)")
     p.set_defaults(func=_cmd_optimize)
@@ -487,13 +488,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return _finish(summary, args.out)
 
 
-def _add_run(sub) -> None:
+def _add_run(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p = sub.add_parser(
-        "run",
-        help="the main job: shipped surrogate -> search -> FE confirmation -> report",
-    )
     _add_search_options(p)
     p.add_argument(
         "--out", type=Path, default=Path("runs/main"), help="run folder (default runs/main)"
@@ -524,10 +521,9 @@ def _cmd_report(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_report(sub) -> None:
+def _add_report(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p = sub.add_parser("report", help="write the one-page report of a search run")
     p.add_argument("run", type=Path, help="run folder of fingertip optimize / run")
     p.set_defaults(func=_cmd_report)
 
@@ -583,15 +579,11 @@ def _cmd_fit_material(args: argparse.Namespace) -> int:
     return 0
 
 
-def _add_fit_material(sub) -> None:
+def _add_fit_material(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
     from sim.fit import FIT_MODELS, MODES
 
-    p = sub.add_parser(
-        "fit-material",
-        help="fit a catalogue entry to test data (Abaqus' nominal stress-strain conventions)",
-    )
     p.add_argument("--model", required=True, choices=FIT_MODELS)
     p.add_argument(
         "--terms",
@@ -623,26 +615,46 @@ def _add_fit_material(sub) -> None:
     p.set_defaults(func=_cmd_fit_material)
 
 
-_SUBCOMMANDS: list[Callable] = [
-    _add_simulate,
-    _add_sweep,
-    _add_train,
-    _add_predict,
-    _add_optimize,
-    _add_run,
-    _add_report,
-    _add_fit_material,
-]
+#: the subcommands: name -> (one-line help, the function that adds its arguments); only the
+#: command being run gets its arguments, so that `fingertip simulate` does not import what the
+#: other commands' options need (issue 15: instant start)
+_SUBCOMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] = {
+    "simulate": ("simulate one design under the paper's protocols", _add_simulate),
+    "sweep": ("evaluate a sampled design space by FE (resumable)", _add_sweep),
+    "train": ("train the neural surrogate (deep ensemble) on a sweep", _add_train),
+    "predict": ("predict metrics of designs with a trained surrogate", _add_predict),
+    "optimize": ("search the surrogate, confirm with FE, retrain (resumable)", _add_optimize),
+    "run": ("the main job: shipped surrogate -> search -> FE confirmation -> report", _add_run),
+    "report": ("write the one-page report of a search run", _add_report),
+    "fit-material": (
+        "fit a catalogue entry to test data (Abaqus' nominal stress-strain conventions)",
+        _add_fit_material,
+    ),
+}
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The ``fingertip`` parser; with ``command``, only that subcommand gets its arguments
+    (the others keep their one-line help, for ``fingertip --help``)."""
     parser = argparse.ArgumentParser(
         prog="fingertip", description="Design explorer for human-like fingertip skins."
     )
     sub = parser.add_subparsers(dest="command", required=True)
-    for add in _SUBCOMMANDS:
-        add(sub)
+    for name, (help_, add_arguments) in _SUBCOMMANDS.items():
+        p = sub.add_parser(name, help=help_)
+        if command is None or command == name:
+            add_arguments(p)
     return parser
+
+
+def _command(argv: list[str]) -> str | None:
+    """The subcommand ``argv`` names (its first word that is not an option): "" when it names
+    none (``fingertip --help``: no subcommand needs its arguments), None when the word is no
+    subcommand (every subcommand is built, for argparse's error)."""
+    first = next((a for a in argv if not a.startswith("-")), None)
+    if first is None:
+        return ""
+    return first if first in _SUBCOMMANDS else None
 
 
 def _input_errors() -> tuple[type[Exception], ...]:
@@ -654,8 +666,8 @@ def _input_errors() -> tuple[type[Exception], ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = build_parser()
-    args = parser.parse_args(argv)
+    argv = sys.argv[1:] if argv is None else argv
+    args = build_parser(_command(argv)).parse_args(argv)
     try:
         return args.func(args)
     except _input_errors() as exc:  # evaluated once something is raised
