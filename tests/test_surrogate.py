@@ -309,16 +309,27 @@ def test_a_nonnegative_metric_that_reaches_zero_is_learnt_on_a_shifted_log_scale
 
 # ----------------------------------------------------------------------------- ensemble
 def test_the_tapping_metrics_have_nets_of_their_own():
+    """By default ("tapping_metrics") the tapping protocol's FE metrics have a net of their own
+    and every trust output goes with the plate and wedge metrics; "tapping" (the grouping of
+    the checkpoints trained before) puts the tapping's trust outputs with its metrics."""
+    from surrogate._train import TrainConfig
+
+    assert TrainConfig().groups == "tapping_metrics"
     names = list(METRICS)
-    groups = metric_groups(names, "tapping")
-    for name, g in zip(names, groups, strict=True):
-        assert g == (0 if METRICS[name][0] == "tapping" else 1), name
-    # the trust outputs go with their protocol's net ("any": the plate/wedge one)
+    for grouping in ("tapping_metrics", "tapping"):
+        groups = metric_groups(names, grouping)
+        for name, g in zip(names, groups, strict=True):
+            assert g == (0 if METRICS[name][0] == "tapping" else 1), (grouping, name)
+    # the trust outputs: by default with the plate and wedge metrics; with "tapping" in their
+    # protocol's net ("any": the plate/wedge one)
+    assert set(metric_groups([*names, *TRUST_OUTPUTS], "tapping_metrics")[len(names) :]) == {1}
     trust = metric_groups([*names, *TRUST_OUTPUTS], "tapping")[len(names) :]
     for name, g in zip(TRUST_OUTPUTS, trust, strict=True):
         assert g == (0 if TRUST_OUTPUTS[name] == "tapping" else 1), name
     assert set(metric_groups(names, "none")) == {0}
-    assert metric_groups(["wedge_peak_force_N", "plate_force_at_1mm_N"], "tapping") == (0, 0)
+    for grouping in ("tapping_metrics", "tapping"):
+        pair = ["wedge_peak_force_N", "plate_force_at_1mm_N"]
+        assert metric_groups(pair, grouping) == (0, 0)
     with pytest.raises(ValueError, match="groups"):
         metric_groups(names, "by_unit")
 
@@ -709,3 +720,22 @@ def test_predict_reads_the_design_file_of_simulate(tmp_path, capsys):
         err = capsys.readouterr().err
         assert code == 2 and err.count("\n") == 1 and field in err, err
         assert field != "core.mu0_MPa" or "0.0025" in err  # the bound it breaks
+
+
+def test_a_warm_start_keeps_the_grouping_of_its_checkpoint(data):
+    """A checkpoint trained with the grouping of before ("tapping": the tapping's trust outputs
+    in its metrics' net) is warm-started in that grouping whatever the config's default says,
+    and starts from exactly its weights."""
+    from surrogate._train import Split, TrainConfig, split_indices
+
+    split = split_indices(len(data.points), 0)
+    old = fit(data, TrainConfig(members=2, max_epochs=2, groups="tapping"), progress=False)
+    assert old.surrogate.model.groups == metric_groups(data.metric_names, "tapping")
+    assert old.surrogate.model.groups != metric_groups(data.metric_names, "tapping_metrics")
+    config = TrainConfig(members=2, max_epochs=1, patience=1, lr=0.0)
+    new = fit(data, config, progress=False, split=Split(split.train, split.val, split.test),
+              init=old.surrogate)  # fmt: skip
+    assert new.surrogate.model.groups == old.surrogate.model.groups
+    x = old.surrogate.encoder.encode(data.points).features
+    a = old.surrogate.predict_features(x)["mean"]
+    np.testing.assert_allclose(new.surrogate.predict_features(x)["mean"], a, rtol=1e-6)
