@@ -74,7 +74,8 @@ def train_one(sweep: Path, seed: int, repeat: int, n: int) -> dict:
     result = fit(data, TrainConfig(seed=seed + repeat), progress=False, split=split)
     seconds = time.perf_counter() - t0
     scores = {}
-    for p in parity_data(result.surrogate, [data.points[i] for i in test], data.targets[test]):
+    scored = data.scored_targets()  # the FE metrics of settled, valid designs
+    for p in parity_data(result.surrogate, [data.points[i] for i in test], scored[test]):
         s = score(p)
         scores[p.metric] = {k: getattr(s, k) for k in SCORE_KEYS}
     return {"n": n, "repeat": repeat, "seconds": seconds, "epochs": result.epochs, **scores}

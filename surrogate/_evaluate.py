@@ -335,7 +335,14 @@ def _excluded_line(info: dict[str, Any]) -> str:
         "stayed within the validity limits)."
     )
     if parts:
-        text += " Their trust outputs (why they are not trusted) are learnt all the same."
+        text += " Their trust outputs (why they are not trusted) are learnt all the same"
+        partial = info.get("partial") or 0
+        text += (
+            f"; so are the metrics of {partial} of them from the protocols whose own result "
+            "is trusted (e.g. the taps of a design invalid only through the wedge)."
+            if partial
+            else "."
+        )
     if info.get("unchecked"):
         text += (
             f" {info['unchecked']} designs come from a sweep that did not record these flags "

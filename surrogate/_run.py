@@ -90,7 +90,7 @@ def train_surrogate(
         report = evaluate(
             result.surrogate,
             [data.points[i] for i in split.test],
-            data.targets[split.test],
+            data.scored_targets()[split.test],  # the FE metrics of settled, valid designs
             speed_n=speed_n,
         )
         info = {
@@ -105,6 +105,8 @@ def train_surrogate(
             # designs with FE results left out of training and testing, by reason
             "excluded": dict(data.excluded),
             "unchecked": data.unchecked,
+            # of the excluded, those whose protocols trusted on their own were learnt
+            "partial": data.partial,
         }
         write_report(report, tmp, json.loads(json.dumps(info)))
     return out / CHECKPOINT_NAME

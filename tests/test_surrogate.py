@@ -309,16 +309,27 @@ def test_a_nonnegative_metric_that_reaches_zero_is_learnt_on_a_shifted_log_scale
 
 # ----------------------------------------------------------------------------- ensemble
 def test_the_tapping_metrics_have_nets_of_their_own():
+    """By default ("tapping_metrics") the tapping protocol's FE metrics have a net of their own
+    and every trust output goes with the plate and wedge metrics; "tapping" (the grouping of
+    the checkpoints trained before) puts the tapping's trust outputs with its metrics."""
+    from surrogate._train import TrainConfig
+
+    assert TrainConfig().groups == "tapping_metrics"
     names = list(METRICS)
-    groups = metric_groups(names, "tapping")
-    for name, g in zip(names, groups, strict=True):
-        assert g == (0 if METRICS[name][0] == "tapping" else 1), name
-    # the trust outputs go with their protocol's net ("any": the plate/wedge one)
+    for grouping in ("tapping_metrics", "tapping"):
+        groups = metric_groups(names, grouping)
+        for name, g in zip(names, groups, strict=True):
+            assert g == (0 if METRICS[name][0] == "tapping" else 1), (grouping, name)
+    # the trust outputs: by default with the plate and wedge metrics; with "tapping" in their
+    # protocol's net ("any": the plate/wedge one)
+    assert set(metric_groups([*names, *TRUST_OUTPUTS], "tapping_metrics")[len(names) :]) == {1}
     trust = metric_groups([*names, *TRUST_OUTPUTS], "tapping")[len(names) :]
     for name, g in zip(TRUST_OUTPUTS, trust, strict=True):
         assert g == (0 if TRUST_OUTPUTS[name] == "tapping" else 1), name
     assert set(metric_groups(names, "none")) == {0}
-    assert metric_groups(["wedge_peak_force_N", "plate_force_at_1mm_N"], "tapping") == (0, 0)
+    for grouping in ("tapping_metrics", "tapping"):
+        pair = ["wedge_peak_force_N", "plate_force_at_1mm_N"]
+        assert metric_groups(pair, grouping) == (0, 0)
     with pytest.raises(ValueError, match="groups"):
         metric_groups(names, "by_unit")
 
@@ -606,11 +617,13 @@ def test_cli_predict_bad_designs_in_process(ckpt, tmp_path, capsys, text, field)
 
 
 def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
-    """A copy of the sweep whose table marks one design unsettled and one invalid: their FE
-    metrics are left out by default and counted, while what made them untrusted (the trust
-    outputs of ``sim.trust``) is still learnt; ``trusted_only=False`` keeps their metrics; a
-    table without the flags (a sweep made before they were recorded) is used whole and
-    counted as unchecked, with no trust outputs."""
+    """A copy of the sweep whose table marks one design unsettled, one invalid without a
+    figure that says why, and one invalid through its wedge's J: their FE metrics are left out
+    by default and counted, but those of a protocol whose own result is trusted are kept (the
+    unsettled design's plate and wedge, the third design's taps and plate), while what made
+    them untrusted (the trust outputs of ``sim.trust``) is still learnt; ``trusted_only=False``
+    keeps every metric; a table without the flags (a sweep made before they were recorded) is
+    used whole and counted as unchecked, with no trust outputs."""
     import csv
     import shutil
 
@@ -623,6 +636,8 @@ def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
     usable = [r for r in rows if int(r["index"]) in set(full.index.tolist())]
     usable[0]["settled"] = "False"
     usable[1]["valid"] = "False"
+    usable[2]["valid"] = "False"
+    usable[2]["wedge_min_J"] = "0.1"
     with (copy / "table.csv").open("w", newline="") as fh:
         writer = csv.DictWriter(fh, fields)
         writer.writeheader()
@@ -631,12 +646,29 @@ def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
     assert len(data.points) == len(full.points)  # kept, for their trust outputs
     n_fe = sum(m in METRICS for m in data.metric_names)
     assert data.metric_names[n_fe:] == tuple(TRUST_OUTPUTS)
-    for row in usable[:2]:
+    protocol = np.array([METRICS[m][0] for m in data.metric_names[:n_fe]])
+    for row, kept in zip(
+        usable[:3], ({"plate", "wedge"}, set(), {"tapping", "plate"}), strict=True
+    ):
         pos = data.index.tolist().index(int(row["index"]))
-        assert np.isnan(data.targets[pos, :n_fe]).all()
+        mine = np.isin(protocol, sorted(kept))
+        assert np.isnan(data.targets[pos, :n_fe][~mine]).all()
+        np.testing.assert_array_equal(
+            data.targets[pos, :n_fe][mine], full.targets[pos, :n_fe][mine]
+        )
+        assert np.isfinite(data.targets[pos, :n_fe][mine]).any() or not kept
         assert np.isfinite(data.targets[pos, n_fe:]).all()
-    for why in ("unsettled", "invalid"):
-        assert data.excluded.get(why, 0) == full.excluded.get(why, 0) + 1
+    assert data.excluded.get("unsettled", 0) == full.excluded.get("unsettled", 0) + 1
+    assert data.excluded.get("invalid", 0) == full.excluded.get("invalid", 0) + 2
+    assert data.partial == full.partial + 2
+    # the accuracy is scored on the designs trusted whole: their FE metrics only
+    scored = data.scored_targets()
+    for row in usable[:3]:
+        pos = data.index.tolist().index(int(row["index"]))
+        assert not data.whole[pos]
+        assert np.isnan(scored[pos, :n_fe]).all()
+        np.testing.assert_array_equal(scored[pos, n_fe:], data.targets[pos, n_fe:])
+    assert data.whole.sum() == full.whole.sum() - 3
     assert data.unchecked == 0
     everything = read_sweep(copy, trusted_only=False)
     assert len(everything.points) == len(full.points)
@@ -649,6 +681,39 @@ def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
     legacy = read_sweep(copy)
     assert len(legacy.points) == len(everything.points) == legacy.unchecked
     assert not set(TRUST_OUTPUTS) & set(legacy.metric_names)
+
+
+def test_the_protocols_trusted_on_their_own_follow_the_validity_rules():
+    """``_trusted_protocols`` judges each protocol's own figures with the sweep's validity
+    options (the strain limit only where ``strain_limit_protocols`` says), the taps only when
+    settled; a failed protocol (no figures) is not kept; when no figure says why the design is
+    untrusted, nothing is kept."""
+    from sim.validity import ValidityOptions
+    from surrogate._io import _trusted_protocols
+
+    def row(**over):
+        r = {"settled": "True", "valid": "False"}
+        for p in ("tapping", "plate", "wedge"):
+            r.update({f"{p}_max_compressive_log_strain": "0.3", f"{p}_min_J": "0.9",
+                      f"{p}_reached_base": "False", f"{p}_folded": "False"})  # fmt: skip
+        return {**r, **over}
+
+    v = ValidityOptions()
+    assert _trusted_protocols(row(), v) == frozenset()  # nothing says why: keep nothing
+    both = {"tapping", "plate"}
+    assert _trusted_protocols(row(wedge_min_J="0.2"), v) == both
+    # the wedge is not strain-limited by default: a strain beyond the limit does not blame it
+    strained = row(tapping_max_compressive_log_strain="0.9")
+    assert _trusted_protocols(strained, v) == {"plate", "wedge"}
+    assert _trusted_protocols(row(wedge_max_compressive_log_strain="0.9"), v) == frozenset()
+    limited = ValidityOptions(strain_limit_protocols="tapping,plate,wedge")
+    high = row(wedge_max_compressive_log_strain="0.9")
+    assert _trusted_protocols(high, limited) == both
+    assert _trusted_protocols(row(plate_reached_base="True"), v) == {"tapping", "wedge"}
+    assert _trusted_protocols(row(tapping_folded="True"), v) == {"plate", "wedge"}
+    assert _trusted_protocols(row(settled="False", valid="True"), v) == {"plate", "wedge"}
+    failed = row(wedge_min_J="", wedge_max_compressive_log_strain="", plate_min_J="0.3")
+    assert _trusted_protocols(failed, v) == {"tapping"}
 
 
 def test_the_encoding_takes_the_tap_frequency_of_the_sweep(tmp_path):
@@ -726,3 +791,22 @@ def test_predict_reads_the_design_file_of_simulate(tmp_path, capsys):
         err = capsys.readouterr().err
         assert code == 2 and err.count("\n") == 1 and field in err, err
         assert field != "core.mu0_MPa" or "0.0025" in err  # the bound it breaks
+
+
+def test_a_warm_start_keeps_the_grouping_of_its_checkpoint(data):
+    """A checkpoint trained with the grouping of before ("tapping": the tapping's trust outputs
+    in its metrics' net) is warm-started in that grouping whatever the config's default says,
+    and starts from exactly its weights."""
+    from surrogate._train import Split, TrainConfig, split_indices
+
+    split = split_indices(len(data.points), 0)
+    old = fit(data, TrainConfig(members=2, max_epochs=2, groups="tapping"), progress=False)
+    assert old.surrogate.model.groups == metric_groups(data.metric_names, "tapping")
+    assert old.surrogate.model.groups != metric_groups(data.metric_names, "tapping_metrics")
+    config = TrainConfig(members=2, max_epochs=1, patience=1, lr=0.0)
+    new = fit(data, config, progress=False, split=Split(split.train, split.val, split.test),
+              init=old.surrogate)  # fmt: skip
+    assert new.surrogate.model.groups == old.surrogate.model.groups
+    x = old.surrogate.encoder.encode(data.points).features
+    a = old.surrogate.predict_features(x)["mean"]
+    np.testing.assert_allclose(new.surrogate.predict_features(x)["mean"], a, rtol=1e-6)
