@@ -195,8 +195,8 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     """The surrogate's training sweep: --dataset, the checkpoint's folder (a shipped checkpoint
     carries its table.csv), or the sweep named in its header, whichever holds the table whose
     sha256 the header records."""
-    from sim import _sweep_folder as sweep_folder
-    from surrogate._io import sha256_file
+    from sim import sweep_folder
+    from sim.provenance import sha256_file
 
     want = surrogate.header.get("training_data", {}).get("table_sha256")
     places = [config.dataset, str(Path(config.surrogate).parent),
@@ -214,8 +214,8 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
 def _sim_options(dataset: Path | None) -> SimOptions:
     """The FE options of the surrogate's training sweep (so FE confirms like with like), else
     the defaults."""
-    from sim._sweep_folder import read_config as read_sweep_config
     from sim.options import options_from_dict
+    from sim.sweep_folder import read_config as read_sweep_config
 
     if dataset is None:
         return SimOptions()

@@ -125,8 +125,7 @@ def run(
         return optimize(config, out, progress=progress)
     from sim.space import load_space
     from sim.sweep import run_sweep
-    from surrogate import train_surrogate
-    from surrogate._run import CHECKPOINT_NAME
+    from surrogate import CHECKPOINT_NAME, train_surrogate
 
     sweep, trained = scratch_folders(out)
     # every input is checked before hours of sweep and training, not after

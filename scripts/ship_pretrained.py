@@ -15,8 +15,8 @@ import json
 import shutil
 from pathlib import Path
 
+from sim.provenance import sha256_file
 from surrogate import load_checkpoint
-from surrogate._io import sha256_file
 
 DEST = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained" / "default"
 

@@ -40,11 +40,23 @@ __all__ = [
     "provenance",
     "replacing",
     "run_folder",
+    "sha256_file",
     "write_if_changed",
     "write_json",
 ]
 
 _PACKAGES = ("numpy", "scipy", "scikit-fem", "qdldl", "triangle", "meshio", "matplotlib", "torch")
+
+
+def sha256_file(path: str | Path) -> str:
+    """The sha256 of a file's bytes (hex), read in 1 MiB chunks."""
+    import hashlib
+
+    h = hashlib.sha256()
+    with Path(path).open("rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
 
 
 def package_versions() -> dict[str, str]:

@@ -2,7 +2,7 @@
 
 A sweep folder ``runs/NAME`` holds its ``config.json``, ``meta.json``, one record per design
 (``records/<key>.json``, written atomically), ``table.csv`` and ``curves.jsonl``; the files
-and their forms are ``sim._sweep_folder``'s, which alone writes and reads them.
+and their forms are ``sim.sweep_folder``'s, which alone writes and reads them.
 
 Re-running the same command continues where it stopped (after ``kill -9`` too): designs with a
 record are skipped, failed ones only run again with ``retry_failed``. Only the parent process
@@ -25,7 +25,6 @@ from typing import Any
 
 import numpy as np
 
-from ._sweep_folder import SweepStore, read_config, write_config, write_meta
 from .errors import DesignError, SimulationError
 from .materials import Material, UserCatalogue, catalogue_from_tables, material_tables
 from .metrics import SOLVER_VERSION
@@ -33,6 +32,7 @@ from .options import SimOptions, apply_overrides, options_from_dict
 from .provenance import check_folder_kind, json_safe, provenance
 from .simulate import simulate
 from .space import DesignSpace, point_to_design, space_from_dict
+from .sweep_folder import SweepStore, read_config, write_config, write_meta
 
 __all__ = [
     "SweepStore",

@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from ._train import TrainConfig, fine_tune
 
 __all__ = [
+    "CHECKPOINT_NAME",
     "CheckpointError",
     "Encoder",
     "Prediction",
@@ -48,6 +49,7 @@ __all__ = [
 ]
 
 _LAZY = {
+    "CHECKPOINT_NAME": "_run",
     "Encoder": "_encoding",
     "Prediction": "_surrogate",
     "Report": "_evaluate",

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import csv
-import hashlib
 import json
 import math
 from collections.abc import Mapping
@@ -13,11 +12,11 @@ from typing import Any
 
 import numpy as np
 
-from sim._sweep_folder import CONFIG, TABLE, read_config
 from sim.errors import DesignError, read_toml
 from sim.metrics import METRICS, PROTOCOLS, diagnostic_names
-from sim.provenance import KINDS, folder_kind
+from sim.provenance import KINDS, folder_kind, sha256_file
 from sim.space import DesignSpace, space_from_dict
+from sim.sweep_folder import CONFIG, TABLE, read_config
 from sim.trust import TRUST_OUTPUTS, trust_values
 
 __all__ = ["SweepData", "check_point", "read_points", "read_sweep", "sha256_file"]
@@ -32,14 +31,6 @@ TABLE_COLUMNS = (
     *METRICS,
     *diagnostic_names(),
 )
-
-
-def sha256_file(path: Path) -> str:
-    h = hashlib.sha256()
-    with Path(path).open("rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
 
 
 def _cell(space: DesignSpace, name: str, text: str, where: str) -> Any:

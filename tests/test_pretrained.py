@@ -12,10 +12,10 @@ import pytest
 
 from sim import SOLVER_VERSION
 from sim.metrics import SAME_METRICS_AS
+from sim.provenance import sha256_file
 from sim.space import load_space
 from surrogate import load_checkpoint, read_sweep
 from surrogate._evaluate import parity_data, score
-from surrogate._io import sha256_file
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / "surrogate" / "pretrained" / "default"

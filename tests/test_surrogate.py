@@ -25,6 +25,7 @@ from sim import METRICS, SOLVER_VERSION
 from sim.errors import DesignError
 from sim.families import is_family
 from sim.materials import CATALOGUE
+from sim.provenance import sha256_file
 from sim.space import load_space, param_material
 from sim.sweep import sample_points
 from sim.trust import TRUST_OUTPUTS
@@ -39,7 +40,6 @@ from surrogate import (
 )
 from surrogate._checkpoint import SCHEMA_VERSION, read_checkpoint, write_checkpoint
 from surrogate._encoding import DESCRIPTOR_OMEGA_RAD_S, ELASTIC_FEATURE
-from surrogate._io import sha256_file
 from surrogate._model import EnsembleMLP
 from surrogate._normalise import OutputNormaliser
 from surrogate._surrogate import ZERO_IF_ELASTIC, Surrogate
