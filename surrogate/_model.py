@@ -19,7 +19,15 @@ from collections.abc import Sequence
 import torch
 from torch import nn
 
-__all__ = ["MODELS", "EnsembleMLP", "FrozenEnsemble", "gaussian_nll", "mixture"]
+__all__ = [
+    "MODELS",
+    "ROWS_MULTIPLE",
+    "EnsembleMLP",
+    "FrozenEnsemble",
+    "Workspace",
+    "gaussian_nll",
+    "mixture",
+]
 
 #: log-variance bounds in normalised units (a softly clipped head keeps the NLL finite)
 LOGVAR_MIN, LOGVAR_MAX = -12.0, 4.0
@@ -140,6 +148,19 @@ class EnsembleMLP(nn.Module):
         return mean, logvar
 
 
+#: the rows of a forward pass are padded (with zeros) to a multiple of this: the per-row
+#: results of this machine's kernels then do not depend on how many designs share the pass
+#: (MKL picks its matrix kernels by shape, and an element-wise kernel takes its last < 32
+#: elements through a scalar path with other rounding), so a design's prediction is the same
+#: bits alone, in any batch, at any position (tests/test_fast_predict.py)
+ROWS_MULTIPLE = 32
+
+
+def padded_rows(n: int) -> int:
+    """``n`` rounded up to a multiple of ``ROWS_MULTIPLE`` (at least one multiple)."""
+    return max(-(-n // ROWS_MULTIPLE), 1) * ROWS_MULTIPLE
+
+
 class FrozenEnsemble:
     """An ``EnsembleMLP``'s weights laid out for prediction only (no autograd), from design
     features to the members' mixture: ``mixture(*model(x))`` (bit for bit on this machine's
@@ -148,14 +169,21 @@ class FrozenEnsemble:
     - the first layer of every net is one matrix product (all nets read the same features);
     - the last layer of a group's nets computes only the group's outputs (a net computes all
       ``2 n_outputs`` outputs in ``forward``; the other group's are discarded), and the
-      the log-variance head only those;
-    - the head and the mixture take every metric at once, in the metrics' order.
+      log-variance head only those;
+    - the head and the mixture take every metric at once, group after group (each element's
+      result does not depend on its column), and only the mixture's (n, n_outputs) mean and
+      std are put back in the metrics' order;
+    - every layer writes into buffers of a ``Workspace`` made once per prediction call, not
+      one array per layer and batch (fresh memory costs page faults);
+    - the rows are padded to a multiple of ``ROWS_MULTIPLE``: a design's bits do not depend
+      on the batch it is in.
 
     A snapshot: made again when the model's weights change (``matches``).
     """
 
     def __init__(self, model: EnsembleMLP) -> None:
         self.members, self.n_outputs = model.members, model.n_outputs
+        self.n_inputs = model.n_inputs
         self.n_groups, self.nets = model.n_groups, model.nets
         self._key = _weights_key(model)
         w = [p.detach() for p in model.weights]
@@ -168,8 +196,10 @@ class FrozenEnsemble:
                 b[0].reshape(1, -1).contiguous(),
             )
         self.middle = list(zip(w[1:-1], b[1:-1], strict=True)) if len(w) > 2 else []
+        self.hidden = [int(t.shape[-1]) for t in w[:-1]]
         groups = torch.tensor(model.groups)
         self.columns = [torch.nonzero(groups == g).flatten() for g in range(self.n_groups)]
+        self.sizes = [len(c) for c in self.columns]
         self.last = [self._last_layer(w[-1], b[-1], g) for g in range(self.n_groups)]
         # the outputs come group after group: this index puts them back in the metrics' order
         order = torch.cat(self.columns)
@@ -188,27 +218,67 @@ class FrozenEnsemble:
         """Whether ``model``'s weights are still those of this snapshot."""
         return self._key == _weights_key(model)
 
-    def __call__(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """The mixture's mean and std (each (n, n_outputs)) of features ``x`` (n, n_inputs).
-        Call under ``torch.inference_mode()``."""
-        n = len(x)
-        if self.first is None:
-            h = x.unsqueeze(0).expand(self.nets, -1, -1)
-        else:
-            h = nn.functional.silu(torch.addmm(self.first[1], x, self.first[0]), inplace=True)
-            h = h.view(n, self.nets, -1).transpose(0, 1)  # (nets, n, h), a view
-        for w, b in self.middle:
-            h = nn.functional.silu(torch.baddbmm(b, h, w), inplace=True)
-        h = h.reshape(self.members, self.n_groups, n, h.shape[-1])
-        out = [torch.baddbmm(b, h[:, g], w) for g, (w, b) in enumerate(self.last)]
-        mean = self._in_order([o[..., : len(c)] for o, c in zip(out, self.columns, strict=True)])
-        raw = self._in_order([o[..., len(c) :] for o, c in zip(out, self.columns, strict=True)])
-        return mixture(mean, bounded_logvar(raw))  # all columns at once: as ``forward``'s
+    def workspace(self, rows: int) -> Workspace:
+        """Buffers for forward passes of up to ``rows`` designs (one per caller: not shared
+        between threads)."""
+        return Workspace(self, padded_rows(rows))
 
-    def _in_order(self, parts: list[torch.Tensor]) -> torch.Tensor:
-        """The groups' outputs (M, n, k_g) -> (M, n, n_outputs) in the metrics' order."""
-        t = parts[0] if len(parts) == 1 else torch.cat(parts, dim=2)
-        return t if self.unorder is None else t.index_select(2, self.unorder)
+    def __call__(
+        self, x: torch.Tensor, workspace: Workspace | None = None
+    ) -> tuple[torch.Tensor, torch.Tensor]:
+        """The mixture's mean and std (each (n, n_outputs), new tensors) of features ``x``
+        (n, n_inputs), in ``workspace`` (one for ``n`` rows when None). Call under
+        ``torch.inference_mode()``."""
+        n = len(x)
+        rows = padded_rows(n)
+        ws = workspace if workspace is not None and workspace.rows >= rows else None
+        ws = ws or self.workspace(n)
+        xb = ws.x[:rows]
+        xb[:n] = x
+        xb[n:] = 0.0
+        if self.first is None:
+            h = xb.unsqueeze(0).expand(self.nets, -1, -1)
+        else:
+            h = ws.view(0, (rows, self.nets * self.hidden[0]))
+            torch.addmm(self.first[1], xb, self.first[0], out=h)
+            nn.functional.silu(h, inplace=True)
+            h = h.view(rows, self.nets, -1).transpose(0, 1)  # (nets, n, h), a view
+        for i, (w, b) in enumerate(self.middle, start=1):
+            out = ws.view(i, (self.nets, rows, self.hidden[i]))
+            h = nn.functional.silu(torch.baddbmm(b, h, w, out=out), inplace=True)
+        h = h.reshape(self.members, self.n_groups, rows, h.shape[-1])
+        parts = []
+        for g, (w, b) in enumerate(self.last):
+            out = ws.view(len(self.hidden) + g, (self.members, rows, w.shape[-1]))
+            parts.append(torch.baddbmm(b, h[:, g], w, out=out))
+        # (M, n, n_outputs) each, contiguous, group after group: every element of the
+        # element-wise head below takes the same (vectorised) path
+        shape = (self.members, rows, self.n_outputs)
+        mean, raw = ws.view(-2, shape), ws.view(-1, shape)
+        torch.cat([o[..., :k] for o, k in zip(parts, self.sizes, strict=True)], 2, out=mean)
+        torch.cat([o[..., k:] for o, k in zip(parts, self.sizes, strict=True)], 2, out=raw)
+        mu, sd = mixture(mean, bounded_logvar(raw))
+        if self.unorder is None:
+            return mu[:n], sd[:n]
+        return mu[:n].index_select(1, self.unorder), sd[:n].index_select(1, self.unorder)
+
+
+class Workspace:
+    """Preallocated buffers of a ``FrozenEnsemble``'s forward pass for up to ``rows`` rows: the
+    padded features, each hidden layer's activations, each group's last layer, and the mean
+    and raw log-variance of every member."""
+
+    def __init__(self, net: FrozenEnsemble, rows: int) -> None:
+        self.rows = rows
+        self.x = torch.empty(rows, net.n_inputs)
+        sizes = [net.nets * rows * h for h in net.hidden]
+        sizes += [net.members * rows * 2 * k for k in net.sizes]
+        sizes += [net.members * rows * net.n_outputs] * 2
+        self._buffers = [torch.empty(s) for s in sizes]
+
+    def view(self, i: int, shape: tuple[int, ...]) -> torch.Tensor:
+        """Buffer ``i`` as a contiguous tensor of ``shape`` (at most its size)."""
+        return self._buffers[i][: math.prod(shape)].view(shape)
 
 
 def _weights_key(model: EnsembleMLP) -> tuple:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NEGATIVE_TOLERANCE", "OFFSET_FRACTION", "Z90", "OutputNormaliser"]
+__all__ = ["NEGATIVE_TOLERANCE", "OFFSET_FRACTION", "PHYSICAL", "Z90", "OutputNormaliser"]
 
 #: a metric whose most negative training value is above -NEGATIVE_TOLERANCE x its median |value|
 #: counts as nonnegative (the negatives are round-off) and is learnt on a shifted log scale
@@ -28,6 +28,9 @@ OFFSET_FRACTION = 0.05
 
 #: the standard-normal quantile of a central 90 % interval
 Z90 = 1.6448536269514722
+
+#: what ``OutputNormaliser.to_physical`` gives, in metric units (the ``Prediction`` fields)
+PHYSICAL = ("mean", "median", "std", "lower_90", "upper_90")
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,28 +89,53 @@ class OutputNormaliser:
         y = np.asarray(y, dtype=np.float64)
         return (self._t(y, self.log, self.offset) - self.shift) / self.scale
 
-    def to_physical(self, mean_z: np.ndarray, std_z: np.ndarray) -> dict[str, np.ndarray]:
+    def to_physical(
+        self,
+        mean_z: np.ndarray,
+        std_z: np.ndarray,
+        out: dict[str, np.ndarray] | None = None,
+    ) -> dict[str, np.ndarray]:
         """A Gaussian in z -> ``mean``, ``median``, ``std``, ``lower_90``, ``upper_90`` in metric
         units (for a log metric the median ``exp(m) - offset`` is the robust point prediction:
-        the log-normal mean grows like ``exp(s^2 / 2)`` where the ensemble is unsure)."""
-        m = self.shift + self.scale * mean_z
-        s = self.scale * std_z
-        lo, hi = m - Z90 * s, m + Z90 * s
+        the log-normal mean grows like ``exp(s^2 / 2)`` where the ensemble is unsure).
+
+        ``mean_z``, ``std_z``: (..., n_metrics), float32 or float64 (computed in float64).
+        ``out``: float64 arrays of that shape to write into (returned), else new ones."""
+        if out is None:
+            shape = np.broadcast_shapes(np.shape(mean_z), np.shape(std_z))
+            out = {key: np.empty(shape) for key in PHYSICAL}
+        mean, median, std = out["mean"], out["median"], out["std"]
+        lower, upper = out["lower_90"], out["upper_90"]
+        c = self.offset
+        m = np.multiply(self.scale, mean_z)
+        m += self.shift
+        s = np.multiply(self.scale, std_z)
+        zs = np.multiply(Z90, s)
+        lo = np.subtract(m, zs)
+        hi = np.add(m, zs, out=zs)
         with np.errstate(over="ignore", invalid="ignore"):
-            ln_mean = np.exp(m + 0.5 * s * s)
-            ln_std = ln_mean * np.sqrt(np.expm1(s * s))
-            c = self.offset
-            out = {
-                "mean": np.where(self.log, ln_mean - c, m),
-                "median": np.where(self.log, np.exp(m) - c, m),
-                "std": np.where(self.log, ln_std, s),
-                "lower_90": np.where(self.log, np.exp(lo) - c, lo),
-                "upper_90": np.where(self.log, np.exp(hi) - c, hi),
-            }
+            # every column as a log metric (a linear one is overwritten below): the shifted
+            # log-normal's mean exp(m + s^2 / 2) - c, std, median and quantiles exp(.) - c
+            t = np.multiply(0.5, s)
+            t *= s
+            t += m
+            np.exp(t, out=mean)
+            v = np.multiply(s, s, out=t)
+            np.expm1(v, out=v)
+            np.sqrt(v, out=v)
+            np.multiply(mean, v, out=std)
+            mean -= c
+            np.subtract(np.exp(m, out=median), c, out=median)
+            np.subtract(np.exp(lo, out=lower), c, out=lower)
+            np.subtract(np.exp(hi, out=upper), c, out=upper)
+        linear = ~self.log
+        if linear.any():
+            for a, value in ((mean, m), (median, m), (std, s), (lower, lo), (upper, hi)):
+                np.copyto(a, value, where=linear)
         missing = self.observed == 0
         if missing.any():
-            for v in out.values():
-                v[..., missing] = np.nan
+            for a in out.values():
+                a[..., missing] = np.nan
         return out
 
     def arrays(self) -> dict[str, np.ndarray]:
