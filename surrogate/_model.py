@@ -26,7 +26,9 @@ __all__ = [
     "FrozenEnsemble",
     "Workspace",
     "gaussian_nll",
+    "member_variance",
     "mixture",
+    "mixture_of_variances",
 ]
 
 #: log-variance bounds in normalised units (a softly clipped head keeps the NLL finite)
@@ -163,14 +165,17 @@ def padded_rows(n: int) -> int:
 
 class FrozenEnsemble:
     """An ``EnsembleMLP``'s weights laid out for prediction only (no autograd), from design
-    features to the members' mixture: ``mixture(*model(x))`` (bit for bit on this machine's
-    kernels, in any case to float32 round-off), faster:
+    features to the members' mixture: ``mixture(*model(x))`` to float32 round-off (the mean
+    bit for bit on this machine's kernels; the std through ``member_variance``, within a few
+    units of float32 round-off: 6e-6 relative at most on the shipped table), faster:
 
     - the first layer of every net is one matrix product (all nets read the same features);
     - the last layer of a group's nets computes only the group's outputs (a net computes all
-      ``2 n_outputs`` outputs in ``forward``; the other group's are discarded), and the
-      log-variance head only those;
-    - the head and the mixture take every metric at once, group after group (each element's
+      ``2 n_outputs`` outputs in ``forward``; the other group's are discarded), padded with
+      zero columns so that one batched product serves every net, and the log-variance head
+      takes only those outputs;
+    - the head is ``member_variance``'s closed form (one sigmoid, not two softplus and an
+      exp); it and the mixture take every metric at once, group after group (each element's
       result does not depend on its column), and only the mixture's (n, n_outputs) mean and
       std are put back in the metrics' order;
     - every layer writes into buffers of a ``Workspace`` made once per prediction call, not
@@ -200,19 +205,25 @@ class FrozenEnsemble:
         groups = torch.tensor(model.groups)
         self.columns = [torch.nonzero(groups == g).flatten() for g in range(self.n_groups)]
         self.sizes = [len(c) for c in self.columns]
-        self.last = [self._last_layer(w[-1], b[-1], g) for g in range(self.n_groups)]
+        self.last = self._last_layer(w[-1], b[-1])
         # the outputs come group after group: this index puts them back in the metrics' order
         order = torch.cat(self.columns)
         identity = torch.equal(order, torch.arange(self.n_outputs))
         self.unorder = None if identity else torch.argsort(order)
 
-    def _last_layer(
-        self, w: torch.Tensor, b: torch.Tensor, g: int
-    ) -> tuple[torch.Tensor, torch.Tensor]:
-        """Group ``g``'s nets' last layer, its outputs only: (M, h, 2 k) and (M, 1, 2 k)."""
-        cols = torch.cat([self.columns[g], self.n_outputs + self.columns[g]])
-        nets = torch.arange(self.members) * self.n_groups + g
-        return w[nets][:, :, cols].contiguous(), b[nets][:, :, cols].contiguous()
+    def _last_layer(self, w: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Every net's last layer, its group's outputs only (means then log-variances, then
+        zero columns up to a multiple of 16, which one batched product runs faster than the
+        groups' 2 k columns each): (nets, h, width) and (nets, 1, width)."""
+        width = -(-2 * max(self.sizes) // 16) * 16
+        w_out = torch.zeros(self.nets, w.shape[1], width)
+        b_out = torch.zeros(self.nets, 1, width)
+        for g, c in enumerate(self.columns):
+            cols = torch.cat([c, self.n_outputs + c])
+            nets = torch.arange(self.members) * self.n_groups + g
+            w_out[nets, :, : len(cols)] = w[nets][:, :, cols]
+            b_out[nets, :, : len(cols)] = b[nets][:, :, cols]
+        return w_out, b_out
 
     def matches(self, model: EnsembleMLP) -> bool:
         """Whether ``model``'s weights are still those of this snapshot."""
@@ -246,18 +257,16 @@ class FrozenEnsemble:
         for i, (w, b) in enumerate(self.middle, start=1):
             out = ws.view(i, (self.nets, rows, self.hidden[i]))
             h = nn.functional.silu(torch.baddbmm(b, h, w, out=out), inplace=True)
-        h = h.reshape(self.members, self.n_groups, rows, h.shape[-1])
-        parts = []
-        for g, (w, b) in enumerate(self.last):
-            out = ws.view(len(self.hidden) + g, (self.members, rows, w.shape[-1]))
-            parts.append(torch.baddbmm(b, h[:, g], w, out=out))
+        w, b = self.last
+        out = ws.view(len(self.hidden), (self.nets, rows, w.shape[-1]))
+        out = torch.baddbmm(b, h, w, out=out).view(self.members, self.n_groups, rows, -1)
         # (M, n, n_outputs) each, contiguous, group after group: every element of the
         # element-wise head below takes the same (vectorised) path
         shape = (self.members, rows, self.n_outputs)
         mean, raw = ws.view(-2, shape), ws.view(-1, shape)
-        torch.cat([o[..., :k] for o, k in zip(parts, self.sizes, strict=True)], 2, out=mean)
-        torch.cat([o[..., k:] for o, k in zip(parts, self.sizes, strict=True)], 2, out=raw)
-        mu, sd = mixture(mean, bounded_logvar(raw))
+        torch.cat([out[:, g, :, :k] for g, k in enumerate(self.sizes)], 2, out=mean)
+        torch.cat([out[:, g, :, k : 2 * k] for g, k in enumerate(self.sizes)], 2, out=raw)
+        mu, sd = mixture_of_variances(mean, member_variance(raw, inplace=True))
         if self.unorder is None:
             return mu[:n], sd[:n]
         return mu[:n].index_select(1, self.unorder), sd[:n].index_select(1, self.unorder)
@@ -265,14 +274,14 @@ class FrozenEnsemble:
 
 class Workspace:
     """Preallocated buffers of a ``FrozenEnsemble``'s forward pass for up to ``rows`` rows: the
-    padded features, each hidden layer's activations, each group's last layer, and the mean
+    padded features, each hidden layer's activations, the last layer, and the mean
     and raw log-variance of every member."""
 
     def __init__(self, net: FrozenEnsemble, rows: int) -> None:
         self.rows = rows
         self.x = torch.empty(rows, net.n_inputs)
         sizes = [net.nets * rows * h for h in net.hidden]
-        sizes += [net.members * rows * 2 * k for k in net.sizes]
+        sizes += [net.nets * rows * net.last[0].shape[-1]]
         sizes += [net.members * rows * net.n_outputs] * 2
         self._buffers = [torch.empty(s) for s in sizes]
 
@@ -327,6 +336,26 @@ def gaussian_nll(
 
 def mixture(mean: torch.Tensor, logvar: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
     """The equal-weight mixture of the members' Gaussians: mean and std, each (n, m)."""
+    return mixture_of_variances(mean, torch.exp(logvar))
+
+
+def mixture_of_variances(
+    mean: torch.Tensor, var: torch.Tensor
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """``mixture`` of members given by their means and variances (M, n, m)."""
     mu = mean.mean(dim=0)
-    var = torch.exp(logvar).mean(dim=0) + ((mean - mu) ** 2).mean(dim=0)
+    var = var.mean(dim=0) + ((mean - mu) ** 2).mean(dim=0)
     return mu, torch.sqrt(var)
+
+
+def member_variance(raw: torch.Tensor, *, inplace: bool = False) -> torch.Tensor:
+    """``exp(bounded_logvar(raw))`` in closed form: since ``exp(softplus(z)) = 1 + exp(z)``,
+    ``exp(LOGVAR_MIN) + exp(LOGVAR_MAX) sigmoid(raw - LOGVAR_MAX)``. One sigmoid instead of two
+    softplus and an exp (five transcendental functions an element): the prediction path's
+    head, several times faster and closer to the exact value in float32 (largest relative error
+    on raw in [-40, 40]: 6.9e-7, against 1.5e-6 for the composed functions; the two differ by
+    at most 1.3e-6). Softplus's linear branch above 20 changes it by e^-20 relative. In place
+    of ``raw`` if ``inplace``."""
+    z = raw.sub_(LOGVAR_MAX) if inplace else raw - LOGVAR_MAX
+    z = torch.sigmoid(z, out=z)
+    return z.mul_(math.exp(LOGVAR_MAX)).add_(math.exp(LOGVAR_MIN))
