@@ -554,45 +554,50 @@ def material_descriptors(
         unknown = is_unknown[names.codes]
         on = (is_on & ~is_unknown)[names.codes]
         elastic &= ~unknown
+        # the Prony terms of each design, term after term: (terms, n), so that every sum over
+        # the terms is a few vectorised additions (bit for bit the row sums of (n, terms) up
+        # to 7 terms; the shipped materials have at most 3)
         mu = np.ones(n)
-        g = np.zeros((n, k))
-        tau = np.ones((n, k))
+        g = np.zeros((k, n))
+        tau = np.ones((k, n))
         for fam in FAMILIES.values():
             rows = names.rows(fam.name)
             if not rows.any():
                 continue
             ratios = np.asarray(fam.time_ratios)
             mu[rows] = cols[f"{role}.mu0_MPa"][rows]
-            g[rows] = 0.0
-            g[rows, : ratios.size] = cols[f"{role}.g_total"][rows, None] / ratios.size
-            tau[rows, : ratios.size] = cols[f"{role}.tau_s"][rows, None] * ratios
+            g[:, rows] = 0.0
+            g[: ratios.size, rows] = cols[f"{role}.g_total"][rows] / ratios.size
+            tau[: ratios.size, rows] = cols[f"{role}.tau_s"][rows] * ratios[:, None]
         for name in itertools.compress(names.keys, is_on & ~is_param & is_known):
             rows = names.rows(name)
             mu_c, g_c, tau_c = _catalogue_entry(name, known)
-            if g_c.size > g.shape[1]:
-                pad = g_c.size - g.shape[1]
-                g = np.pad(g, ((0, 0), (0, pad)))
-                tau = np.pad(tau, ((0, 0), (0, pad)), constant_values=1.0)
+            if g_c.size > g.shape[0]:
+                pad = g_c.size - g.shape[0]
+                g = np.pad(g, ((0, pad), (0, 0)))
+                tau = np.pad(tau, ((0, pad), (0, 0)), constant_values=1.0)
             mu[rows] = mu_c
-            g[rows] = 0.0
-            g[np.ix_(rows, np.arange(g_c.size))] = g_c
-            tau[np.ix_(rows, np.arange(tau_c.size))] = tau_c
-        g_sum = g.sum(axis=1)
+            g[:, rows] = 0.0
+            g[: g_c.size, rows] = g_c[:, None]
+            tau[: tau_c.size, rows] = tau_c[:, None]
+        g_sum = g.sum(axis=0)
         elastic &= ~on | (g_sum <= 0)
         g0 = mu / (1.0 - g_sum)
         moduli, tangents = [mu], []
         for r in _OMEGA_RATIOS:
             wt = omega_rad_s * r * tau
             d = 1.0 + wt**2
-            storage = g0 * (1.0 - (g / d).sum(axis=1))
-            loss = g0 * (g * wt / d).sum(axis=1)
+            storage = g0 * (1.0 - (g / d).sum(axis=0))
+            loss = g0 * (g * wt / d).sum(axis=0)
             if r == 1.0:
                 moduli.append(storage)
             tangents.append(loss / storage)
-        log_moduli = (np.log10(np.stack(moduli, axis=1)) - _LOG_MODULUS_LOW) / _LOG_MODULUS_DECADES
-        block = np.concatenate([log_moduli, np.stack(tangents, axis=1)], axis=1)
-        blocks.append(np.where(on[:, None], block, 0.0))
-    return np.concatenate(blocks, axis=1) if blocks else np.zeros((n, 0)), elastic
+        log_moduli = (np.log10(np.stack(moduli)) - _LOG_MODULUS_LOW) / _LOG_MODULUS_DECADES
+        blocks += [np.where(on, b, 0.0) for b in (*log_moduli, *tangents)]
+    out = np.empty((n, len(blocks)))
+    for j, b in enumerate(blocks):
+        out[:, j] = b
+    return out, elastic
 
 
 def _is_empty(v: Any) -> bool:
