@@ -193,13 +193,14 @@ class FrozenEnsemble:
         self._key = _weights_key(model)
         w = [p.detach() for p in model.weights]
         b = [p.detach() for p in model.biases]
-        # (in, nets * h): column block s is net s's first layer (absent without hidden layers)
+        # (in + 1, nets * h): column block s is net s's first layer, the last row its bias
+        # (the features end with a column of ones: x @ w + b in one product, the same bits as
+        # torch.addmm, which first copies the bias into every row); None without hidden layers
         self.first = None
         if len(w) > 1:
-            self.first = (
-                w[0].permute(1, 0, 2).reshape(w[0].shape[1], -1).contiguous(),
-                b[0].reshape(1, -1).contiguous(),
-            )
+            self.first = torch.cat(
+                [w[0].permute(1, 0, 2).reshape(w[0].shape[1], -1), b[0].reshape(1, -1)]
+            ).contiguous()
         self.middle = list(zip(w[1:-1], b[1:-1], strict=True)) if len(w) > 2 else []
         self.hidden = [int(t.shape[-1]) for t in w[:-1]]
         groups = torch.tensor(model.groups)
@@ -244,14 +245,14 @@ class FrozenEnsemble:
         rows = padded_rows(n)
         ws = workspace if workspace is not None and workspace.rows >= rows else None
         ws = ws or self.workspace(n)
-        xb = ws.x[:rows]
-        xb[:n] = x
-        xb[n:] = 0.0
+        xb = ws.x[:rows]  # the features, then a column of ones
+        xb[:n, :-1] = x
+        xb[n:, :-1] = 0.0
         if self.first is None:
-            h = xb.unsqueeze(0).expand(self.nets, -1, -1)
+            h = xb[:, :-1].unsqueeze(0).expand(self.nets, -1, -1)
         else:
             h = ws.view(0, (rows, self.nets * self.hidden[0]))
-            torch.addmm(self.first[1], xb, self.first[0], out=h)
+            torch.mm(xb, self.first, out=h)
             nn.functional.silu(h, inplace=True)
             h = h.view(rows, self.nets, -1).transpose(0, 1)  # (nets, n, h), a view
         for i, (w, b) in enumerate(self.middle, start=1):
@@ -274,12 +275,12 @@ class FrozenEnsemble:
 
 class Workspace:
     """Preallocated buffers of a ``FrozenEnsemble``'s forward pass for up to ``rows`` rows: the
-    padded features, each hidden layer's activations, the last layer, and the mean
-    and raw log-variance of every member."""
+    padded features (and a column of ones), each hidden layer's activations, the last layer,
+    and the mean and raw log-variance of every member."""
 
     def __init__(self, net: FrozenEnsemble, rows: int) -> None:
         self.rows = rows
-        self.x = torch.empty(rows, net.n_inputs)
+        self.x = torch.ones(rows, net.n_inputs + 1)
         sizes = [net.nets * rows * h for h in net.hidden]
         sizes += [net.nets * rows * net.last[0].shape[-1]]
         sizes += [net.members * rows * net.n_outputs] * 2
