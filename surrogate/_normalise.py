@@ -49,6 +49,12 @@ def _expm1(x: np.ndarray, out: np.ndarray) -> np.ndarray:
     return out
 
 
+def _runs(mask: np.ndarray) -> list[slice]:
+    """The runs of consecutive True entries of ``mask`` (1-d), as slices."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[False], mask, [False]]).astype(np.int8)))
+    return [slice(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
 @dataclass(frozen=True, eq=False)
 class OutputNormaliser:
     """``log`` (bool), ``shift``, ``scale``, ``observed`` (training values) and ``offset``
@@ -145,10 +151,9 @@ class OutputNormaliser:
             np.subtract(np.exp(m, out=median), c, out=median)
             np.subtract(_exp(lo, lower), c, out=lower)
             np.subtract(_exp(hi, upper), c, out=upper)
-        linear = ~self.log
-        if linear.any():
+        for cols in _runs(~self.log):  # the linear metrics: the Gaussian itself
             for a, value in ((mean, m), (median, m), (std, s), (lower, lo), (upper, hi)):
-                np.copyto(a, value, where=linear)
+                a[..., cols] = value[..., cols]
         missing = self.observed == 0
         if missing.any():
             for a in out.values():
