@@ -35,8 +35,9 @@ def rule_mask(encoder: Encoder, features: np.ndarray, metric_names: Sequence[str
 
 #: designs per forward pass: small enough that a layer's activations (nets x batch x hidden
 #: floats, ~4 MB) stay in cache, large enough to amortise per-operation overhead (2-core
-#: machine, one thread, predict_features on 65,536 designs with the shipped checkpoint:
-#: 512 -> 134k designs/s, 1024 -> 135k/s, 2048 -> 131k/s; with 3 x 5 nets 16384 gave 31k/s)
+#: machine, one thread, predict_features on 65,536 designs with the shipped 10-net
+#: checkpoint: 512 to 2048 within a few % of each other, 256 5-10 % slower; with 3 x 5 nets
+#: 16384 gave 31k/s). Any batch size gives the same bits (``ROWS_MULTIPLE``).
 BATCH = 1024
 
 
