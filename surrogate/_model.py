@@ -166,8 +166,8 @@ def padded_rows(n: int) -> int:
 class FrozenEnsemble:
     """An ``EnsembleMLP``'s weights laid out for prediction only (no autograd), from design
     features to the members' mixture: ``mixture(*model(x))`` to float32 round-off (the mean
-    bit for bit on this machine's kernels; the std through ``member_variance``, within a few
-    units of float32 round-off: 6e-6 relative at most on the shipped table), faster:
+    bit for bit on this machine's kernels; the std, through ``member_variance``, within 5e-7
+    relative, a few float32 ulps, on the shipped table and on samples of its space), faster:
 
     - the first layer of every net is one matrix product (all nets read the same features);
     - the last layer of a group's nets computes only the group's outputs (a net computes all
