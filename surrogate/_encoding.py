@@ -20,6 +20,7 @@ not use never reach the network.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -140,6 +141,58 @@ def _per_value(fn: Callable[[Any], Any], values: Iterable[Any], dtype: Any = Non
     return list(map(table.__getitem__, codes.tolist()))
 
 
+class _Choices:
+    """A column of choice keys held as ``keys[codes]``: the column's few distinct keys and
+    each design's index into them, so that a rule is applied once per distinct key and the
+    masks are integer comparisons (``Encoder._columns``; ``Encoder.columns`` gives lists)."""
+
+    __slots__ = ("codes", "keys")
+
+    def __init__(self, codes: np.ndarray, keys: list[Any]) -> None:
+        self.codes, self.keys = codes, keys
+
+    @classmethod
+    def of_values(cls, values: Sequence[Any]) -> _Choices:
+        """The choice keys (``_choice_key``) of raw values."""
+        try:
+            codes, distinct = _factorize(values)
+        except TypeError:  # an unhashable value
+            return cls.of_keys([_choice_key(v) for v in values])
+        keys = [_choice_key(v) for v in distinct]
+        # distinct values may share a key (2, 2.0 and "2"): one code per key
+        remap, unique = _factorize(keys)
+        return cls(remap[codes] if len(unique) < len(keys) else codes, unique)
+
+    @classmethod
+    def of_keys(cls, keys: Iterable[Any]) -> _Choices:
+        """A column that holds keys already (compared as they are)."""
+        codes, distinct = _factorize(keys)
+        return cls(codes, distinct)
+
+    def __len__(self) -> int:
+        return len(self.codes)
+
+    def tolist(self) -> list[Any]:
+        return list(map(self.keys.__getitem__, self.codes.tolist()))
+
+    def per_key(self, fn: Callable[[Any], Any], dtype: Any) -> np.ndarray:
+        """``fn`` of each design's key, an array of ``dtype`` (``fn`` once per key)."""
+        return np.asarray([fn(k) for k in self.keys], dtype=dtype)[self.codes]
+
+    def rows(self, key: Any) -> np.ndarray:
+        """(n,) bool: the designs whose key is ``key``."""
+        if key not in self.keys:
+            return np.zeros(len(self.codes), dtype=bool)
+        return self.codes == self.keys.index(key)
+
+    def where(self, on: np.ndarray, other: Any = "") -> _Choices:
+        """This column with ``other`` where ``on`` is False."""
+        keys = list(self.keys)
+        if other not in keys:
+            keys.append(other)
+        return _Choices(np.where(on, self.codes, keys.index(other)), keys)
+
+
 def to_columns(points: Sequence[Mapping[str, Any]] | Mapping[str, Sequence], names: list[str]):
     """``(columns, n)``: a list of points or a table, as one list per known parameter name.
 
@@ -156,7 +209,7 @@ def to_columns(points: Sequence[Mapping[str, Any]] | Mapping[str, Sequence], nam
         cols = {k: list(points[k]) if k in points else [None] * n for k in names}
     else:
         rows = list(points)
-        unknown = sorted({k for r in rows for k in r} - known)
+        unknown = sorted(set().union(*rows) - known)
         n = len(rows)
         cols = {k: [r.get(k) for r in rows] for k in names}
     if unknown:
@@ -262,6 +315,11 @@ class Encoder:
     def columns(self, points) -> tuple[dict[str, Any], int]:
         """Parsed, masked columns: float parameters as float arrays (NaN inactive), choices
         as lists of choice keys ("" inactive). A ``DesignError`` for a missing active value."""
+        cols, n = self._columns(points)
+        return {k: c.tolist() if isinstance(c, _Choices) else c for k, c in cols.items()}, n
+
+    def _columns(self, points) -> tuple[dict[str, Any], int]:
+        """``columns``, with the choice columns as ``_Choices``."""
         raw, n = to_columns(points, self.space.names)
         cols: dict[str, Any] = {}
         for p in self.space.parameters:
@@ -274,7 +332,7 @@ class Encoder:
             if numeric:
                 cols[p.name] = _float_column(p.name, values)
             else:
-                cols[p.name] = _per_value(_choice_key, values)
+                cols[p.name] = _Choices.of_values(values)
         count = _float_column("layers.count", raw["layers.count"])
         bad = ~np.isin(count, (1.0, 2.0, 3.0))
         if bad.any():
@@ -285,8 +343,11 @@ class Encoder:
             if mat_name not in cols:
                 continue
             # what decides the rule: the layer count and the material, a few distinct pairs
-            codes, mats = _factorize(cols[mat_name])  # choice keys: text
-            pairs, pair_of = np.unique(codes * 4 + count.astype(np.intp), return_inverse=True)
+            material = cols[mat_name]
+            pair = material.codes * 4 + count.astype(np.intp)  # few values: no sort
+            pairs = np.flatnonzero(np.bincount(pair, minlength=1))
+            pair_of = np.searchsorted(pairs, pair)
+            mats = material.keys
             for key in ("material", "thickness_mm", *PARAM_MATERIAL_KEYS):
                 name = f"{role}.{key}"
                 if name not in cols:
@@ -301,8 +362,8 @@ class Encoder:
                     col = np.where(on, col, np.nan)
                     missing = on & np.isnan(col)
                 else:
-                    col = [v if o else "" for v, o in zip(col, on, strict=True)]
-                    missing = on & _per_value(_is_empty, col, bool)
+                    col = col.where(on)
+                    missing = on & col.per_key(_is_empty, bool)
                 if missing.any():
                     i = int(np.argmax(missing))
                     raise DesignError(name, f"missing for design {i}, which uses it")
@@ -317,7 +378,7 @@ class Encoder:
     # ------------------------------------------------------------------ encoding
     def encode(self, points) -> Encoded:
         """Encode a list of points or a table (``name -> column``)."""
-        cols, n = self.columns(points)
+        cols, n = self._columns(points)
         blocks: list[np.ndarray] = []
         in_domain = np.ones(n, dtype=bool)
         reasons = [""] * n
@@ -335,7 +396,7 @@ class Encoder:
                     differs = active & (col != float(p.value))
                 else:
                     value = _choice_key(p.value)
-                    differs = _per_value(lambda v, x=value: v not in ("", x), col, bool)
+                    differs = col.per_key(lambda v, x=value: v not in ("", x), bool)
                 flag(differs, f"{p.name} differs from the training value {p.value!r}")
             elif p.kind == "float":
                 active = ~np.isnan(col)
@@ -358,22 +419,30 @@ class Encoder:
             else:
                 keys = [_choice_key(c) for c in p.choices]
                 index = {k: j for j, k in enumerate(keys)}
-                idx = _per_value(lambda v, i=index: i.get(v, -1) if v != "" else -2, col, int)
-                onehot = np.zeros((n, len(keys)))
-                known = idx >= 0
-                onehot[np.flatnonzero(known), idx[known]] = 1.0
-                flag(idx == -1, f"{p.name}: unknown choice")
+                # one row of the one-hot block per distinct key (zeros: inactive or unknown)
+                table = np.zeros((len(col.keys), len(keys)))
+                for r, v in enumerate(col.keys):
+                    if v in index:
+                        table[r, index[v]] = 1.0
+                blocks.append(table[col.codes])
+                unknown = col.per_key(lambda v, i=index: v != "" and v not in i, bool)
+                flag(unknown, f"{p.name}: unknown choice")
                 seen = self.seen.get(p.name)
                 if seen is not None:
-                    unseen = _per_value(lambda v, s=seen: v != "" and v not in s, col, bool)
+                    unseen = col.per_key(lambda v, s=seen: v != "" and v not in s, bool)
                     flag(unseen, f"{p.name}: choice never seen in training")
-                blocks.append(onehot)
         desc, elastic = material_descriptors(
             cols, n, self.material_roles, self.space.catalogue, self.omega_rad_s
         )
         blocks += [desc, elastic[:, None].astype(float)]
-        features = np.concatenate(blocks, axis=1)
-        return Encoded(features.astype(np.float32), in_domain, tuple(reasons))
+        # the blocks side by side, as float32: written in place (np.concatenate of many thin
+        # blocks, then a cast, takes twice as long)
+        features = np.empty((n, sum(b.shape[1] for b in blocks)), dtype=np.float32)
+        j = 0
+        for b in blocks:
+            features[:, j : j + b.shape[1]] = b
+            j += b.shape[1]
+        return Encoded(features, in_domain, tuple(reasons))
 
     def fit_domain(self, points) -> Encoder:
         """A copy of this encoder with the training domain of ``points`` (training data)."""
@@ -473,51 +542,62 @@ def material_descriptors(
     elastic = np.ones(n, dtype=bool)
     k = max(len(f.time_ratios) for f in FAMILIES.values())
     for role in roles:
-        names = np.asarray(cols[f"{role}.material"], dtype=object)
-        on = names != ""
-        mu = np.ones(n)
-        g = np.zeros((n, k))
-        tau = np.ones((n, k))
-        param = _per_value(is_family, names, bool)
+        names = cols[f"{role}.material"]
+        if not isinstance(names, _Choices):  # a list or array of names
+            names = _Choices.of_keys(list(names))
+        # per distinct name: a layer, of a family, of the catalogue
+        is_on = np.asarray([v != "" for v in names.keys], dtype=bool)
+        is_param = np.asarray([is_family(v) for v in names.keys], dtype=bool)
+        is_known = np.asarray([v in known for v in names.keys], dtype=bool)
         # an unknown name (flagged out of domain by ``encode``): no descriptors, and not elastic
-        unknown = on & ~param & ~_per_value(known.__contains__, names, bool)
+        is_unknown = is_on & ~is_param & ~is_known
+        unknown = is_unknown[names.codes]
+        on = (is_on & ~is_unknown)[names.codes]
         elastic &= ~unknown
-        on &= ~unknown
+        # the Prony terms of each design, term after term: (terms, n), so that every sum over
+        # the terms is a few vectorised additions (bit for bit the row sums of (n, terms) up
+        # to 7 terms; the shipped materials have at most 3)
+        mu = np.ones(n)
+        g = np.zeros((k, n))
+        tau = np.ones((k, n))
         for fam in FAMILIES.values():
-            rows = names == fam.name
+            rows = names.rows(fam.name)
             if not rows.any():
                 continue
             ratios = np.asarray(fam.time_ratios)
             mu[rows] = cols[f"{role}.mu0_MPa"][rows]
-            g[rows] = 0.0
-            g[rows, : ratios.size] = cols[f"{role}.g_total"][rows, None] / ratios.size
-            tau[rows, : ratios.size] = cols[f"{role}.tau_s"][rows, None] * ratios
-        for name in set(names[on & ~param]):
-            rows = names == name
+            g[:, rows] = 0.0
+            g[: ratios.size, rows] = cols[f"{role}.g_total"][rows] / ratios.size
+            tau[: ratios.size, rows] = cols[f"{role}.tau_s"][rows] * ratios[:, None]
+        for name in itertools.compress(names.keys, is_on & ~is_param & is_known):
+            rows = names.rows(name)
             mu_c, g_c, tau_c = _catalogue_entry(name, known)
-            if g_c.size > g.shape[1]:
-                pad = g_c.size - g.shape[1]
-                g = np.pad(g, ((0, 0), (0, pad)))
-                tau = np.pad(tau, ((0, 0), (0, pad)), constant_values=1.0)
+            if g_c.size > g.shape[0]:
+                pad = g_c.size - g.shape[0]
+                g = np.pad(g, ((0, pad), (0, 0)))
+                tau = np.pad(tau, ((0, pad), (0, 0)), constant_values=1.0)
             mu[rows] = mu_c
-            g[rows] = 0.0
-            g[np.ix_(rows, np.arange(g_c.size))] = g_c
-            tau[np.ix_(rows, np.arange(tau_c.size))] = tau_c
-        g_sum = g.sum(axis=1)
+            g[:, rows] = 0.0
+            g[: g_c.size, rows] = g_c[:, None]
+            tau[: tau_c.size, rows] = tau_c[:, None]
+        g_sum = g.sum(axis=0)
         elastic &= ~on | (g_sum <= 0)
         g0 = mu / (1.0 - g_sum)
         moduli, tangents = [mu], []
         for r in _OMEGA_RATIOS:
             wt = omega_rad_s * r * tau
-            storage = g0 * (1.0 - (g / (1.0 + wt**2)).sum(axis=1))
-            loss = g0 * (g * wt / (1.0 + wt**2)).sum(axis=1)
+            d = 1.0 + wt**2
+            storage = g0 * (1.0 - (g / d).sum(axis=0))
+            loss = g0 * (g * wt / d).sum(axis=0)
             if r == 1.0:
                 moduli.append(storage)
             tangents.append(loss / storage)
-        log_moduli = (np.log10(np.stack(moduli, axis=1)) - _LOG_MODULUS_LOW) / _LOG_MODULUS_DECADES
-        block = np.concatenate([log_moduli, np.stack(tangents, axis=1)], axis=1)
-        blocks.append(np.where(on[:, None], block, 0.0))
-    return np.concatenate(blocks, axis=1) if blocks else np.zeros((n, 0)), elastic
+        log_moduli = (np.log10(np.stack(moduli)) - _LOG_MODULUS_LOW) / _LOG_MODULUS_DECADES
+        blocks += [np.where(on, b, 0.0) for b in (*log_moduli, *tangents)]
+    out = np.empty((n, len(blocks)))
+    for j, b in enumerate(blocks):
+        out[:, j] = b
+    return out, elastic
 
 
 def _is_empty(v: Any) -> bool:

@@ -15,7 +15,7 @@ from sim.space import DesignSpace
 
 from ._encoding import ELASTIC_FEATURE, Encoder
 from ._model import EnsembleMLP, FrozenEnsemble
-from ._normalise import OutputNormaliser
+from ._normalise import PHYSICAL, OutputNormaliser
 
 __all__ = ["ZERO_IF_ELASTIC", "Prediction", "Surrogate", "rule_mask"]
 
@@ -33,13 +33,11 @@ def rule_mask(encoder: Encoder, features: np.ndarray, metric_names: Sequence[str
     return elastic[:, None] & zero[None, :]
 
 
-#: the predictions in metric units (``OutputNormaliser.to_physical``)
-PHYSICAL = ("mean", "median", "std", "lower_90", "upper_90")
-
 #: designs per forward pass: small enough that a layer's activations (nets x batch x hidden
 #: floats, ~4 MB) stay in cache, large enough to amortise per-operation overhead (2-core
-#: machine, one thread, predict_features on 65,536 designs with the shipped checkpoint:
-#: 512 -> 134k designs/s, 1024 -> 135k/s, 2048 -> 131k/s; with 3 x 5 nets 16384 gave 31k/s)
+#: machine, one thread, predict_features on 65,536 designs with the shipped 10-net
+#: checkpoint: 512 to 2048 within a few % of each other, 256 5-10 % slower; with 3 x 5 nets
+#: 16384 gave 31k/s). Any batch size gives the same bits (``ROWS_MULTIPLE``).
 BATCH = 1024
 
 
@@ -163,13 +161,12 @@ class Surrogate:
         ``lower_90``, ``upper_90`` in metric units, each (n, n_metrics), and ``by_rule`` (the
         entries set by ``ZERO_IF_ELASTIC``: exactly 0 with std 0)."""
         n, m = len(features), len(self.metric_names)
-        out = {key: np.empty((n, m)) for key in PHYSICAL}
+        out: dict[str, np.ndarray] = {key: np.empty((n, m)) for key in PHYSICAL}
         for rows, mean_z, std_z in self._batches(features):  # each batch's arrays stay in cache
-            for key, value in self.normaliser.to_physical(mean_z, std_z).items():
-                out[key][rows] = value
+            self.normaliser.to_physical(mean_z, std_z, {k: a[rows] for k, a in out.items()})
         rule = rule_mask(self.encoder, np.asarray(features), self.metric_names)
         for key in PHYSICAL:
-            out[key][rule] = 0.0
+            np.copyto(out[key], 0.0, where=rule)
         out["by_rule"] = rule
         return out
 
@@ -182,9 +179,10 @@ class Surrogate:
         return mean, std
 
     def _batches(self, features: np.ndarray) -> Iterator[tuple[slice, np.ndarray, np.ndarray]]:
-        """``(rows, mean_z, std_z)`` (float64) of ``BATCH`` designs at a time, on one thread."""
+        """``(rows, mean_z, std_z)`` (float32) of ``BATCH`` designs at a time, on one thread."""
         x = torch.from_numpy(np.ascontiguousarray(features, dtype=np.float32))
         net = self._frozen()
+        workspace = net.workspace(min(len(x), BATCH))
         threads = torch.get_num_threads()
         # small matrices: one thread is several times faster than torch's default pool (and
         # does not fight other work for the cores); restored afterwards for training
@@ -192,9 +190,9 @@ class Surrogate:
         try:
             with torch.inference_mode():
                 for s in range(0, len(x), BATCH):
-                    mu, sd = net(x[s : s + BATCH])
+                    mu, sd = net(x[s : s + BATCH], workspace)
                     rows = slice(s, s + len(mu))
-                    yield rows, mu.numpy().astype(np.float64), sd.numpy().astype(np.float64)
+                    yield rows, mu.numpy(), sd.numpy()
         finally:
             torch.set_num_threads(threads)
 
