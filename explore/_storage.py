@@ -55,14 +55,20 @@ def repair_journal(path: Path) -> str | None:
     Optuna appends each operation as one line, under a lock file beside the journal. A kill
     in the middle of an append leaves a last line without its newline (Optuna skips it when
     reading, but the next append would glue onto it and corrupt both) and may leave the lock
-    (Optuna breaks a stale one only after 30 s). For a run folder's own journal, which one
-    process writes, both are safe to undo: the cut line is dropped (the search asks a cut
-    batch again, identically) and the lock removed."""
+    (Optuna breaks a stale one only after 30 s) or the renamed file of a lock being released.
+    For a run folder's own journal, which one process writes, all are safe to undo: the cut
+    line is dropped (the search asks a cut batch again, identically) and the lock files
+    removed."""
     done = []
     lock = Path(f"{path}.lock")
     if lock.exists() or lock.is_symlink():
         lock.unlink()
         done.append("removed a stale lock")
+    # Optuna releases its lock by renaming it to <lock><uuid>.rename, then deleting that: a
+    # kill in between leaves the renamed file
+    for left in path.parent.glob(f"{path.name}.lock*.rename"):
+        left.unlink()
+        done.append("removed a released lock's leftover")
     if path.is_file():
         with path.open("rb+") as fh:
             data = fh.read()

@@ -57,7 +57,11 @@ def test_repair_drops_a_cut_line_and_a_stale_lock_so_the_journal_takes_more(tmp_
     cut = (tmp_path / "study.log").read_bytes()[: len(whole) + 25]  # a kill mid-append
     (tmp_path / "study.log").write_bytes(cut)
     (tmp_path / "study.log.lock").write_text("")  # the killed writer held the lock
-    assert repair_journal(tmp_path / "study.log") == "removed a stale lock; dropped a cut last line"
+    (tmp_path / "study.log.lock0a1b.rename").write_text("")  # or was releasing one
+    assert repair_journal(tmp_path / "study.log") == (
+        "removed a stale lock; removed a released lock's leftover; dropped a cut last line"
+    )
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["study.log"]
     assert (tmp_path / "study.log").read_bytes() == whole
     assert repair_journal(tmp_path / "study.log") is None  # nothing left to do
     study = optuna.load_study(study_name="s", storage=open_storage(spec))
