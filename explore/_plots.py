@@ -238,20 +238,10 @@ class ImportanceInfo:
         return not self.names
 
 
-def _storage_file(spec: str) -> Path | None:
-    """The file a storage lives in (a journal, or an SQLite database), None for a server's."""
-    from ._storage import is_database_url
-
-    if not is_database_url(spec):
-        return Path(spec)
-    prefix = "sqlite:///"
-    return Path(spec[len(prefix) :]) if spec.startswith(prefix) else None
-
-
 def _storage_urls(run: RunData) -> list[str]:
     """The configured storage, then the run folder's journal and its older study.db; files
     must exist (loading a missing one would create an empty storage)."""
-    from ._storage import JOURNAL_NAME
+    from ._storage import JOURNAL_NAME, storage_file
 
     urls = []
     configured = run.config.get("storage")
@@ -260,7 +250,7 @@ def _storage_urls(run: RunData) -> list[str]:
     urls += [str(run.run_dir / JOURNAL_NAME), f"sqlite:///{run.run_dir / 'study.db'}"]
     out = []
     for url in urls:
-        path = _storage_file(url)
+        path = storage_file(url)
         if path is None or path.is_file():
             out.append(url)
     return out

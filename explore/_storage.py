@@ -6,11 +6,12 @@ A storage is named by one string, recorded in ``config.json`` and accepted by
 (``JournalStorage``/``JournalFileBackend``, one JSON line per operation), anything of the
 form ``scheme://...`` a database URL (``RDBStorage``: SQLite, PostgreSQL, ...).
 
-Why a journal by default: the search writes every trial of every study (~600 per round); through
-SQLite and SQLAlchemy's ORM each costs a transaction of ~20 rows, ~0.1 s under load (53 s for
-600 trials on this 2-core machine, 41 s with ``PRAGMA synchronous=OFF``: the ORM, not the disk),
-against ~7 ms for one journal line (4 s). Run folders made before keep their ``study.db``:
-``config.json`` names it, and they resume and plot from it.
+Why a journal by default: the search writes every trial of every study (~600 per round), and
+through SQLite and SQLAlchemy's ORM each costs a transaction of ~20 rows: 600 trials took
+18.3 s (30.5 ms a trial) against 0.56 s (0.9 ms) for journal lines, on the quiet 2-core
+machine (``python benchmarks/bench_storage.py``, 2026-11-23; under load 53.6 s against 4.1 s,
+and ``PRAGMA synchronous=OFF`` only got SQLite to 41 s: the ORM, not the disk). Run folders
+made before keep their ``study.db``: ``config.json`` names it, and they resume and plot from it.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from typing import Any
 from sim.errors import DesignError
 
 __all__ = ["JOURNAL_NAME", "check_storage", "dashboard_command", "default_storage",
-           "is_database_url", "open_storage", "repair_journal"]  # fmt: skip
+           "is_database_url", "open_storage", "repair_journal", "storage_file"]  # fmt: skip
 
 #: the run folder's own journal file (``optuna-dashboard runs/NAME/study.log``)
 JOURNAL_NAME = "study.log"
@@ -42,6 +43,14 @@ def default_storage(out: Path) -> str:
 def is_database_url(spec: str) -> bool:
     """True for ``scheme://...`` (an ``RDBStorage`` URL), False for a journal file path."""
     return bool(_URL.match(spec))
+
+
+def storage_file(spec: str) -> Path | None:
+    """The file a storage lives in (a journal, or an SQLite database), None for a server's."""
+    if not is_database_url(spec):
+        return Path(spec)
+    prefix = "sqlite:///"
+    return Path(spec[len(prefix) :]) if spec.startswith(prefix) else None
 
 
 def dashboard_command(spec: str) -> str:
