@@ -1088,33 +1088,51 @@ def render_parity(info: ParityInfo) -> Figure:
 # ---------------------------------------------------------------------------------------------
 
 
-def _figures(run: RunData) -> dict[str, Figure]:
+def _drawings(run: RunData) -> dict[str, tuple[Callable[[Any], Figure], Any]]:
+    """Every figure as (render function, its info), computed from the run."""
     importance = importance_info(run)
     return {
-        "loops": render_loops(loops_info(run)),
-        "wedge": render_wedge(wedge_info(run)),
-        "parity": render_parity(parity_info(run)),
-        "pareto": render_pareto(pareto_info(run)),
-        "importance": render_importance(importance),
-        "projections": render_projections(projections_info(run, importance=importance)),
-        "parallel": render_parallel(parallel_info(run)),
+        "loops": (render_loops, loops_info(run)),
+        "wedge": (render_wedge, wedge_info(run)),
+        "parity": (render_parity, parity_info(run)),
+        "pareto": (render_pareto, pareto_info(run)),
+        "importance": (render_importance, importance),
+        "projections": (render_projections, projections_info(run, importance=importance)),
+        "parallel": (render_parallel, parallel_info(run)),
     }
 
 
-def write_figures(run_dir: str | Path) -> dict[str, Path]:
+def _png(render: Callable[[Any], Figure], info: Any) -> bytes:
+    """The PNG bytes of ``render(info)`` (no date in them: the same figure, the same bytes)."""
+    figure = render(info)
+    buffer = io.BytesIO()
+    figure.savefig(buffer, dpi=_DPI, format="png")
+    figure.clear()
+    return buffer.getvalue()
+
+
+def write_figures(run_dir: str | Path, workers: int = 1) -> dict[str, Path]:
     """Compute, render and save every figure as ``run_dir/figures/<name>.png`` (dpi 110);
-    returns name -> path in the order of ``FIGURES``. Empty data gives a "no data" figure."""
+    returns name -> path in the order of ``FIGURES``. Empty data gives a "no data" figure.
+
+    ``workers`` > 1 renders in that many processes (drawing, not the data, is what takes the
+    time: several seconds for the seven figures); the bytes are the same either way."""
     run = load_run(run_dir)
     folder = Path(run_dir) / "figures"
     folder.mkdir(parents=True, exist_ok=True)
-    figures = _figures(run)
+    drawings = _drawings(run)
+    names = list(FIGURES)
+    jobs = [drawings[name] for name in names]
+    if workers > 1:
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+            pngs = list(pool.map(_png, *zip(*jobs, strict=True)))
+    else:
+        pngs = [_png(render, info) for render, info in jobs]
     paths = {}
-    for name in FIGURES:
+    for name, data in zip(names, pngs, strict=True):
         path = folder / f"{name}.png"
-        buffer = io.BytesIO()
-        figures[name].savefig(buffer, dpi=_DPI, format="png")  # no date: same figure, same bytes
-        figures[name].clear()
-        data = buffer.getvalue()
         write_if_changed(path, data)  # the same figure: left as it is
         paths[name] = path
     return paths

@@ -351,6 +351,11 @@ def _confirmations_section(run: RunData) -> list[str]:
     return lines
 
 
+def _workers(value: Any) -> int:
+    """The run's FE worker count, also used to draw its figures (1 if absent or odd)."""
+    return value if isinstance(value, int) and value > 0 else 1
+
+
 def write_report(run_dir: str | Path) -> Path:
     """Write ``run_dir/report.md`` (and ``run_dir/figures/*.png``); returns the report's path.
 
@@ -359,7 +364,7 @@ def write_report(run_dir: str | Path) -> Path:
     run_dir = Path(run_dir)
     run = load_run(run_dir)
     targets = run_targets(run)
-    paths = write_figures(run_dir)
+    paths = write_figures(run_dir, workers=_workers(run.config.get("workers")))
     lines = [
         *_intro(run),
         *_targets_section(targets, run.summary.get("tolerance")),

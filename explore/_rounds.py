@@ -50,7 +50,7 @@ from ._search import (
 from ._summary import credible, target_met
 from ._types import Candidate, Confirmation
 
-__all__ = ["Search", "choose", "fe_only_screen", "run_references", "run_rounds"]
+__all__ = ["Search", "choose", "fe_only_screen", "references_alongside", "run_rounds"]
 
 
 @dataclass(eq=False)
@@ -80,16 +80,30 @@ class Search:
         self.timings[what] += time.perf_counter() - tic
 
 
-def run_references(run: Search) -> None:
-    """FE of silicone and polyurethane on the reference geometry (for the figures)."""
-    with run.timed("fe_s"):
-        run_fe(
-            [(run.out / "fe" / "references" / f"{m}.json", reference_point(m)) for m in REFERENCES],
-            run.setup.options,
-            workers=run.config.workers,
-            progress=run.progress,
-            desc="FE references",
-        )
+@contextmanager
+def references_alongside(run: Search) -> Iterator[None]:
+    """FE of silicone and polyurethane on the reference geometry (for the figures) while the
+    block runs, in one background process: the first round's search runs on one core and
+    leaves the other idle. Waited for when the block ends (the wait counts as FE time). With
+    one worker, or when the records are there already (a resumed run), it runs before the
+    block, like any other FE. The records are the same either way: only their timing moves."""
+    jobs = [(run.out / "fe" / "references" / f"{m}.json", reference_point(m)) for m in REFERENCES]
+    if run.config.workers <= 1 or all(path.exists() for path, _ in jobs):
+        with run.timed("fe_s"):
+            run_fe(jobs, run.setup.options, workers=1, progress=run.progress,
+                   desc="FE references")  # fmt: skip
+        yield
+        return
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(max_workers=1)
+    try:
+        future = pool.submit(run_fe, jobs, run.setup.options, workers=1, progress=False)
+        yield
+        with run.timed("fe_s"):
+            future.result()
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def run_rounds(run: Search):

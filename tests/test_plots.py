@@ -483,6 +483,20 @@ def test_an_empty_run_folder_does_not_crash(tmp_path: Path) -> None:
     assert not (tmp_path / "study.db").exists()
 
 
+def test_figures_drawn_in_two_processes_are_the_same_bytes(run_dir: Path, tmp_path: Path) -> None:
+    """``write_figures(workers=2)`` (what ``write_report`` does for a run with two FE workers)
+    draws in child processes: the PNGs are those drawn in this one, byte for byte."""
+    import shutil
+
+    other = tmp_path / "copy"
+    shutil.copytree(run_dir, other)
+    one = write_figures(run_dir, workers=1)
+    two = write_figures(other, workers=2)
+    assert list(one) == list(two) == list(FIGURES)
+    for name in FIGURES:
+        assert one[name].read_bytes() == two[name].read_bytes(), name
+
+
 # ---------------------------------------------------------------------------------------------
 # Legibility: labels that do not overlap, titles inside the figure, one direction of deflection
 # ---------------------------------------------------------------------------------------------
