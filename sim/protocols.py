@@ -16,7 +16,8 @@ thickness times L, times 2 for the symmetric half model); displacements in mm, t
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -404,8 +405,31 @@ class _Taps:
         self.scale = scale = 1.0 / (2.0 * opts.length_mm)  # N -> N/mm on the half model
         self.s_rest = self.t_load + _rest_times(opts, _shortest_relaxation_time(body))
         self.steps = 0
+        #: per tap and phase (loaded, rest): steps, factorisations and residual evaluations,
+        #: counts that do not depend on the machine's load (scripts/fe_time_study.py)
+        self.cost: list[dict[str, int]] = []
+        self.taps = 0
         self.replay_load, self.replay_rest = _Replay(), _Replay()
         self.recorder = _Recorder(body, self.top0, lambda f: f / scale)
+
+    @contextmanager
+    def _counted(self, phase: str) -> Iterator[None]:
+        """Log the steps, factorisations and evaluations of the block as ``phase`` of this tap
+        (also when it raises: a failed tap's cost is part of the run's)."""
+        body = self.body
+        before = (self.steps, body.factorizations, body.evaluations)
+        try:
+            yield
+        finally:
+            self.cost.append(
+                {
+                    "tap": self.taps + 1,
+                    "phase": phase,
+                    "steps": self.steps - before[0],
+                    "factorizations": body.factorizations - before[1],
+                    "evaluations": body.evaluations - before[2],
+                }
+            )
 
     def tap(self, n_loaded: int) -> tuple[np.ndarray, dict, list[np.ndarray]]:
         """One tap (contact then rest) from the current state: its metrics (``TAP_METRICS``),
@@ -423,14 +447,21 @@ class _Taps:
 
         self.replay_load.start(body, n_loaded)
         on_step, replay = rec.record_peak_force, self.replay_load
-        self.steps += _march(body, t_start + s_load, force_at, "tapping", on_step, replay=replay)
+        with self._counted("loaded"):
+            self.steps += _march(
+                body, t_start + s_load, force_at, "tapping", on_step, replay=replay
+            )
         rec.t.append(t_load)
         rec.disp.append(rec.disp[-1])
         rec.force.append(0.0)
         body.indenter_position = np.inf
         self.replay_rest.start(body)
         free = lambda t: Control.free()  # noqa: E731
-        self.steps += _march(body, t_start + self.s_rest, free, "tapping", replay=self.replay_rest)
+        with self._counted("rest"):
+            self.steps += _march(
+                body, t_start + self.s_rest, free, "tapping", replay=self.replay_rest
+            )
+        self.taps += 1
         d1, d4, hyst = _tap_metrics(rec.t, rec.disp, rec.force, t_load, opts.peak_force_N, omega)
         metrics = np.array([d1, d4, d1 - touch, d4 - touch, hyst])
         record = {"t": rec.t, "disp": rec.disp, "force": rec.force, "touch": touch}
@@ -508,6 +539,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
         "residual_history": [_json_float(r) for r in residuals],
         "accelerated": accelerated,
         "stalled": stalled,  # stopped early: the periodic state was out of reach (unsettled)
+        "cost": taps.cost,
         **taps.recorder.info(),
     }
     return _result("tapping", body, t0, it0, taps.steps, metrics, curves, info)

@@ -254,3 +254,24 @@ def test_a_design_that_cannot_settle_in_time_is_stopped_early():
     assert not _cannot_settle([1e-2] * 8 + [5e-4] * 8, opts)
     assert not _cannot_settle(stagnant, dataclasses.replace(opts, stall_window=0))
     assert not _cannot_settle(stagnant, dataclasses.replace(opts, min_taps=64, max_taps=64))
+
+
+def test_the_cost_log_adds_up_to_the_run(tapped):
+    """``info["cost"]``: one entry per tap and phase, in order, whose counts add up to the
+    run's steps (and, on a body of its own, to its factorisations and evaluations)."""
+    _, _, res = tapped
+    cost = res.info["cost"]
+    taps = res.info["taps"]
+    assert [(e["tap"], e["phase"]) for e in cost] == [
+        (k, phase) for k in range(1, taps + 1) for phase in ("loaded", "rest")
+    ]
+    assert sum(e["steps"] for e in cost) == res.steps
+    assert all(e["factorizations"] >= 1 and e["evaluations"] >= e["steps"] for e in cost)
+    body = _body(_material(Prony(G, TAU_S)))
+    short = TappingOptions(peak_force_N=PEAK_N, length_mm=LENGTH_MM, max_taps=3, min_taps=3)
+    res = run_tapping(body, short)
+    cost = res.info["cost"]
+    assert len(cost) == 2 * res.info["taps"]
+    assert sum(e["factorizations"] for e in cost) <= body.factorizations  # + the jumps' solves
+    assert sum(e["evaluations"] for e in cost) <= body.evaluations
+    assert sum(e["steps"] for e in cost) == res.steps
