@@ -1,24 +1,36 @@
 """Where the FE time of default-space designs goes: protocols, taps and phases, in counts.
 
     python scripts/fe_time_study.py --n 12 --seed 1
+    python scripts/fe_time_study.py --sweep runs/sweep_v22
 
 Simulates ``n`` designs of the default space (a scrambled Sobol sample,
-``sim.sweep.sample_points``) with every protocol and prints, summed over the designs, the
-steps, LDL^T factorisations and residual evaluations of the plate, the wedge and the tapping,
-the tapping split by tap (the first, the second, the later ones) and phase (plate in contact,
-rest) from its ``cost`` log, and the factorisations per step of each. Counts, not seconds:
-they do not depend on the machine's load (one factorisation with its tangent and residual
-costs about 8 ms on this 2-core machine). The wall time per design is printed too, as a
-rough guide only when the machine is not quiet.
+``sim.sweep.sample_points``) with every protocol and prints, summed over the designs:
+
+- the steps, LDL^T factorisations and residual evaluations of the plate, the wedge and the
+  tapping, the tapping split by tap (the first, the second, the later ones) and phase (plate
+  in contact, rest) from its ``cost`` log, and the factorisations per step of each. Counts,
+  not seconds: they do not depend on the machine's load;
+- how many of those factorisations came after the protocol's first step beyond the default
+  validity limits (``sim.validity.check`` after every recorded step): the work a protocol
+  stopped at its first violation would not do (its metrics are untrusted from there on);
+- the solver's own timings (``timings_s``) per factorisation and per evaluation, and the wall
+  time per design: seconds, meaningful on a quiet machine only.
+
+``--sweep FOLDER`` instead reads a sweep's ``table.csv`` and prints the share of its FE wall
+time spent on designs beyond the validity limits (as recorded), by protocol.
 """
 
 from __future__ import annotations
 
 import argparse
+import csv
 import time
 from collections import defaultdict
+from pathlib import Path
 
+import sim.validity as validity
 from sim import simulate
+from sim.contact import Wedge
 from sim.space import load_space, point_to_design
 from sim.sweep import sample_points
 
@@ -31,35 +43,65 @@ def tap_group(tap: int) -> str:
     return {1: "tap 1", 2: "tap 2"}.get(tap, "taps 3+")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--n", type=int, default=12)
-    ap.add_argument("--seed", type=int, default=1)
-    args = ap.parse_args()
-    space = load_space()
+def watch_violations() -> None:
+    """Make every ``DeformationTracker`` note the body's factorisation count at the first
+    recorded step beyond the default limits (``first_violation``). The wedge is judged
+    without the strain limit, as ``sim.validity`` does by default; tapping and the plate with."""
+    limits = validity.ValidityOptions()
+    observe = validity.DeformationTracker.observe
+
+    def observe_and_check(self, body) -> None:
+        observe(self, body)
+        if getattr(self, "first_violation", None) is None:
+            protocol = "wedge" if isinstance(body.indenter, Wedge) else "plate"
+            if validity.check(self.summary(), limits, protocol):
+                self.first_violation = body.factorizations
+
+    validity.DeformationTracker.observe = observe_and_check
+
+
+def study(n: int, seed: int) -> None:
+    from sim.protocols import _Recorder
+
+    watch_violations()
+    info = _Recorder.info
+    _Recorder.info = lambda self: {
+        **info(self),
+        "first_violation": getattr(self.tracker, "first_violation", None),
+    }
     rows: dict[str, dict[str, int]] = defaultdict(lambda: dict.fromkeys(COUNTS, 0))
-    wall = 0.0
-    taps = []
-    for i, point in enumerate(sample_points(space, args.n, args.seed)):
+    after = defaultdict(int)  # factorisations after the first violation, per protocol
+    body_total = 0  # every factorisation, the periodic-state jumps' included
+    seconds = defaultdict(float)
+    wall, taps = 0.0, 0
+    for i, point in enumerate(sample_points(load_space(), n, seed)):
         t0 = time.perf_counter()
         res = simulate(point_to_design(point))
         wall += time.perf_counter() - t0
         for name, fig in res.protocols.items():
-            if name == "tapping":
-                continue
-            for c in COUNTS:
-                rows[name][c] += fig.get(c, 0) or 0
+            body_total += fig.get("factorizations", 0)
+            for key, s in fig.get("timings_s", {}).items():
+                seconds[key] += s
+            first = fig.get("first_violation")
+            if first is not None:
+                after[name] += fig["factorizations"] - first
+            if name != "tapping":
+                for c in COUNTS:
+                    rows[name][c] += fig.get(c, 0) or 0
         tapping = res.protocols.get("tapping", {})
-        taps.append(tapping.get("taps", 0))
+        taps += tapping.get("taps", 0)
         for entry in tapping.get("cost", []):
             key = f"tapping, {tap_group(entry['tap'])}, {entry['phase']}"
             for c in COUNTS:
                 rows[key][c] += entry[c]
-        print(
-            f"design {i}: {time.perf_counter() - t0:.1f} s, {tapping.get('taps')} taps", flush=True
-        )
+        # what no tap's phase counts: re-equilibrating after each periodic-state jump
+        jumps = rows["tapping, periodic-state jumps"]
+        for c in ("factorizations", "evaluations"):
+            jumps[c] += tapping.get(c, 0) - sum(e[c] for e in tapping.get("cost", []))
+        print(f"design {i}: {time.perf_counter() - t0:.1f} s, {tapping.get('taps')} taps")
     total = sum(r["factorizations"] for r in rows.values())
-    print(f"\n{args.n} designs (seed {args.seed}), {sum(taps)} taps in all")
+    evaluations = sum(r["evaluations"] for r in rows.values())
+    print(f"\n{n} designs (seed {seed}), {taps} taps in all")
     print("| part | steps | factorisations | share | per step | evaluations |")
     print("|---|---|---|---|---|---|")
     for key in sorted(rows):
@@ -69,8 +111,50 @@ def main() -> None:
             f"| {key} | {r['steps']} | {r['factorizations']} | "
             f"{100 * r['factorizations'] / max(total, 1):.0f} % | {per:.2f} | {r['evaluations']} |"
         )
-    print(f"| all | | {total} | 100 % | | {sum(r['evaluations'] for r in rows.values())} |")
-    print(f"\nwall time {wall / args.n:.1f} s per design (load-dependent)")
+    print(f"| all | | {total} | 100 % | | {evaluations} |")
+    gone = sum(after.values())
+    print(
+        f"\nafter a protocol's first validity violation: {gone} of {body_total} factorisations "
+        f"({100 * gone / max(body_total, 1):.0f} %); "
+        + ", ".join(f"{name} {after[name]}" for name in sorted(after))
+    )
+    print(
+        f"\nseconds (load-dependent): {1e3 * seconds['LDL^T factorisation'] / total:.1f} ms a "
+        f"factorisation, {1e3 * seconds['tangent assembly'] / total:.1f} ms a tangent, "
+        f"{1e3 * seconds['residual+material'] / evaluations:.1f} ms an evaluation; "
+        f"{wall / n:.1f} s per design"
+    )
+
+
+def sweep_shares(folder: Path) -> None:
+    with (folder / "table.csv").open(newline="") as fh:
+        rows = [r for r in csv.DictReader(fh) if r["status"] == "ok"]
+    wall = [float(r["wall_time_s"]) for r in rows]
+    total = sum(wall)
+    groups = {
+        "valid": lambda r: r["valid"] == "True",
+        "invalid": lambda r: r["valid"] != "True",
+        **{
+            f"invalid in {p}": (lambda r, p=p: f"({p})" in r["violations"])
+            for p in ("tapping", "plate", "wedge")
+        },
+    }
+    print(f"{folder}: {len(rows)} designs simulated, {total:.0f} s of FE wall time")
+    for name, keep in groups.items():
+        picked = [w for w, r in zip(wall, rows, strict=True) if keep(r)]
+        print(f"{name}: {len(picked)} designs, {100 * sum(picked) / total:.0f} % of the time")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=12)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--sweep", type=Path, help="a sweep folder: time shares by validity")
+    args = ap.parse_args()
+    if args.sweep is not None:
+        sweep_shares(args.sweep)
+    else:
+        study(args.n, args.seed)
 
 
 if __name__ == "__main__":

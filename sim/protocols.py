@@ -408,7 +408,6 @@ class _Taps:
         #: per tap and phase (loaded, rest): steps, factorisations and residual evaluations,
         #: counts that do not depend on the machine's load (scripts/fe_time_study.py)
         self.cost: list[dict[str, int]] = []
-        self.taps = 0
         self.replay_load, self.replay_rest = _Replay(), _Replay()
         self.recorder = _Recorder(body, self.top0, lambda f: f / scale)
 
@@ -423,7 +422,7 @@ class _Taps:
         finally:
             self.cost.append(
                 {
-                    "tap": self.taps + 1,
+                    "tap": len(self.cost) // 2 + 1,  # a loaded and a rest entry per tap
                     "phase": phase,
                     "steps": self.steps - before[0],
                     "factorizations": body.factorizations - before[1],
@@ -461,7 +460,6 @@ class _Taps:
             self.steps += _march(
                 body, t_start + self.s_rest, free, "tapping", replay=self.replay_rest
             )
-        self.taps += 1
         d1, d4, hyst = _tap_metrics(rec.t, rec.disp, rec.force, t_load, opts.peak_force_N, omega)
         metrics = np.array([d1, d4, d1 - touch, d4 - touch, hyst])
         record = {"t": rec.t, "disp": rec.disp, "force": rec.force, "touch": touch}
