@@ -13,7 +13,7 @@ import dataclasses
 import json
 import math
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +21,7 @@ from sim.geometry import REFERENCE_GEOMETRY
 from sim.materials import Material
 from sim.metrics import METRICS
 from sim.options import SimOptions
+from sim.pool import process_pool
 from sim.provenance import write_json
 from sim.space import with_every_layer
 from sim.sweep import evaluate_point, record_key
@@ -82,7 +83,7 @@ def run_fe(
                 out[path] = _keep(path, evaluate_point(point, options_dict, materials))
                 bar.update(1)
         else:
-            with ProcessPoolExecutor(max_workers=min(workers, len(todo))) as pool:
+            with process_pool(min(workers, len(todo))) as pool:
                 futures = {
                     pool.submit(evaluate_point, point, options_dict, materials): path
                     for path, point in todo

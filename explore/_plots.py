@@ -1124,9 +1124,9 @@ def write_figures(run_dir: str | Path, workers: int = 1) -> dict[str, Path]:
     names = list(FIGURES)
     jobs = [drawings[name] for name in names]
     if workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
+        from sim.pool import process_pool
 
-        with ProcessPoolExecutor(max_workers=min(workers, len(jobs))) as pool:
+        with process_pool(min(workers, len(jobs))) as pool:
             pngs = list(pool.map(_png, *zip(*jobs, strict=True)))
     else:
         pngs = [_png(render, info) for render, info in jobs]

@@ -94,9 +94,9 @@ def references_alongside(run: Search) -> Iterator[None]:
                    desc="FE references")  # fmt: skip
         yield
         return
-    from concurrent.futures import ProcessPoolExecutor
+    from sim.pool import process_pool
 
-    pool = ProcessPoolExecutor(max_workers=1)
+    pool = process_pool(1)
     try:
         future = pool.submit(run_fe, jobs, run.setup.options, workers=1, progress=False)
         yield

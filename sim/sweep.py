@@ -18,7 +18,7 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,6 +29,7 @@ from .errors import DesignError, SimulationError
 from .materials import Material, UserCatalogue, catalogue_from_tables, material_tables
 from .metrics import SOLVER_VERSION
 from .options import SimOptions, apply_overrides, options_from_dict
+from .pool import process_pool
 from .provenance import check_folder_kind, json_safe, provenance
 from .simulate import simulate
 from .space import DesignSpace, point_to_design, space_from_dict
@@ -308,7 +309,7 @@ def _run_local(
 ) -> None:
     """Local processes; the parent keeps at most 2 x workers designs in flight."""
     items = iter(todo)
-    with ProcessPoolExecutor(max_workers=workers, initializer=_single_thread) as pool:
+    with process_pool(workers) as pool:
         pending = {}
         for key, point in items:
             pending[pool.submit(evaluate_point, point, options_dict, materials)] = key
@@ -321,11 +322,6 @@ def _run_local(
                 nxt = next(items, None)
                 if nxt is not None:
                     pending[pool.submit(evaluate_point, nxt[1], options_dict, materials)] = nxt[0]
-
-
-def _single_thread() -> None:
-    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ[var] = "1"
 
 
 def _connect(address: str):

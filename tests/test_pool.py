@@ -1,0 +1,62 @@
+"""Pool workers end with their parent, even when the parent is killed with SIGKILL."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from sim.pool import PARENT_POLL_S, process_pool
+
+PARENT = """
+import os, sys, time
+from sim.pool import process_pool
+pool = process_pool(2)
+pids = sorted({f.result() for f in [pool.submit(os.getpid) for _ in range(8)]})
+print(" ".join(map(str, pids)), flush=True)
+time.sleep(600)
+"""
+
+
+def _alive(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie, exited but not yet reaped, counts as ended)."""
+    status = Path(f"/proc/{pid}/status")
+    try:
+        state = next(line for line in status.read_text().splitlines() if line.startswith("State"))
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    return "Z" not in state.split()[1]
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
+def test_workers_end_when_their_parent_is_killed():
+    parent = subprocess.Popen([sys.executable, "-c", PARENT], stdout=subprocess.PIPE, text=True)
+    workers: list[int] = []
+    try:
+        workers = [int(p) for p in parent.stdout.readline().split()]
+        assert workers and all(_alive(p) for p in workers)
+        os.kill(parent.pid, signal.SIGKILL)
+        parent.wait()
+        deadline = time.monotonic() + 20 * PARENT_POLL_S + 5.0
+        while any(_alive(p) for p in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not any(_alive(p) for p in workers), "a worker outlived its killed parent"
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+        for pid in workers:  # a failed run leaves no orphan behind
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+
+
+def test_workers_run_single_threaded_and_return_results(monkeypatch):
+    monkeypatch.delenv("OMP_NUM_THREADS", raising=False)
+    with process_pool(2) as pool:
+        env = pool.submit(os.getenv, "OMP_NUM_THREADS").result()
+        assert env == "1"
+        assert sorted(pool.map(abs, [-3, -1, 2])) == [1, 2, 3]
