@@ -266,6 +266,8 @@ def setup(config: OptimizeConfig, out: Path) -> Setup:
             build_note = f"no buildable search: {exc}"
     dataset = _find_dataset(config, surrogate)
     options = _sim_options(dataset)
+    if config.allow_untrusted:  # answers beyond the limits: confirm them to the end
+        options = options.without_validity_stop()
     record = config_record(config, out, targets, options, user)
     _check_resume(out, record)
     if config.storage is not None:

@@ -50,6 +50,7 @@ def retrain(
     epochs: int,
     seed: int,
     progress: Callable[[int], None] | None = None,
+    batch_size: int | None = None,
 ):
     """Warm-started retraining on the training sweep plus the FE-confirmed designs;
     ``progress`` is called with the number of epochs done since its last call."""
@@ -59,7 +60,7 @@ def retrain(
     ok, targets = training_rows(confirmed, data.metric_names)
     model = fine_tune(
         surrogate, data, [c.candidate.point for c in ok], targets, epochs=epochs, seed=seed,
-        weight=CONFIRMED_WEIGHT, progress=progress or False,
+        weight=CONFIRMED_WEIGHT, batch_size=batch_size, progress=progress or False,
     )  # fmt: skip
     model.header["active_learning"] = {
         "confirmed_designs": len(ok),

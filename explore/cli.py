@@ -79,14 +79,19 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         for name, value in result.metrics.items():
             unit = METRICS[name][1]
             if value is None or not math.isfinite(value):
-                text = "failed" if result.failures else "not reached (see the options)"
+                if METRICS[name][0] in result.stopped:
+                    text = "not computed: beyond the validity limits"
+                elif result.failures:
+                    text = "failed"
+                else:
+                    text = "not reached (see the options)"
             else:
                 text = f"{value:.4f} {unit}"
             print(f"{name:28s} {text}")
         if "settled" in tap:
             print(_settle_line(tap))
         for protocol, summary in result.validity_summaries().items():
-            print(_validity_line(protocol, summary))
+            print(_validity_line(protocol, summary, protocol in result.stopped))
         print(f"({result.n_dofs} dofs, {result.wall_time_s:.2f} s)")
         if args.out is not None:
             print(f"written to {args.out}")
@@ -97,6 +102,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         )
     for protocol, violation in result.violations():  # a warning: the exit code is unchanged
         print(f"warning: {protocol}: {violation.warning()}", file=sys.stderr)
+    for protocol, stop in result.validity["stopped"].items():
+        print(
+            f"warning: {protocol}: stopped at t = {stop['time_s']:.4g} s, its first step beyond "
+            "the validity limits: no metrics (--set validity.stop_at_violation=false runs on)",
+            file=sys.stderr,
+        )
     if tap.get("settled") is False:
         why = "out of reach at its rate of convergence" if tap.get("stalled") else "not reached"
         print(
@@ -119,8 +130,9 @@ def _settle_line(tap: dict) -> str:
     )
 
 
-def _validity_line(protocol: str, summary: dict) -> str:
-    """How far the protocol deformed the design, in one line (limits: README, --set validity.*)."""
+def _validity_line(protocol: str, summary: dict, stopped: bool = False) -> str:
+    """How far the protocol deformed the design, in one line (limits: README, --set validity.*);
+    ``stopped``: up to the step at which it stopped (``validity.stop_at_violation``)."""
     width = summary["contact_width_at_peak_mm"]
     flags = [
         text
@@ -136,6 +148,7 @@ def _validity_line(protocol: str, summary: dict) -> str:
         + (f", contact width {width:.2f} mm" if width is not None else "")
         + f", nominal compression {100 * summary['nominal_compression']:.0f} %"
         + "".join(f", {f}" for f in flags)
+        + (" (up to its stop)" if stopped else "")
     )
 
 

@@ -392,6 +392,9 @@ def main() -> None:
         "[`verification.md`](verification.md) (`python scripts/verify_fe.py`); the periodic "
         "state of the taps against closed forms in `tests/test_periodic.py`.",
         "",
+        "The solver's speed (Newton, where the FE time goes, the stop at the first validity "
+        "violation) is in [`fe_speed.md`](fe_speed.md).",
+        "",
     ]
     reproduce(lines, args.out / "figures")
     if args.fit.exists():

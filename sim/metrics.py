@@ -18,14 +18,19 @@ __all__ = [
 ]
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
-SOLVER_VERSION = "2.2"
+SOLVER_VERSION = "2.3"
 #: Earlier solver versions whose metrics this one reproduces within its tolerances: a surrogate
 #: trained on their FE results is as good as one trained on this version's (2.1 -> 2.2 changed
-#: only when Newton gives up on a step; docs/validation.md, "Newton").
-SAME_METRICS_AS = ("2.1",)
+#: only when Newton gives up on a step; docs/fe_speed.md, "Newton"; 2.2 -> 2.3 only the
+#: designs beyond the validity limits, which lose their metrics, and a surrogate learns metrics
+#: from settled, valid designs).
+SAME_METRICS_AS = ("2.2", "2.1")
+# 2.3: a protocol stops at its first recorded step beyond the validity limits
+#      (ValidityOptions.stop_at_violation): no metrics, its validity figures censored there;
+#      the metrics of a design within the limits are those of 2.2, bit for bit
 # 2.2: Newton abandons a stalled step early (NewtonOptions.stall_*), so the step is cut sooner:
 #      same tolerances; metrics within 0.1 % of 2.1 but for hysteresis values below 1e-3 N mm
-#      (numerical noise of nearly elastic designs; docs/validation.md, "Newton")
+#      (numerical noise of nearly elastic designs; docs/fe_speed.md, "Newton")
 # 2.1: sag_mm metric (the displacement at the start of the measured tap); catalogue silicones at
 #      nu = 0.499 (was 0.49); material families gel/foam (sim.families)
 # 2.0: tapping to the periodic state on a residual (sim.periodic), rest steps from the shortest
@@ -103,4 +108,4 @@ def diagnostic_names(protocols: tuple[str, ...] | list[str] = PROTOCOLS) -> list
     if "tapping" in protocols:
         names += [f"tapping_{k}" for k in SETTLE_KEYS if k != "settled"]
     names += [f"{p}_{k}" for p in protocols for k in DIAGNOSTIC_KEYS]
-    return [*names, "violations"]
+    return [*names, "violations", "stopped"]

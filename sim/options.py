@@ -49,6 +49,14 @@ class SimOptions:
             ),
         )
 
+    def without_validity_stop(self) -> SimOptions:
+        """Every protocol runs to its end, beyond the validity limits too
+        (``ValidityOptions.stop_at_violation`` off): the extrapolated numbers of an invalid
+        design, for studies that show them and for ``--allow-untrusted``."""
+        return dataclasses.replace(
+            self, validity=dataclasses.replace(self.validity, stop_at_violation=False)
+        )
+
     def with_mesh_refined(self, factor: float) -> SimOptions:
         """Every element size divided by ``factor`` (mesh convergence studies)."""
         return dataclasses.replace(self, mesh=self.mesh.refined(factor))

@@ -26,7 +26,7 @@ import numpy as np
 from .contact import Plate, Wedge
 from .errors import SimulationError
 from .solver import Body, Control
-from .validity import DeformationTracker
+from .validity import DeformationTracker, ValidityStop, check
 
 __all__ = [
     "REGISTRY",
@@ -265,6 +265,11 @@ class _Recorder:
         self.tracker.observe(body)
         if peak:
             self.tracker.observe_peak(body)
+        if body.stop_beyond is not None:
+            protocol, limits = body.stop_beyond
+            broken = check(self.tracker.summary(), limits, protocol)
+            if broken:
+                raise ValidityStop(protocol, body.t, broken, self.info(), self.tracker.observed)
 
     def record_peak_force(self, t: float) -> None:
         """``record``, the peak being the step of the curve's largest force so far (its Prony

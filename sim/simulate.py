@@ -28,7 +28,7 @@ from .options import SimOptions
 from .protocols import REGISTRY, Protocol, ProtocolResult
 from .provenance import finite_or_none
 from .solver import Body
-from .validity import ValidityOptions, Violation, check
+from .validity import ValidityOptions, ValidityStop, Violation, check
 
 __all__ = [
     "DIAGNOSTIC_KEYS",
@@ -98,16 +98,29 @@ class SimResult:
             own = [str(v) for v in check(summary, self.validity_options, name)]
             protocols[name] = {**summary, "violations": own, "valid": not own}
         violations = [f"{v} ({name})" for name, v in self.violations()]
-        return {"valid": not violations, "violations": violations, "protocols": protocols}
+        return {
+            "valid": not violations,
+            "violations": violations,
+            "protocols": protocols,
+            "stopped": {name: self.protocols[name]["stopped"] for name in self.stopped},
+        }
+
+    @property
+    def stopped(self) -> tuple[str, ...]:
+        """The protocols stopped at their first step beyond the validity limits (no metrics;
+        ``ValidityOptions.stop_at_violation``)."""
+        return tuple(name for name, fig in self.protocols.items() if "stopped" in fig)
 
     def diagnostics(self) -> dict[str, Any]:
-        """Flat, JSON/CSV-ready validity figures: ``valid``, ``violations`` (joined by "; ") and
+        """Flat, JSON/CSV-ready validity figures: ``valid``, ``violations`` (joined by "; "),
+        ``stopped`` (the protocols stopped at a violation, joined by ",") and
         per protocol run ``<protocol>_<key>`` for the keys of ``DIAGNOSTIC_KEYS`` (None where the
         protocol failed)."""
         validity = self.validity
         out: dict[str, Any] = {
             "valid": validity["valid"],
             "violations": "; ".join(validity["violations"]),
+            "stopped": ",".join(self.stopped),
         }
         for name in self.protocols:
             summary = validity["protocols"].get(name, {})
@@ -211,8 +224,17 @@ def _run(
         options.newton,
         getattr(opts, "penalty_per_mm", None),
     )
+    if options.validity.stop_at_violation:
+        body.stop_beyond = (protocol.name, options.validity)
+    t0 = time.perf_counter()
     try:
         return body, protocol.run(body, opts)
+    except ValidityStop as stop:  # completed, without metrics: see ValidityOptions
+        info = {**stop.info, "stopped": stop.record()}
+        wall = time.perf_counter() - t0
+        return body, ProtocolResult(
+            protocol.name, {}, {}, body.newton_iterations, stop.steps, wall, info
+        )
     except SimulationError as exc:
         return body, ProtocolFailure(exc.protocol, exc.time_s, exc.reason)
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as exc:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -62,7 +63,7 @@ class NewtonOptions:
     # about a third of all factorisations went into steps that then failed at `max_iterations`,
     # creeping down between jumps as surface nodes enter and leave contact. (6, 8) saved 14-27 %
     # of the factorisations and 29-38 % of the residual evaluations on three samples; (4, 6)
-    # cost more than it saved (docs/validation.md, "Newton"; scripts/newton_study.py).
+    # cost more than it saved (docs/fe_speed.md, "Newton"; scripts/newton_study.py).
     stall_window: int = 6
     stall_from: int = 8
     stall_reduction: float = 0.5
@@ -136,6 +137,10 @@ class Body:
         self._last = None  # (kind, previous value, value, du, dd) of the last committed step
         self._last_control: Control | None = None
         self.force = 0.0
+        #: (protocol name, ``ValidityOptions``): the protocol's recorder stops the run at its
+        #: first recorded step beyond these limits (``sim.validity.ValidityStop``); None: never.
+        #: Set by ``sim.simulate`` when ``validity.stop_at_violation``.
+        self.stop_beyond: tuple[str, Any] | None = None
         self.newton_iterations = 0
         self.factorizations = 0
         self.evaluations = 0  # residual evaluations, line-search trials included

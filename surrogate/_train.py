@@ -255,6 +255,7 @@ def fine_tune(
     epochs: int,
     seed: int,
     weight: int = 1,
+    batch_size: int | None = None,
     progress: bool | Callable[[int], None] = False,
 ) -> Surrogate:
     """``surrogate`` trained further (warm-started, ``fit``'s ``init``) on its training sweep
@@ -263,8 +264,8 @@ def fine_tune(
 
     The split is the one the checkpoint records (its train/validation/test designs, found in
     ``data`` by table index); the new designs join the training designs. The hyper-parameters
-    are the checkpoint's but ``seed`` and ``epochs`` (at most this many, and the patience).
-    ``progress`` as ``fit``'s."""
+    are the checkpoint's but ``seed``, ``epochs`` (at most this many, and the patience) and,
+    when given, ``batch_size``. ``progress`` as ``fit``'s."""
     if weight < 1:
         raise ValueError(f"weight must be >= 1, got {weight}")
     extra = [p for p in points for _ in range(weight)]
@@ -283,7 +284,10 @@ def fine_tune(
     names = {f.name for f in fields(TrainConfig)}
     old = {k: v for k, v in surrogate.header.get("training", {}).items() if k in names}
     old = {k: tuple(v) if isinstance(v, list) else v for k, v in old.items()}
-    config = TrainConfig(**{**old, "seed": seed, "max_epochs": epochs, "patience": epochs})
+    changed = {"seed": seed, "max_epochs": epochs, "patience": epochs}
+    if batch_size is not None:
+        changed["batch_size"] = batch_size
+    config = TrainConfig(**{**old, **changed})
     split = Split(train, val, test)
     return fit(aug, config, progress=progress, split=split, init=surrogate).surrogate
 

@@ -263,3 +263,16 @@ def test_family_spaces_hold_one_family():
         for _ in range(20):
             p = sub.point(rng.random(len(sub.sampled)))
             assert design_family(p) == family
+
+
+def test_untrusted_answers_are_confirmed_to_the_end(tmp_path):
+    """FE confirms like the training sweep, which stops a protocol at its first step beyond
+    the validity limits; with --allow-untrusted an answer may lie beyond them, so its FE runs to
+    the end and reports the (extrapolated) numbers."""
+    from explore._config import OptimizeConfig, setup
+
+    trusted = setup(OptimizeConfig(), tmp_path / "a").options
+    untrusted = setup(OptimizeConfig(allow_untrusted=True), tmp_path / "b").options
+    assert trusted.validity.stop_at_violation is True
+    assert untrusted.validity.stop_at_violation is False
+    assert untrusted == trusted.without_validity_stop()

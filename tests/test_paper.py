@@ -189,13 +189,14 @@ def test_settling_of_a_soft_creeping_core_matches_brute_force():
         }
     )
     design = Design((Layer(material_from_spec("silicone_gls40"), 0.5), Layer(core)))
-    fast = simulate(design, ["tapping"])
+    # the core is squashed beyond the validity limits: run on, the settling is what is tested
+    fast = simulate(design, ["tapping"], SimOptions().without_validity_stop())
     slow = simulate(
         design,
         ["tapping"],
         SimOptions(
             tapping=TappingOptions(max_taps=150, min_taps=150, accelerate=False, settle_tol=0.0)
-        ),
+        ).without_validity_stop(),
     )
     assert fast.protocols["tapping"]["settled"]
     assert fast.protocols["tapping"]["taps"] <= 20

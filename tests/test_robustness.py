@@ -117,7 +117,8 @@ def test_human_like_soft_layered_design_solves_at_large_deformation():
         }
     )
     design = Design((Layer(material_from_spec("silicone_gls40"), 0.5), Layer(core)))
-    res = simulate(design)
+    # beyond the validity limits by design: the solver's robustness there is what is tested
+    res = simulate(design, options=SimOptions().without_validity_stop())
     assert res.ok, res.failures
     assert res.metrics["disp_at_4N_mm"] > 0.5 * design.geometry.height_mm
     assert res.metrics["hysteresis_Nmm"] > 0.5

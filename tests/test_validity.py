@@ -19,7 +19,7 @@ from fe_helpers import compress, uniaxial_body
 
 import explore.cli
 from explore.cli import main
-from sim import Geometry, SimOptions, ValidityOptions, homogeneous_design, simulate
+from sim import Geometry, PlateOptions, SimOptions, ValidityOptions, homogeneous_design, simulate
 from sim.contact import Plate
 from sim.materials import LAWS, Material
 from sim.metrics import DIAGNOSTIC_KEYS
@@ -217,7 +217,8 @@ def test_stiff_paper_material_is_valid(tmp_path: Path) -> None:
     assert 0.0 < s["contact_width_at_peak_mm"] < 2 * 5.84
     assert s["nominal_compression"] == pytest.approx(1.0 / 5.48)
     diag = res.diagnostics()
-    assert set(diag) == {"valid", "violations"} | {f"plate_{k}" for k in DIAGNOSTIC_KEYS}
+    assert set(diag) == {"valid", "violations", "stopped"} | {f"plate_{k}" for k in DIAGNOSTIC_KEYS}
+    assert diag["stopped"] == ""
     assert diag["valid"] is True and diag["violations"] == ""
     assert diag["plate_contact_width_mm"] == s["contact_width_at_peak_mm"]
     assert json.loads(json.dumps(res.to_json(), allow_nan=False))["validity"] == v
@@ -255,12 +256,13 @@ def _run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
 
 def test_soft_design_reaching_the_base_warns(tmp_path: Path) -> None:
     (tmp_path / "squat.toml").write_text(SQUAT_SOFT_TOML)
-    res = _run_cli("simulate", "squat.toml", "--protocol", "plate", "--json", cwd=tmp_path)
+    run_on = ("--set", "validity.stop_at_violation=false")  # every violation, to the end
+    res = _run_cli("simulate", "squat.toml", "--protocol", "plate", "--json", *run_on, cwd=tmp_path)
     assert res.returncode == 0, res.stderr  # a warning, not an error
     assert "Traceback" not in res.stderr
     out = json.loads(res.stdout)
     block = out["validity"]
-    assert set(block) == {"valid", "violations", "protocols"}
+    assert set(block) == {"valid", "violations", "protocols", "stopped"}
     assert block["valid"] is False
     plate = block["protocols"]["plate"]
     assert plate["reached_base"] is True
@@ -301,6 +303,7 @@ def test_overriding_the_limits_changes_the_verdict(
     assert "validity (plate): compressive log strain" in out
     assert "reached the base" in out  # still reported, no longer a violation
     strict = ["--set", "validity.max_compressive_log_strain=0.05", "--set", "validity.min_J=0.99"]
+    strict += ["--set", "validity.stop_at_violation=false"]  # both broken by the end
     (tmp_path / "stiff.toml").write_text('[[layers]]\nmaterial = "silicone_gls40"\n')
     assert main(["simulate", str(tmp_path / "stiff.toml"), "--protocol", "plate", *strict]) == 0
     err = capsys.readouterr().err
@@ -318,3 +321,91 @@ def test_options_of_a_sweep_made_before_the_validity_section_load() -> None:
     old = {k: v for k, v in config["options"].items() if k != "validity"}
     assert options_from_dict(old).validity == ValidityOptions()
     assert options_from_dict(config["options"]).validity == ValidityOptions()
+
+
+# ----------------------------------------------------------------------------- stop at violation
+def _squat_design():
+    import tomllib
+
+    from sim.design import design_from_dict
+
+    return design_from_dict(tomllib.loads(SQUAT_SOFT_TOML))
+
+
+def _running_on() -> SimOptions:
+    return SimOptions().without_validity_stop()
+
+
+def test_a_protocol_stops_at_its_first_step_beyond_the_limits() -> None:
+    """The squat soft pulp breaks the limits during the plate run: by default the run stops
+    there, without metrics, its validity judged as on the full run from figures censored at
+    the stop (never beyond the full run's extremes), at a fraction of the work."""
+    design = _squat_design()
+    full = simulate(design, ["plate"], _running_on())
+    stopped = simulate(design, ["plate"])
+    assert full.stopped == () and full.metrics["plate_force_at_1mm_N"] is not None
+    assert stopped.stopped == ("plate",)
+    assert stopped.ok  # completed, not failed
+    assert stopped.metrics["plate_force_at_1mm_N"] is None
+    assert stopped.curves == {}
+    stop = stopped.validity["stopped"]["plate"]
+    plate_full = full.protocols["plate"]
+    assert 0.0 < stop["time_s"] < PlateOptions().depth_mm / PlateOptions().speed_mm_per_s
+    # the broken limits are among the full run's, and the run is judged invalid either way
+    full_broken = {v.option for _, v in full.violations()}
+    assert stopped.validity["valid"] is False
+    assert {v.option for _, v in stopped.violations()} <= full_broken
+    assert stop["violations"] == [str(v) for _, v in stopped.violations()]
+    a, b = stopped.validity_summaries()["plate"], full.validity_summaries()["plate"]
+    assert a["max_compressive_log_strain"] <= b["max_compressive_log_strain"]
+    assert a["min_J"] >= b["min_J"]
+    assert stopped.protocols["plate"]["steps"] < plate_full["steps"]
+    assert stopped.protocols["plate"]["factorizations"] < plate_full["factorizations"]
+    # the stop is at the FIRST violating step: the full run's running summary, checked after
+    # every recorded step, breaks a limit first at the stop's time
+    assert stop["time_s"] == pytest.approx(_first_violation_s(design), abs=1e-12)
+
+
+def _first_violation_s(design) -> float:
+    """The simulated time of the first recorded plate step whose running summary breaks the
+    default limits, on a run to the end (an observer wrapped around the recorder)."""
+    from sim import protocols
+
+    seen: list[float] = []
+    record = protocols._Recorder.record
+
+    def observed(self, t: float, peak: bool = False) -> None:
+        record(self, t, peak)
+        if not seen and check(self.tracker.summary(), ValidityOptions(), "plate"):
+            seen.append(self.body.t)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(protocols._Recorder, "record", observed)
+        simulate(design, ["plate"], _running_on())
+    return seen[0]
+
+
+def test_a_design_within_the_limits_runs_the_same_bits_with_or_without_the_stop() -> None:
+    """What 2.3 changed is only the designs beyond the limits (``SAME_METRICS_AS``)."""
+    design = homogeneous_design("silicone_gls40")
+    on, off = simulate(design, ["plate"]), simulate(design, ["plate"], _running_on())
+    assert on.stopped == () and on.validity["valid"] is True
+    assert on.metrics == off.metrics
+    assert on.curves == off.curves
+    assert on.validity_summaries() == off.validity_summaries()
+
+
+def test_the_command_line_says_where_a_protocol_stopped(tmp_path: Path) -> None:
+    (tmp_path / "squat.toml").write_text(SQUAT_SOFT_TOML)
+    res = _run_cli("simulate", "squat.toml", "--protocol", "plate", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr  # a warning, not an error
+    assert "Traceback" not in res.stderr
+    assert "plate_force_at_1mm_N         not computed: beyond the validity limits" in res.stdout
+    assert "(up to its stop)" in res.stdout
+    stops = [line for line in res.stderr.splitlines() if "stopped at t =" in line]
+    assert len(stops) == 1
+    assert stops[0].startswith("warning: plate: stopped at t = ")
+    assert stops[0].endswith(
+        "its first step beyond the validity limits: no metrics "
+        "(--set validity.stop_at_violation=false runs on)"
+    )
