@@ -85,7 +85,6 @@ def describe(surrogate) -> dict[str, Any]:
         "features": enc.feature_names,
         "material_descriptors": {
             "omega_rad_s": enc.omega_rad_s,
-            "log_tangents": enc.log_tangents,
             "definition": " ".join((material_descriptors.__doc__ or "").split()),
         },
         "exact_by_rule": {

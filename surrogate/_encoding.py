@@ -43,7 +43,6 @@ from sim.space import (
 __all__ = [
     "DESCRIPTOR_OMEGA_RAD_S",
     "ELASTIC_FEATURE",
-    "TAN_DELTA_FLOOR",
     "Encoded",
     "Encoder",
     "is_optional",
@@ -258,16 +257,13 @@ class Encoder:
     when never active); ``seen``: for each choice parameter, the choices seen in training.
     An encoder without a training domain (``fit_domain`` not called) checks the bounds only.
     ``omega_rad_s``: the angular frequency of the taps of the training sweep, 2 pi f, at which
-    the material descriptors are taken (``material_descriptors``); ``log_tangents``: the loss
-    tangents enter on a log scale (``material_descriptors``; False in checkpoints written
-    before it existed).
+    the material descriptors are taken (``material_descriptors``).
     """
 
     space: DesignSpace
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     seen: dict[str, tuple[str, ...]] = field(default_factory=dict)
     omega_rad_s: float = DESCRIPTOR_OMEGA_RAD_S
-    log_tangents: bool = False
 
     # ------------------------------------------------------------------ layout
     @property
@@ -280,9 +276,8 @@ class Encoder:
                     out.append(f"{p.name}:active")
             elif p.kind == "choice":
                 out += [f"{p.name}={_choice_key(c)}" for c in p.choices]
-        names = _LOG_DESCRIPTOR_NAMES if self.log_tangents else _DESCRIPTOR_NAMES
         for role in self.material_roles:
-            out += [f"{role}:{d}" for d in names]
+            out += [f"{role}:{d}" for d in _DESCRIPTOR_NAMES]
         out.append(ELASTIC_FEATURE)
         return out
 
@@ -303,7 +298,6 @@ class Encoder:
             },
             "seen": {k: list(v) for k, v in self.seen.items()},
             "omega_rad_s": self.omega_rad_s,
-            "log_tangents": self.log_tangents,
         }
 
     @classmethod
@@ -315,7 +309,6 @@ class Encoder:
             {k: (nan_if_none(a), nan_if_none(b)) for k, (a, b) in d["ranges"].items()},
             {k: tuple(v) for k, v in d["seen"].items()},
             float(d.get("omega_rad_s", DESCRIPTOR_OMEGA_RAD_S)),
-            bool(d.get("log_tangents", False)),
         )
 
     # ------------------------------------------------------------------ masking
@@ -439,9 +432,8 @@ class Encoder:
                     unseen = col.per_key(lambda v, s=seen: v != "" and v not in s, bool)
                     flag(unseen, f"{p.name}: choice never seen in training")
         desc, elastic = material_descriptors(
-            cols, n, self.material_roles, self.space.catalogue, self.omega_rad_s,
-            log_tangents=self.log_tangents,
-        )  # fmt: skip
+            cols, n, self.material_roles, self.space.catalogue, self.omega_rad_s
+        )
         blocks += [desc, elastic[:, None].astype(float)]
         # the blocks side by side, as float32: written in place (np.concatenate of many thin
         # blocks, then a cast, takes twice as long)
@@ -466,7 +458,7 @@ class Encoder:
                 )
             elif p.kind == "choice":
                 seen[p.name] = tuple(sorted({v for v in col if v != ""}))
-        return Encoder(self.space, ranges, seen, self.omega_rad_s, self.log_tangents)
+        return Encoder(self.space, ranges, seen, self.omega_rad_s)
 
     # ------------------------------------------------------------------ decoding
     def decode(self, features: np.ndarray) -> list[dict[str, Any]]:
@@ -500,16 +492,6 @@ _DESCRIPTOR_NAMES = (
     "log10_storage_MPa",
     *(f"tan_delta@{r:.3g}w" for r in _OMEGA_RATIOS),
 )
-_LOG_DESCRIPTOR_NAMES = (
-    *_DESCRIPTOR_NAMES[:2],
-    *(f"log10_tan_delta@{r:.3g}w" for r in _OMEGA_RATIOS),
-)
-#: the floor of the log-scale loss tangent: log10(tan_delta + floor), from 0 at tan_delta = 0.
-#: The energy a tap dissipates grows with the loss tangent, from the noise of an elastic
-#: design's FE loop (|hysteresis| < 1e-3 N mm: docs/fe_speed.md, "Newton") to ~1 N mm at
-#: tan_delta ~0.5; a loss tangent of 1e-3 dissipates about 1e-3 of the latter, the noise: the
-#: scale resolves every decade of tan_delta above it and none below
-TAN_DELTA_FLOOR = 1e-3
 
 
 def _catalogue_entry(
@@ -542,8 +524,6 @@ def material_descriptors(
     roles: Sequence[str],
     catalogue: Mapping[str, Any] | None = None,
     omega_rad_s: float = DESCRIPTOR_OMEGA_RAD_S,
-    *,
-    log_tangents: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Linear-viscoelastic descriptors of each layer's material, and the elastic-design flag.
 
@@ -552,9 +532,6 @@ def material_descriptors(
     G'(w) and the loss tangent G''/G' at w/3, w, 3w (w = ``omega_rad_s``, the taps') of the
     Prony series g_i, tau_i in relative (Abaqus) form, with G0 = mu / (1 - sum g):
     G'(w) = G0 [1 - sum g_i / (1 + (w tau_i)^2)], G''(w) = G0 sum g_i w tau_i / (1 + (w tau_i)^2).
-    With ``log_tangents`` each loss tangent enters as
-    log10(tan_delta / TAN_DELTA_FLOOR + 1) / 3: the hysteresis of a weakly relaxing design is
-    about proportional to its loss tangent, which a linear feature squeezes against 0.
     Returns ``(features (n, 5 len(roles)), elastic (n,) bool)``; a design is elastic when no
     active layer relaxes (a material name outside the catalogue gives zero descriptors and is
     never taken as elastic). Names are looked up in ``catalogue`` (the space's: shipped plus
@@ -614,11 +591,7 @@ def material_descriptors(
             loss = g0 * (g * wt / d).sum(axis=0)
             if r == 1.0:
                 moduli.append(storage)
-            tangents.append(
-                np.log10(loss / storage / TAN_DELTA_FLOOR + 1.0) / 3.0
-                if log_tangents
-                else loss / storage
-            )
+            tangents.append(loss / storage)
         log_moduli = (np.log10(np.stack(moduli)) - _LOG_MODULUS_LOW) / _LOG_MODULUS_DECADES
         blocks += [np.where(on, b, 0.0) for b in (*log_moduli, *tangents)]
     out = np.empty((n, len(blocks)))

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -57,9 +57,6 @@ class TrainConfig:
     beta_nll: float = 0.0  # training loss: beta-NLL weight (0 = Gaussian NLL); early stopping: NLL
     # nets per member (``GROUPINGS``): the tapping metrics | the rest ("tapping_metrics")
     groups: str = "tapping_metrics"
-    # the materials' loss tangents as features on a log scale (``Encoder.log_tangents``); a
-    # warm start keeps its surrogate's encoding
-    log_tangents: bool = True
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -181,12 +178,9 @@ def fit(
     if split is None:
         split = split_indices(len(data.points), config.seed, config.fractions)
     _, init_seed, _ = _seeds(config.seed)
-    if init is not None:  # the encoding its weights were trained in
-        config = replace(config, log_tangents=init.encoder.log_tangents)
     train_points = [data.points[i] for i in split.train]
     omega = 2.0 * math.pi * data.tapping_frequency_Hz  # the taps the sweep was made with
-    encoder = Encoder(data.space, omega_rad_s=omega, log_tangents=config.log_tangents)
-    encoder = encoder.fit_domain(train_points)
+    encoder = Encoder(data.space, omega_rad_s=omega).fit_domain(train_points)
     x_all = encoder.encode(data.points).features
     # values known by rule (an elastic design's hysteresis is 0) are not learnt
     targets = np.where(rule_mask(encoder, x_all, data.metric_names), np.nan, data.targets)

@@ -39,7 +39,7 @@ from surrogate import (
     save_checkpoint,
 )
 from surrogate._checkpoint import SCHEMA_VERSION, read_checkpoint, write_checkpoint
-from surrogate._encoding import DESCRIPTOR_OMEGA_RAD_S, ELASTIC_FEATURE, TAN_DELTA_FLOOR
+from surrogate._encoding import DESCRIPTOR_OMEGA_RAD_S, ELASTIC_FEATURE
 from surrogate._model import EnsembleMLP
 from surrogate._normalise import OutputNormaliser
 from surrogate._surrogate import ZERO_IF_ELASTIC, Surrogate
@@ -217,20 +217,6 @@ def test_material_descriptors_are_the_dynamic_moduli_of_the_prony_series():
             assert x[col[f"{role}:tan_delta@{r:.3g}w"]] == pytest.approx(l_r / s_r, rel=1e-5)
         assert x[col[f"{role}:tan_delta@1w"]] > 0.01  # both relax around the tap's frequency
     assert x[col[ELASTIC_FEATURE]] == 0
-    # on the log scale: the same loss tangents, log10(tan_delta / floor + 1) / 3
-    log_enc = Encoder(space, log_tangents=True)
-    xl = log_enc.encode([base]).features[0]
-    log_col = {f: j for j, f in enumerate(log_enc.feature_names)}
-    assert set(log_col) - set(col) == {
-        f"{role}:log10_tan_delta@{r:.3g}w" for role in ("skin", "core") for r in (1 / 3, 1, 3)
-    }
-    for role in ("skin", "core"):
-        for r in (1 / 3, 1, 3):
-            tan = float(x[col[f"{role}:tan_delta@{r:.3g}w"]])
-            want = math.log10(tan / TAN_DELTA_FLOOR + 1.0) / 3.0
-            assert xl[log_col[f"{role}:log10_tan_delta@{r:.3g}w"]] == pytest.approx(want, rel=1e-5)
-    assert Encoder.from_dict(space, log_enc.to_dict()).log_tangents is True
-    assert Encoder.from_dict(space, {"ranges": {}, "seen": {}}).log_tangents is False  # old
     # elastic: no active layer relaxes (an Ecoflex skin over a core with g_total = 0; Ecoflex
     # alone); the skin's descriptors vanish when the skin is inactive
     elastic_two = {**base, "skin.material": "ecoflex_0030_dawood", "core.g_total": 0.0}
@@ -742,8 +728,8 @@ def test_the_encoding_takes_the_tap_frequency_of_the_sweep(tmp_path):
     space = load_space()
     rng = np.random.default_rng(0)
     pts = [space.point(rng.random(len(space.sampled))) for _ in range(40)]
-    slow = Encoder(space, log_tangents=True)  # as fit encodes by default
-    fast = Encoder(space, omega_rad_s=2 * math.pi * 1.0, log_tangents=True)
+    slow = Encoder(space)
+    fast = Encoder(space, omega_rad_s=2 * math.pi * 1.0)
     a, b = slow.encode(pts).features, fast.encode(pts).features
     tan = [j for j, f in enumerate(slow.feature_names) if "tan_delta" in f or "storage" in f]
     rest = [j for j in range(a.shape[1]) if j not in tan]
