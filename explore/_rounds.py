@@ -231,7 +231,8 @@ def _retrain_after(run: Search, surrogate, r: int) -> None:
                    disable=not run.progress)  # fmt: skip
         try:
             model = retrain(surrogate, run.setup.dataset, run.confirmations,
-                            config.retrain_epochs, config.seed, progress=bar.update)  # fmt: skip
+                            config.retrain_epochs, config.seed, progress=bar.update,
+                            batch_size=config.retrain_batch_size)  # fmt: skip
         finally:
             bar.close()
     nxt.parent.mkdir(parents=True, exist_ok=True)

@@ -422,6 +422,11 @@ def test_fine_tune_is_the_warm_start_explore_made_before(data):
     assert ticks == [1] * tuned.header["training"]["epochs"]
     with pytest.raises(ValueError, match="weight"):
         fine_tune(base, data, points, targets, epochs=1, seed=0, weight=0)
+    # another minibatch size: recorded, and other weights (fewer optimiser steps per epoch)
+    big = fine_tune(base, data, points, targets, epochs=7, seed=2, weight=3, batch_size=4)
+    assert big.header["training"]["batch_size"] == 4 != tuned.header["training"]["batch_size"]
+    sc = big.model.state_dict()
+    assert not all(torch.equal(sa[k], sc[k]) for k in sa)
 
 
 def test_sweep_data_with_rows_appends_designs_outside_the_table(data):
