@@ -44,18 +44,26 @@ def main() -> None:
     sweep_cfg = json.loads((args.sweep / "config.json").read_text())
     data = header["training_data"]
     report = json.loads((args.run / "report.json").read_text())
+    sweep, run = args.sweep.as_posix(), args.run.as_posix()
+    migrated = _migrated(args.sweep)
     lines = [
         "# The shipped surrogate of the default design space",
         "",
         "How it was made (on the 2-core development machine):",
         "",
         "```bash",
-        f"fingertip sweep --n {sweep_cfg['n']} --out runs/default_sweep --workers 2 "
+        *(f"python scripts/migrate_sweep.py {src} {sweep}" for src in sorted(migrated)),
+        f"fingertip sweep --n {sweep_cfg['n']} --out {sweep} --workers 2 "
         f"--seed {sweep_cfg['seed']}",
-        f"fingertip train runs/default_sweep --out runs/default_surrogate "
-        f"--seed {header['training']['seed']}",
-        "python scripts/ship_pretrained.py runs/default_surrogate runs/default_sweep",
+        f"fingertip train {sweep} --out {run} --seed {header['training']['seed']}",
+        f"python scripts/ship_pretrained.py {run} {sweep}",
         "```",
+        "",
+        *(
+            f"{n} of the sweep's records were carried over from `{src}` (an earlier solver "
+            "version that computed them bit for bit as this one; `migrated` in each record)."
+            for src, n in sorted(migrated.items())
+        ),
         "",
         f"- design space: `sim/data/default_space.toml` ({sweep_cfg['sampler']} sampling, "
         f"seed {sweep_cfg['seed']}), solver version {header['solver_version']}",
@@ -71,6 +79,16 @@ def main() -> None:
     ]
     (DEST / "README.md").write_text("\n".join(lines))
     print(f"shipped to {DEST}")
+
+
+def _migrated(sweep: Path) -> dict[str, int]:
+    """Source folder -> how many of the sweep's records ``scripts/migrate_sweep.py`` carried."""
+    out: dict[str, int] = {}
+    for path in (sweep / "records").glob("*.json"):
+        src = json.loads(path.read_text()).get("migrated", {}).get("from")
+        if src:
+            out[src] = out.get(src, 0) + 1
+    return out
 
 
 if __name__ == "__main__":
