@@ -28,13 +28,17 @@ def training_rows(
     of ``metric_names``; NaN: not learnt). An unsettled or invalid result teaches no metric,
     but it does teach what made it so (the trust outputs, when the surrogate learns them), as
     in ``surrogate.read_sweep``."""
-    from sim.trust import TRUST_OUTPUTS, trust_values
+    from sim.trust import TRUST_OUTPUTS, trust_censoring, trust_values
 
     learns_trust = set(TRUST_OUTPUTS) <= set(metric_names)
     ok = [c for c in confirmed if c.trusted or (learns_trust and c.status == "ok")]
 
     def target_row(c: Confirmation) -> list[float]:
         trust = trust_values({**c.diagnostics, "status": c.status})
+        # a protocol stopped at its first violation: its strain and J are bounds, not values
+        # (the sweep's rows learn them as such; these few rows leave them out)
+        bounds = trust_censoring(c.diagnostics)
+        trust = {k: math.nan if bounds[k] else v for k, v in trust.items()}
         return [
             trust[m] if m in trust else nan_if_none(c.fe_metrics.get(m)) if c.trusted else math.nan
             for m in metric_names

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["TRUST_OUTPUTS", "trust_flags", "trust_values"]
+__all__ = ["TRUST_OUTPUTS", "trust_censoring", "trust_flags", "trust_values"]
 
 #: output name -> the protocol whose net learns it ("any": the plate/wedge net)
 TRUST_OUTPUTS: dict[str, str] = {
@@ -69,7 +69,33 @@ def trust_values(diagnostics: Mapping[str, Any]) -> dict[str, float]:
         seen = [_float(diagnostics.get(f"{p}_{flag}")) for p in _PROTOCOLS]
         seen = [v for v in seen if np.isfinite(v)]
         out[flag] = float(max(seen)) if seen else np.nan
+    if _stopped(diagnostics):  # a protocol stopped early: a flag still 0, or "not failed",
+        for flag in ("reached_base", "folded", "failed"):  # might have turned 1 later
+            if out[flag] == 0.0:
+                out[flag] = np.nan
     return {name: out[name] for name in TRUST_OUTPUTS}
+
+
+def _stopped(diagnostics: Mapping[str, Any]) -> tuple[str, ...]:
+    """The protocols stopped at their first step beyond the validity limits (solver >= 2.3;
+    ``SimResult.diagnostics()["stopped"]`` or a table cell, comma-separated)."""
+    cell = diagnostics.get("stopped") or ""
+    return tuple(p.strip() for p in str(cell).split(",") if p.strip())
+
+
+def trust_censoring(diagnostics: Mapping[str, Any]) -> dict[str, int]:
+    """Per ``TRUST_OUTPUTS`` name, how its value of this FE result is known: 0 exactly, +1 as a
+    lower bound, -1 as an upper bound. A protocol stopped at its first violation (solver 2.3)
+    recorded its extremes up to the stop: its largest strain would only have grown (+1), its
+    smallest J only fallen (-1). (Its 0/1 flags that were still 0 are unknown:
+    ``trust_values`` gives them as NaN.)"""
+    out = dict.fromkeys(TRUST_OUTPUTS, 0)
+    for p in _stopped(diagnostics):
+        if f"{p}_max_compressive_log_strain" in out:
+            out[f"{p}_max_compressive_log_strain"] = 1
+        if f"{p}_min_J" in out:
+            out[f"{p}_min_J"] = -1
+    return out
 
 
 def trust_flags(values: Mapping[str, Any], validity, tapping) -> dict[str, np.ndarray]:

@@ -17,7 +17,7 @@ from sim.metrics import METRICS, PROTOCOLS, diagnostic_names
 from sim.provenance import KINDS, folder_kind, sha256_file
 from sim.space import DesignSpace, space_from_dict
 from sim.sweep_folder import CONFIG, TABLE, read_config
-from sim.trust import TRUST_OUTPUTS, trust_values
+from sim.trust import TRUST_OUTPUTS, trust_censoring, trust_values
 
 __all__ = ["SweepData", "check_point", "read_points", "read_sweep", "sha256_file"]
 
@@ -196,6 +196,10 @@ class SweepData:
 
     #: the tapping frequency the sweep was made at (its recorded options; default if absent)
     tapping_frequency_Hz: float = 0.5
+    #: (n, n_metrics) int8, like ``targets``: +1 where a value is only a lower bound, -1 an
+    #: upper bound (the trust figures of a protocol stopped at its first violation,
+    #: ``sim.trust.trust_censoring``), 0 exact; None: all exact
+    censored: np.ndarray | None = None
 
     def with_rows(self, points: list[dict[str, Any]], targets: np.ndarray) -> SweepData:
         """These designs and, after them, ``points`` with their ``targets`` (one row per
@@ -205,10 +209,14 @@ class SweepData:
         targets = np.asarray(targets, dtype=np.float64).reshape(-1, len(self.metric_names))
         if len(targets) != len(points):
             raise ValueError(f"{len(points)} points but {len(targets)} rows of targets")
+        censored = None
+        if self.censored is not None:  # the added designs' values are exact
+            censored = np.vstack([self.censored, np.zeros(targets.shape, dtype=np.int8)])
         return replace(
             self,
             points=[*self.points, *points],
             targets=np.vstack([self.targets, targets]),
+            censored=censored,
             index=np.concatenate([self.index, -1 - np.arange(len(points))]),
             n_rows=self.n_rows + len(points),
         )
@@ -319,6 +327,7 @@ def read_sweep(
         raise DesignError("SWEEP", f"unreadable {config_path}: {exc}") from None
     validity = _validity_options(config)
     points, targets, index, whole = [], [], [], []
+    bounds: list[list[int]] = []  # per row, trust_censoring (when the table has trust columns)
     n_rows, unchecked, partial = 0, 0, 0
     excluded: dict[str, int] = {}
     rebuild = "re-run the same `fingertip sweep` command to rebuild it from the records"
@@ -362,6 +371,7 @@ def read_sweep(
                     y = [v if p in kept else math.nan for p, v in zip(protocol, y, strict=True)]
                 if learns_trust:
                     y += list(trust_values(row).values())
+                    bounds.append([0] * n_fe + list(trust_censoring(row).values()))
                 unchecked += not learns_trust
                 whole.append(why is None or not trusted_only)
                 points.append({n: _cell(space, n, row[n], where) for n in space.names})
@@ -386,6 +396,9 @@ def read_sweep(
         partial=partial,
         whole=np.asarray(whole, dtype=bool),
         tapping_frequency_Hz=_frequency(config),
+        censored=np.asarray(bounds, dtype=np.int8).reshape(len(points), len(metric_names))
+        if learns_trust and any(any(b) for b in bounds)
+        else None,
     )
 
 

@@ -320,6 +320,7 @@ def gaussian_nll(
     y: torch.Tensor,
     mask: torch.Tensor,
     beta: float = 0.0,
+    censor: torch.Tensor | None = None,
 ) -> torch.Tensor:
     """Per-member mean Gaussian NLL over the observed entries (``mask``), constant dropped.
 
@@ -327,10 +328,17 @@ def gaussian_nll(
     ``beta`` > 0: the beta-NLL of Seitzer et al. (ICLR 2022), each entry weighted by
     ``var**beta`` (not differentiated), so that hard designs are fitted rather than explained
     away by a large variance; ``beta = 0`` is the plain NLL.
+    ``censor`` (like ``y``): +1 where ``y`` is only a lower bound of the value, -1 an upper
+    bound, 0 exact; a bound's entry is the Tobit term -log P(value beyond y) =
+    -log Phi(censor (mean - y) / sigma), with the same constant dropped (0.5 log 2 pi).
     """
     nll = 0.5 * (logvar + (y - mean) ** 2 * torch.exp(-logvar))
     if beta:
         nll = nll * torch.exp(beta * logvar).detach()
+    if censor is not None and bool(censor.any()):  # none: the very same operations as before
+        censor = censor.expand_as(nll)
+        t = censor * (mean - y) * torch.exp(-0.5 * logvar)
+        nll = torch.where(censor != 0, -torch.special.log_ndtr(t), nll)
     mask = mask.expand_as(nll)
     return (nll * mask).sum(dim=(1, 2)) / mask.sum(dim=(1, 2)).clamp(min=1)
 

@@ -189,12 +189,15 @@ def fit(
     z_all = normaliser.transform(targets)
     mask_all = np.isfinite(z_all)
     z_all = np.where(mask_all, z_all, 0.0)
+    # bounds stay bounds in z: the normalisation is increasing (log or linear, scale > 0)
+    c_all = np.zeros(z_all.shape, np.int8) if data.censored is None else data.censored
 
     def tensors(rows: np.ndarray):
         return (
             torch.from_numpy(x_all[rows]),
             torch.from_numpy(z_all[rows].astype(np.float32)),
             torch.from_numpy(mask_all[rows].astype(np.float32)),
+            torch.from_numpy(c_all[rows].astype(np.float32)),
         )
 
     model = EnsembleMLP(
@@ -292,7 +295,8 @@ def fine_tune(
     return fit(aug, config, progress=progress, split=split, init=surrogate).surrogate
 
 
-_Tensors = tuple[torch.Tensor, torch.Tensor, torch.Tensor]  # features, targets, their mask
+#: features, targets, their mask, their censoring (+1 lower bound, -1 upper, 0 exact)
+_Tensors = tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
 
 
 @dataclass(eq=False)
@@ -346,7 +350,7 @@ def _train(
     gen = torch.Generator().manual_seed(_seeds(config.seed)[2])
     n = len(train[0])
     net_mask = model.net_mask()  # each net is trained and stopped on its group's metrics only
-    x_va, z_va, m_va = val
+    x_va, z_va, m_va, c_va = val
     m_va = m_va.unsqueeze(0) * net_mask
     best = _Best.start(model)
     history: dict[str, list[float]] = {"train_nll": [], "val_nll": []}
@@ -365,7 +369,7 @@ def _train(
             train_nll = _train_epoch(model, opt, train, net_mask, order, config)
             model.eval()
             with torch.no_grad():
-                val_nll = gaussian_nll(*model.forward_nets(x_va), z_va, m_va)
+                val_nll = gaussian_nll(*model.forward_nets(x_va), z_va, m_va, censor=c_va)
                 best.update(val_nll, epoch, model)
             history["train_nll"].append(float(train_nll.mean()))
             history["val_nll"].append(float(val_nll.mean()))
@@ -388,14 +392,16 @@ def _train_epoch(
 ) -> torch.Tensor:
     """One pass over the training designs in minibatches, each member in its own ``order`` (a
     row per member); the mean training loss of each net."""
-    x_tr, z_tr, m_tr = train
+    x_tr, z_tr, m_tr, c_tr = train
     model.train()
     total, steps = torch.zeros(model.nets), 0
     for s in range(0, order.shape[1], config.batch_size):
         idx = order[:, s : s + config.batch_size]  # each member its own minibatch
         idx = idx.repeat_interleave(model.n_groups, dim=0)  # shared by the member's group nets
         mean, logvar = model.forward_nets(x_tr[idx])
-        loss = gaussian_nll(mean, logvar, z_tr[idx], m_tr[idx] * net_mask, config.beta_nll)
+        loss = gaussian_nll(
+            mean, logvar, z_tr[idx], m_tr[idx] * net_mask, config.beta_nll, censor=c_tr[idx]
+        )
         opt.zero_grad(set_to_none=True)
         loss.sum().backward()
         opt.step()

@@ -815,3 +815,55 @@ def test_a_warm_start_keeps_the_grouping_of_its_checkpoint(data):
     x = old.surrogate.encoder.encode(data.points).features
     a = old.surrogate.predict_features(x)["mean"]
     np.testing.assert_allclose(new.surrogate.predict_features(x)["mean"], a, rtol=1e-6)
+
+
+def test_censored_entries_are_tobit_terms():
+    """A bound's entry of the NLL is -log P(value beyond the bound) under the member's
+    Gaussian (scipy's normal survival function), an exact entry the Gaussian NLL; a lower
+    bound pulls the mean up past it, never down to it."""
+    from scipy.stats import norm
+
+    from surrogate._model import gaussian_nll
+
+    mean = torch.tensor([[[0.3, -0.2, 1.0]]], dtype=torch.float64, requires_grad=True)
+    logvar = torch.tensor([[[0.2, -0.4, 0.0]]], dtype=torch.float64)
+    y = torch.tensor([[0.5, 0.1, 1.0]], dtype=torch.float64)
+    mask = torch.ones(1, 3, dtype=torch.float64)
+    censor = torch.tensor([[1.0, -1.0, 0.0]], dtype=torch.float64)
+    got = gaussian_nll(mean, logvar, y, mask, censor=censor)
+    sd = np.exp(0.5 * logvar.detach().numpy()[0, 0])
+    m = mean.detach().numpy()[0, 0]
+    want = (
+        -norm.logsf(0.5, m[0], sd[0])  # P(value > 0.5)
+        - norm.logcdf(0.1, m[1], sd[1])  # P(value < 0.1)
+        + 0.5 * 0.0  # the exact entry: 0.5 (logvar + 0) = 0
+    ) / 3
+    assert float(got[0]) == pytest.approx(want, rel=1e-12)
+    got.sum().backward()
+    assert mean.grad[0, 0, 0] < 0 and mean.grad[0, 0, 1] > 0  # up past 0.5, down below 0.1
+    plain = gaussian_nll(mean, logvar, y, mask)
+    assert float(plain[0]) != pytest.approx(float(got[0]))
+
+
+def test_a_stopped_protocols_trust_figures_are_bounds():
+    from sim.trust import trust_censoring, trust_values
+
+    row = {
+        "status": "ok",
+        "stopped": "tapping",
+        "tapping_max_compressive_log_strain": "0.61",
+        "tapping_min_J": "0.9",
+        "plate_max_compressive_log_strain": "0.3",
+        "tapping_reached_base": "False",
+        "plate_reached_base": "False",
+        "tapping_folded": "False",
+    }
+    c = trust_censoring(row)
+    assert c["tapping_max_compressive_log_strain"] == 1 and c["tapping_min_J"] == -1
+    assert c["plate_max_compressive_log_strain"] == 0
+    v = trust_values(row)
+    assert np.isnan(v["reached_base"]) and np.isnan(v["folded"]) and np.isnan(v["failed"])
+    assert v["tapping_max_compressive_log_strain"] == 0.61
+    whole = trust_values({**row, "stopped": ""})
+    assert whole["reached_base"] == 0.0 and whole["failed"] == 0.0
+    assert trust_censoring({**row, "stopped": ""}) == dict.fromkeys(c, 0)
