@@ -330,7 +330,7 @@ def gaussian_nll(
     away by a large variance; ``beta = 0`` is the plain NLL.
     ``censor`` (like ``y``): +1 where ``y`` is only a lower bound of the value, -1 an upper
     bound, 0 exact; a bound's entry is the Tobit term -log P(value beyond y) =
-    -log Phi(censor (mean - y) / sigma), with the same constant dropped (0.5 log 2 pi).
+    -log Phi(censor (mean - y) / sigma) (a probability: no constant to drop).
     """
     nll = 0.5 * (logvar + (y - mean) ** 2 * torch.exp(-logvar))
     if beta:
