@@ -25,7 +25,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -36,7 +36,15 @@ from sim.materials import CATALOGUE, Material, material_tables
 from sim.metrics import METRICS
 from sim.options import SimOptions
 from sim.provenance import atomic_write, write_if_changed
-from sim.space import LAYER_ROLES, DesignSpace, Parameter, active_roles, mask_inactive
+from sim.space import (
+    LAYER_ROLES,
+    DesignSpace,
+    Parameter,
+    active_roles,
+    mask_inactive,
+    with_every_layer,
+)
+from sim.sweep import record_key
 from sim.targets import Targets
 
 from ._confirm import confirm
@@ -51,6 +59,7 @@ __all__ = [
     "material_notes",
     "material_properties",
     "predictable_materials",
+    "screen_jobs",
     "screen_space",
 ]
 
@@ -150,11 +159,10 @@ def _choose(
 
     for point in _nearest_points(best, space, catalogue)[: max(1, budget // 2)]:
         add("nearest", point)
-    rng = np.random.default_rng(seed)
-    for _ in range(50 * budget):  # a sample of a few catalogue materials repeats itself
+    for point in _screen_draws(screen, budget, seed):
         if len(chosen) >= budget:
             break
-        add("screen", screen.point(rng.random(len(screen.sampled))))
+        add("screen", point)
     predicted = {m: dict(_NO_PREDICTION, by_rule=False) for m in METRICS}
     return [
         Candidate(
@@ -171,6 +179,49 @@ def _choose(
         )
         for i, (reason, point) in enumerate(chosen)
     ]
+
+
+def _screen_draws(screen: DesignSpace, budget: int, seed: int) -> Iterator[dict[str, Any]]:
+    """The screen's seeded random stacks, in order (a sample of a few catalogue materials
+    repeats itself: up to ``50 budget`` draws)."""
+    rng = np.random.default_rng(seed)
+    for _ in range(50 * budget):
+        yield screen.point(rng.random(len(screen.sampled)))
+
+
+def screen_jobs(
+    out: Path,
+    space: DesignSpace,
+    catalogue: Mapping[str, Material],
+    options: SimOptions,
+    *,
+    budget: int,
+    seed: int,
+) -> tuple[list[tuple[Path, dict[str, Any]]], dict[str, dict[str, Any]] | None]:
+    """The FE jobs (record path, point) of the random stacks :func:`fe_screen` takes whatever
+    the search finds (the first ``budget - budget // 2`` distinct ones: the "nearest" stacks
+    take at most ``budget // 2``), and the user materials' tables they need. Run ahead (beside
+    the rounds' searches), their records are there when :func:`fe_screen` wants them: the
+    same records, only their timing moves."""
+    if budget <= 0:
+        return [], None
+    screen = screen_space(space, catalogue)
+    points: list[dict[str, Any]] = []
+    seen: set[str] = set()
+    for point in _screen_draws(screen, budget, seed):
+        if len(points) >= budget - budget // 2:
+            break
+        key = json.dumps(screen.design(point).to_dict(), sort_keys=True)
+        if key not in seen:
+            seen.add(key)
+            points.append(point)
+    records = out / "fe" / "records"
+    jobs = [
+        (records / f"{record_key(with_every_layer(p), options, screen.catalogue)}.json", p)
+        for p in points
+    ]
+    user = {str(m.name): m for m in screen.materials}
+    return jobs, material_tables(user) or None
 
 
 def fe_screen(

@@ -31,7 +31,7 @@ from sim.provenance import check_folder_kind, provenance
 
 from ._buildable import screen_summary
 from ._config import OptimizeConfig, Setup, check_inputs, check_storage, setup
-from ._rounds import Search, fe_only_screen, references_alongside, run_rounds
+from ._rounds import Search, fe_alongside, fe_only_screen, run_rounds
 from ._run_folder import CONFIG, write_config, write_confirmations, write_summary, write_trials
 from ._storage import is_database_url, open_storage, repair_journal
 from ._summary import summarise
@@ -60,7 +60,7 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
     search = Search(config, out, s, _open_own_storage(config, s.record["storage"]), worker,
                     progress)  # fmt: skip
     t0 = time.perf_counter()
-    with references_alongside(search):
+    with fe_alongside(search):
         surrogate = run_rounds(search)
     write_confirmations(out, search.confirmations, final=True)
     write_trials(out, search.rows, s.space.names, list(s.surrogate.metric_names), final=True)

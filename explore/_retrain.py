@@ -55,16 +55,19 @@ def retrain(
     seed: int,
     progress: Callable[[int], None] | None = None,
     batch_size: int | None = None,
+    replay: int = 0,
 ):
     """Warm-started retraining on the training sweep plus the FE-confirmed designs;
-    ``progress`` is called with the number of epochs done since its last call."""
+    ``progress`` is called with the number of epochs done since its last call; ``replay``
+    as ``fine_tune``'s (0: every epoch over the whole sweep)."""
     from surrogate import fine_tune, read_sweep
 
     data = read_sweep(dataset)
     ok, targets = training_rows(confirmed, data.metric_names)
     model = fine_tune(
         surrogate, data, [c.candidate.point for c in ok], targets, epochs=epochs, seed=seed,
-        weight=CONFIRMED_WEIGHT, batch_size=batch_size, progress=progress or False,
+        weight=CONFIRMED_WEIGHT, batch_size=batch_size, replay=replay,
+        progress=progress or False,
     )  # fmt: skip
     model.header["active_learning"] = {
         "confirmed_designs": len(ok),

@@ -24,7 +24,7 @@ import numpy as np
 
 from sim.targets import Targets
 
-from ._buildable import fe_screen, predictable_materials
+from ._buildable import fe_screen, predictable_materials, screen_jobs
 from ._config import OptimizeConfig, Setup
 from ._confirm import REFERENCES, confirm, reference_point, run_fe
 from ._objective import TAPPING
@@ -50,7 +50,7 @@ from ._search import (
 from ._summary import credible, target_met
 from ._types import Candidate, Confirmation
 
-__all__ = ["Search", "choose", "fe_only_screen", "references_alongside", "run_rounds"]
+__all__ = ["Search", "choose", "fe_alongside", "fe_only_screen", "run_rounds"]
 
 
 @dataclass(eq=False)
@@ -81,12 +81,16 @@ class Search:
 
 
 @contextmanager
-def references_alongside(run: Search) -> Iterator[None]:
-    """FE of silicone and polyurethane on the reference geometry (for the figures) while the
-    block runs, in one background process: the first round's search runs on one core and
-    leaves the other idle. Waited for when the block ends (the wait counts as FE time). With
-    one worker, or when the records are there already (a resumed run), it runs before the
-    block, like any other FE. The records are the same either way: only their timing moves."""
+def fe_alongside(run: Search) -> Iterator[None]:
+    """FE that does not depend on the search, run while the block (the rounds) runs, in one
+    background process: silicone and polyurethane on the reference geometry (for the
+    figures), then the random stacks of the FE-only screen (``explore._buildable.screen_jobs``).
+    The searches and retrainings run on one core and leave the other idle; the rounds' FE
+    shares the two cores with it. Waited for when the block ends (the wait counts as FE
+    time), before the screen reads those records. With one worker, or when the records are
+    there already (a resumed run), the references run before the block, like any other FE,
+    and the screen's stacks with the screen. The records are the same either way: only their
+    timing moves."""
     jobs = [(run.out / "fe" / "references" / f"{m}.json", reference_point(m)) for m in REFERENCES]
     if run.config.workers <= 1 or all(path.exists() for path, _ in jobs):
         with run.timed("fe_s"):
@@ -96,14 +100,26 @@ def references_alongside(run: Search) -> Iterator[None]:
         return
     from sim.pool import process_pool
 
+    screen, materials = _screen_jobs(run)
     pool = process_pool(1)
     try:
-        future = pool.submit(run_fe, jobs, run.setup.options, workers=1, progress=False)
+        future = pool.submit(run_fe, jobs + screen, run.setup.options, workers=1,
+                             progress=False, materials=materials)  # fmt: skip
         yield
         with run.timed("fe_s"):
             future.result()
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _screen_jobs(run: Search) -> tuple[list[tuple[Path, dict[str, Any]]], dict | None]:
+    """The FE-only screen's random stacks (``fe_only_screen``), when it will run."""
+    s, config = run.setup, run.config
+    fe_only = set(s.catalogue) - predictable_materials(s.surrogate.space)
+    if not (config.buildable_trials and config.buildable_fe and fe_only):
+        return [], None
+    return screen_jobs(run.out, s.space, s.catalogue, s.options, budget=config.buildable_fe,
+                       seed=config.seed)  # fmt: skip
 
 
 def run_rounds(run: Search):
@@ -232,7 +248,8 @@ def _retrain_after(run: Search, surrogate, r: int) -> None:
         try:
             model = retrain(surrogate, run.setup.dataset, run.confirmations,
                             config.retrain_epochs, config.seed, progress=bar.update,
-                            batch_size=config.retrain_batch_size)  # fmt: skip
+                            batch_size=config.retrain_batch_size,
+                            replay=config.retrain_replay)  # fmt: skip
         finally:
             bar.close()
     nxt.parent.mkdir(parents=True, exist_ok=True)

@@ -1,6 +1,7 @@
 """How many epochs the main job's retraining needs: fine-tune on one round, score the next ones.
 
     python scripts/retrain_study.py runs/main_v24 --dataset runs/sweep_v22 --epochs 0 25 50 100 150
+    python scripts/retrain_study.py runs/main_v28 --epochs 150 --replay 0 256 512
 
 A run of ``fingertip run`` retrains its surrogate after each round on the training sweep plus
 the designs FE-confirmed so far (``explore._retrain.retrain``, ``--retrain-epochs``, every epoch
@@ -51,6 +52,10 @@ def main() -> None:
     ap.add_argument(
         "--batch-size", type=int, nargs="+", default=[None], help="default: the model's"
     )
+    ap.add_argument(
+        "--replay", type=int, nargs="+", default=[0],
+        help="sweep designs per epoch besides the new ones (0: all; explore._retrain.retrain)",
+    )  # fmt: skip
     args = ap.parse_args()
     config = read_config(args.run)
     dataset = args.dataset or config["dataset"]
@@ -65,21 +70,34 @@ def main() -> None:
         f"{len(later)} trusted confirmations of the later rounds; seed {config['seed']}"
     )
     head = " | ".join(f"{m} median / max" for m in METRICS)
-    print(f"| epochs | batch | fine-tune (s) | {head} |")
-    print("|---|---|---|" + "---|" * len(METRICS))
-    for batch in args.batch_size:
-        for epochs in args.epochs:
-            t0 = time.perf_counter()
-            model = (
-                start
-                if epochs == 0
-                else retrain(start, Path(dataset), first, epochs, config["seed"], batch_size=batch)
-            )
-            wall = time.perf_counter() - t0
-            err = errors(model, later)
-            cells = [f"{100 * np.median(e):.1f} / {100 * e.max():.1f} %" for e in err.values()]
-            size = batch or start.header["training"]["batch_size"]
-            print(f"| {epochs} | {size} | {wall:.1f} | " + " | ".join(cells) + " |", flush=True)
+    print(f"| epochs | batch | replay | fine-tune (s) | {head} |")
+    print("|---|---|---|---|" + "---|" * len(METRICS))
+    for replay in args.replay:
+        for batch in args.batch_size:
+            for epochs in args.epochs:
+                t0 = time.perf_counter()
+                model = (
+                    start
+                    if epochs == 0
+                    else retrain(
+                        start,
+                        Path(dataset),
+                        first,
+                        epochs,
+                        config["seed"],
+                        batch_size=batch,
+                        replay=replay,
+                    )
+                )
+                wall = time.perf_counter() - t0
+                err = errors(model, later)
+                cells = [f"{100 * np.median(e):.1f} / {100 * e.max():.1f} %" for e in err.values()]
+                size = batch or start.header["training"]["batch_size"]
+                print(
+                    f"| {epochs} | {size} | {replay or 'all'} | {wall:.1f} | "
+                    + " | ".join(cells) + " |",
+                    flush=True,
+                )  # fmt: skip
 
 
 if __name__ == "__main__":

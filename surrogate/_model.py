@@ -171,9 +171,10 @@ class FrozenEnsemble:
 
     - the first layer of every net is one matrix product (all nets read the same features);
     - the last layer of a group's nets computes only the group's outputs (a net computes all
-      ``2 n_outputs`` outputs in ``forward``; the other group's are discarded), padded with
-      zero columns so that one batched product serves every net, and the log-variance head
-      takes only those outputs;
+      ``2 n_outputs`` outputs in ``forward``; the other group's are discarded), one batched
+      product per group over its members, each padded with zero columns to a multiple of 16
+      (one product for every net, padded to the largest group, did a third more work), and
+      the log-variance head takes only those outputs;
     - the head is ``member_variance``'s closed form (one sigmoid, not two softplus and an
       exp); it and the mixture take every metric at once, group after group (each element's
       result does not depend on its column), and only the mixture's (n, n_outputs) mean and
@@ -212,19 +213,23 @@ class FrozenEnsemble:
         identity = torch.equal(order, torch.arange(self.n_outputs))
         self.unorder = None if identity else torch.argsort(order)
 
-    def _last_layer(self, w: torch.Tensor, b: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Every net's last layer, its group's outputs only (means then log-variances, then
-        zero columns up to a multiple of 16, which one batched product runs faster than the
-        groups' 2 k columns each): (nets, h, width) and (nets, 1, width)."""
-        width = -(-2 * max(self.sizes) // 16) * 16
-        w_out = torch.zeros(self.nets, w.shape[1], width)
-        b_out = torch.zeros(self.nets, 1, width)
+    def _last_layer(
+        self, w: torch.Tensor, b: torch.Tensor
+    ) -> list[tuple[torch.Tensor, torch.Tensor]]:
+        """Per group, its nets' last layer, the group's outputs only (means then log-variances,
+        then zero columns up to a multiple of 16, which a batched product runs faster than the
+        2 k columns themselves): (members, h, width) and (members, 1, width)."""
+        layers = []
         for g, c in enumerate(self.columns):
             cols = torch.cat([c, self.n_outputs + c])
             nets = torch.arange(self.members) * self.n_groups + g
-            w_out[nets, :, : len(cols)] = w[nets][:, :, cols]
-            b_out[nets, :, : len(cols)] = b[nets][:, :, cols]
-        return w_out, b_out
+            width = -(-len(cols) // 16) * 16
+            w_out = torch.zeros(self.members, w.shape[1], width)
+            b_out = torch.zeros(self.members, 1, width)
+            w_out[:, :, : len(cols)] = w[nets][:, :, cols]
+            b_out[:, :, : len(cols)] = b[nets][:, :, cols]
+            layers.append((w_out, b_out))
+        return layers
 
     def matches(self, model: EnsembleMLP) -> bool:
         """Whether ``model``'s weights are still those of this snapshot."""
@@ -258,15 +263,18 @@ class FrozenEnsemble:
         for i, (w, b) in enumerate(self.middle, start=1):
             out = ws.view(i, (self.nets, rows, self.hidden[i]))
             h = nn.functional.silu(torch.baddbmm(b, h, w, out=out), inplace=True)
-        w, b = self.last
-        out = ws.view(len(self.hidden), (self.nets, rows, w.shape[-1]))
-        out = torch.baddbmm(b, h, w, out=out).view(self.members, self.n_groups, rows, -1)
+        h = h.unflatten(0, (self.members, self.n_groups))  # (M, groups, n, h), a view
+        outs, start = [], 0
+        for g, (w, b) in enumerate(self.last):
+            out = ws.view(len(self.hidden), (self.members, rows, w.shape[-1]), start)
+            outs.append(torch.baddbmm(b, h[:, g], w, out=out))
+            start += out.numel()
         # (M, n, n_outputs) each, contiguous, group after group: every element of the
         # element-wise head below takes the same (vectorised) path
         shape = (self.members, rows, self.n_outputs)
         mean, raw = ws.view(-2, shape), ws.view(-1, shape)
-        torch.cat([out[:, g, :, :k] for g, k in enumerate(self.sizes)], 2, out=mean)
-        torch.cat([out[:, g, :, k : 2 * k] for g, k in enumerate(self.sizes)], 2, out=raw)
+        torch.cat([out[:, :, :k] for out, k in zip(outs, self.sizes, strict=True)], 2, out=mean)
+        torch.cat([o[:, :, k : 2 * k] for o, k in zip(outs, self.sizes, strict=True)], 2, out=raw)
         mu, sd = mixture_of_variances(mean, member_variance(raw, inplace=True))
         if self.unorder is None:
             return mu[:n], sd[:n]
@@ -282,13 +290,14 @@ class Workspace:
         self.rows = rows
         self.x = torch.ones(rows, net.n_inputs + 1)
         sizes = [net.nets * rows * h for h in net.hidden]
-        sizes += [net.nets * rows * net.last[0].shape[-1]]
+        sizes += [net.members * rows * sum(w.shape[-1] for w, _ in net.last)]
         sizes += [net.members * rows * net.n_outputs] * 2
         self._buffers = [torch.empty(s) for s in sizes]
 
-    def view(self, i: int, shape: tuple[int, ...]) -> torch.Tensor:
-        """Buffer ``i`` as a contiguous tensor of ``shape`` (at most its size)."""
-        return self._buffers[i][: math.prod(shape)].view(shape)
+    def view(self, i: int, shape: tuple[int, ...], start: int = 0) -> torch.Tensor:
+        """Buffer ``i`` from element ``start`` as a contiguous tensor of ``shape`` (within its
+        size)."""
+        return self._buffers[i][start : start + math.prod(shape)].view(shape)
 
 
 def _weights_key(model: EnsembleMLP) -> tuple:

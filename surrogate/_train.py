@@ -57,6 +57,9 @@ class TrainConfig:
     beta_nll: float = 0.0  # training loss: beta-NLL weight (0 = Gaussian NLL); early stopping: NLL
     # nets per member (``GROUPINGS``): the tapping metrics | the rest ("tapping_metrics")
     groups: str = "tapping_metrics"
+    # rehearsal (``fine_tune``): 0, every epoch passes over every training design; k > 0, over
+    # the new designs (``Split.new``) and k of the others, drawn afresh every epoch
+    replay: int = 0
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -101,11 +104,14 @@ def metric_groups(metric_names: Sequence[str], grouping: str) -> tuple[int, ...]
 
 @dataclass(frozen=True, eq=False)
 class Split:
-    """Row positions (into ``SweepData.points``) of the train / validation / test designs."""
+    """Row positions (into ``SweepData.points``) of the train / validation / test designs;
+    the last ``new`` training rows are new designs (``fine_tune``'s), which every epoch of a
+    rehearsal (``TrainConfig.replay``) passes over."""
 
     train: np.ndarray
     val: np.ndarray
     test: np.ndarray
+    new: int = 0
 
 
 def _seeds(seed: int) -> tuple[int, int, int]:
@@ -219,7 +225,7 @@ def fit(
             raise ValueError("warm start: the surrogate's encoding or metrics differ")
         model.load_state_dict(init.model.state_dict(), strict=True)
     train, val = tensors(split.train), tensors(split.val)
-    best, history, epochs = _train(model, config, train, val, progress)
+    best, history, epochs = _train(model, config, train, val, progress, new=split.new)
     best.restore(model)
     header = {
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
@@ -259,6 +265,7 @@ def fine_tune(
     seed: int,
     weight: int = 1,
     batch_size: int | None = None,
+    replay: int = 0,
     progress: bool | Callable[[int], None] = False,
 ) -> Surrogate:
     """``surrogate`` trained further (warm-started, ``fit``'s ``init``) on its training sweep
@@ -267,8 +274,11 @@ def fine_tune(
 
     The split is the one the checkpoint records (its train/validation/test designs, found in
     ``data`` by table index); the new designs join the training designs. The hyper-parameters
-    are the checkpoint's but ``seed``, ``epochs`` (at most this many, and the patience) and,
-    when given, ``batch_size``. ``progress`` as ``fit``'s."""
+    are the checkpoint's but ``seed``, ``epochs`` (at most this many, and the patience), when
+    given, ``batch_size``, and ``replay``: 0, every epoch passes over the whole training sweep
+    and the new designs; k > 0, a rehearsal: every epoch passes over the new designs and k
+    designs of the sweep drawn afresh (an epoch's cost no longer grows with the sweep).
+    ``progress`` as ``fit``'s."""
     if weight < 1:
         raise ValueError(f"weight must be >= 1, got {weight}")
     extra = [p for p in points for _ in range(weight)]
@@ -290,8 +300,9 @@ def fine_tune(
     changed = {"seed": seed, "max_epochs": epochs, "patience": epochs}
     if batch_size is not None:
         changed["batch_size"] = batch_size
+    changed["replay"] = replay
     config = TrainConfig(**{**old, **changed})
-    split = Split(train, val, test)
+    split = Split(train, val, test, new=len(extra))
     return fit(aug, config, progress=progress, split=split, init=surrogate).surrogate
 
 
@@ -339,11 +350,13 @@ def _train(
     train: _Tensors,
     val: _Tensors,
     progress: bool | Callable[[int], None] = True,
+    new: int = 0,
 ) -> tuple[_Best, dict[str, list[float]], int]:
     """Train ``model`` epoch by epoch (AdamW, the minibatch order from the seed) until no net
     has improved its validation NLL for ``patience`` epochs, or for ``max_epochs``: the best of
     each net (not yet restored into ``model``), the per-epoch history and the number of epochs.
-    ``progress`` as ``fit``'s."""
+    ``progress`` as ``fit``'s; ``new``: the last rows of ``train`` that a rehearsal
+    (``config.replay``) passes over every epoch."""
     from tqdm import tqdm
 
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
@@ -365,7 +378,7 @@ def _train(
         )
         tick = progress if callable(progress) else None
         for epoch in bar:
-            order = torch.argsort(torch.rand(config.members, n, generator=gen), dim=1)
+            order = _epoch_order(config.members, n, new, config.replay, gen)
             train_nll = _train_epoch(model, opt, train, net_mask, order, config)
             model.eval()
             with torch.no_grad():
@@ -380,6 +393,19 @@ def _train(
                 break
         bar.close()
     return best, history, epoch + 1
+
+
+def _epoch_order(members: int, n: int, new: int, replay: int, gen: torch.Generator) -> torch.Tensor:
+    """The training rows of one epoch, in each member's order (a row per member): all ``n``,
+    or with ``replay`` > 0 (a rehearsal) the last ``new`` rows and ``replay`` of the others,
+    drawn afresh for each member (every row when there are no more)."""
+    old = n - new
+    if replay <= 0 or replay >= old:
+        return torch.argsort(torch.rand(members, n, generator=gen), dim=1)
+    drawn = torch.argsort(torch.rand(members, old, generator=gen), dim=1)[:, :replay]
+    rows = torch.cat([drawn, torch.arange(old, n).expand(members, -1)], dim=1)
+    shuffle = torch.argsort(torch.rand(members, replay + new, generator=gen), dim=1)
+    return rows.gather(1, shuffle)
 
 
 def _train_epoch(

@@ -686,3 +686,24 @@ def dataclasses_replace(obj, **kw):
     import dataclasses
 
     return dataclasses.replace(obj, **kw)
+
+
+def test_the_screen_stacks_run_ahead_are_those_the_fe_only_screen_takes(tmp_path):
+    """``screen_jobs`` (run beside the rounds' searches) names the very records the FE-only
+    screen reads for its random stacks: the first half of its budget, whatever the nearest
+    stacks are."""
+    from explore._buildable import _choose, screen_jobs, screen_space
+    from sim.materials import CATALOGUE
+    from sim.options import SimOptions
+    from sim.space import load_space, with_every_layer
+    from sim.sweep import record_key
+
+    space, options = load_space(), SimOptions()
+    jobs, materials = screen_jobs(tmp_path, space, CATALOGUE, options, budget=8, seed=3)
+    assert len(jobs) == 4 and materials is None  # no user material
+    screen = screen_space(space, CATALOGUE)
+    chosen = _choose(None, space, screen, CATALOGUE, 8, 3)  # no best: random stacks only
+    keys = [record_key(with_every_layer(c.point), options, screen.catalogue) for c in chosen]
+    assert [path.stem for path, _ in jobs] == keys[:4]
+    assert all(path.parent == tmp_path / "fe" / "records" for path, _ in jobs)
+    assert screen_jobs(tmp_path, space, CATALOGUE, options, budget=0, seed=3) == ([], None)

@@ -427,6 +427,34 @@ def test_fine_tune_is_the_warm_start_explore_made_before(data):
     assert big.header["training"]["batch_size"] == 4 != tuned.header["training"]["batch_size"]
     sc = big.model.state_dict()
     assert not all(torch.equal(sa[k], sc[k]) for k in sa)
+    # a rehearsal (4 sweep designs an epoch besides the new ones): recorded, other weights
+    rehearsed = fine_tune(base, data, points, targets, epochs=7, seed=2, weight=3, replay=4)
+    assert rehearsed.header["training"]["replay"] == 4 and tuned.header["training"]["replay"] == 0
+    sd = rehearsed.model.state_dict()
+    assert not all(torch.equal(sa[k], sd[k]) for k in sa)
+
+
+def test_a_rehearsal_passes_over_every_new_design_and_a_fresh_draw_of_the_others():
+    from surrogate._train import _epoch_order
+
+    def gen() -> torch.Generator:
+        return torch.Generator().manual_seed(3)
+
+    # no rehearsal: the order the training always drew (the same random numbers)
+    reference = torch.argsort(torch.rand(3, 50, generator=gen()), dim=1)
+    assert torch.equal(_epoch_order(3, 50, 5, 0, gen()), reference)
+    g = gen()
+    first, second = _epoch_order(3, 50, 5, 10, g), _epoch_order(3, 50, 5, 10, g)
+    for epoch in (first, second):
+        assert epoch.shape == (3, 15)
+        for row in epoch.tolist():
+            assert len(set(row)) == 15 and set(range(45, 50)) <= set(row)
+            assert all(0 <= r < 50 for r in row)
+    old = [{r for r in row if r < 45} for row in first.tolist()]
+    assert old != [{r for r in row if r < 45} for row in second.tolist()]  # drawn afresh
+    assert len({frozenset(o) for o in old}) == 3  # each member its own draw
+    # asking for as many as there are: every row
+    assert sorted(_epoch_order(2, 50, 5, 45, gen())[0].tolist()) == list(range(50))
 
 
 def test_sweep_data_with_rows_appends_designs_outside_the_table(data):
