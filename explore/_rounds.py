@@ -80,13 +80,19 @@ class Search:
         self.timings[what] += time.perf_counter() - tic
 
 
+#: the priority of the FE beside the rounds (19, the lowest): idle cores only
+BACKGROUND_NICE = 19
+
+
 @contextmanager
 def fe_alongside(run: Search) -> Iterator[None]:
     """FE that does not depend on the search, run while the block (the rounds) runs, in one
     background process: silicone and polyurethane on the reference geometry (for the
     figures), then the random stacks of the FE-only screen (``explore._buildable.screen_jobs``).
-    The searches and retrainings run on one core and leave the other idle; the rounds' FE
-    shares the two cores with it. Waited for when the block ends (the wait counts as FE
+    The searches and retrainings run on one core and leave the other idle; at the lowest
+    priority (``BACKGROUND_NICE``), it takes that core and leaves the rounds' FE alone (at the
+    same priority it slowed the first round's FE, the path the rounds wait on, by as much as it
+    saved: 199 s in all, runs/main_v29). Waited for when the block ends (the wait counts as FE
     time), before the screen reads those records. With one worker, or when the records are
     there already (a resumed run), the references run before the block, like any other FE,
     and the screen's stacks with the screen. The records are the same either way: only their
@@ -101,7 +107,7 @@ def fe_alongside(run: Search) -> Iterator[None]:
     from sim.pool import process_pool
 
     screen, materials = _screen_jobs(run)
-    pool = process_pool(1)
+    pool = process_pool(1, nice=BACKGROUND_NICE)
     try:
         future = pool.submit(run_fe, jobs + screen, run.setup.options, workers=1,
                              progress=False, materials=materials)  # fmt: skip
@@ -123,14 +129,31 @@ def _screen_jobs(run: Search) -> tuple[list[tuple[Path, dict[str, Any]]], dict |
 
 
 def run_rounds(run: Search):
-    """Every round, as far as it goes; returns the surrogate the last round searched with."""
+    """Every round, as far as it goes; returns the surrogate the last round searched with.
+
+    With two workers or more, a helper process runs a round's other studies (the families'
+    and the buildable one) while this one runs the continuous study: a study scores its
+    trials on one core, and each study is the same whichever process runs it (its own seed,
+    the surrogate read from the same file)."""
+    from sim.pool import process_pool
+
+    helper = process_pool(1, spawn=True) if run.config.workers > 1 else None
+    try:
+        return _rounds(run, run.setup.surrogate, helper)
+    finally:
+        if helper is not None:
+            helper.shutdown(wait=True, cancel_futures=True)
+
+
+def _rounds(run: Search, surrogate, helper):
     from surrogate import load_checkpoint
 
-    surrogate = run.setup.surrogate
     for r in range(run.config.rounds):
+        path = run.setup.record["surrogate"]
         if r > 0:  # the surrogate retrained after round r - 1, as stored (resumed or not)
-            surrogate = load_checkpoint(surrogate_path(run.out, r), allow_solver_mismatch=True)
-        round_rows = _search_round(run, surrogate, r)
+            path = str(surrogate_path(run.out, r))
+            surrogate = load_checkpoint(path, allow_solver_mismatch=True)
+        round_rows = _search_round(run, surrogate, r, helper, path)
         new = _confirm_round(run, round_rows, surrogate, r)
         info = _log_round(run, r, new)
         # done when the surrogate can be trusted AND an FE-confirmed design meets every tapping
@@ -156,8 +179,12 @@ def _searches(config: OptimizeConfig, s: Setup) -> list[tuple[str, Any, int]]:
     return searches
 
 
-def _search_round(run: Search, surrogate, r: int) -> dict[str, list[TrialRow]]:
-    """Round ``r``'s studies, each run (or resumed) to its trials; their scored trials."""
+def _search_round(
+    run: Search, surrogate, r: int, helper=None, surrogate_file: str = ""
+) -> dict[str, list[TrialRow]]:
+    """Round ``r``'s studies, each run (or resumed) to its trials; their scored trials. With a
+    ``helper`` process, it runs every study but the first (the continuous one) meanwhile, with
+    the surrogate of ``surrogate_file``."""
     config = run.config
     settings = SearchSettings(
         trials=config.trials,
@@ -168,12 +195,59 @@ def _search_round(run: Search, surrogate, r: int) -> dict[str, list[TrialRow]]:
         options=run.setup.options,
         screen=config.screen,
     )
+    searches = _searches(config, run.setup)
+    elsewhere = {}
+    if helper is not None:
+        for search, space, n in searches[1:]:
+            name = _study_name(run, r, search)
+            add_study(run.out, name, search, r, config.mode)  # the run folder's files: here
+            elsewhere[search] = helper.submit(
+                _study_elsewhere, run.setup.record["storage"], surrogate_file, name, space,
+                run.setup.targets, dataclasses.replace(settings, trials=n), r, search, run.worker,
+            )  # fmt: skip
     round_rows: dict[str, list[TrialRow]] = {}
-    for search, space, n in _searches(config, run.setup):
-        rows = _study(run, surrogate, r, search, space, dataclasses.replace(settings, trials=n))
+    for search, space, n in searches:  # in this order, wherever they ran
+        if search in elsewhere:
+            with run.timed("search_s"):  # the wait for the helper
+                rows = elsewhere[search].result()
+        else:
+            rows = _study(run, surrogate, r, search, space, dataclasses.replace(settings, trials=n))
         round_rows[search] = rows
         run.rows += rows
     return round_rows
+
+
+def _study_name(run: Search, r: int, search: str) -> str:
+    return f"{run.config.study}-r{r}-{search}"
+
+
+#: the helper process's surrogates, by checkpoint file (loaded once per run and round)
+_SURROGATES: dict[str, Any] = {}
+
+
+def _study_elsewhere(
+    storage: str,
+    surrogate_file: str,
+    name: str,
+    space,
+    targets: Targets,
+    settings: SearchSettings,
+    r: int,
+    search: str,
+    worker: str | None,
+) -> list[TrialRow]:
+    """A study run (or resumed) in the helper process, as ``_study`` runs it, without a bar."""
+    from surrogate import load_checkpoint
+
+    from ._storage import open_storage
+
+    if surrogate_file not in _SURROGATES:
+        _SURROGATES[surrogate_file] = load_checkpoint(surrogate_file, allow_solver_mismatch=True)
+    study = create_study(open_storage(storage), name, settings, worker)
+    return run_study(
+        study, _SURROGATES[surrogate_file], space, targets, settings, round_=r, search=search,
+        shared=worker is not None, worker=worker,
+    )  # fmt: skip
 
 
 def _study(
@@ -182,7 +256,7 @@ def _study(
     """One study of round ``r``, recorded in the run folder as it starts, with its bar."""
     from tqdm import tqdm
 
-    name = f"{run.config.study}-r{r}-{search}"
+    name = _study_name(run, r, search)
     add_study(run.out, name, search, r, run.config.mode)
     study = create_study(run.storage, name, settings, run.worker)
     total = settings.trials + (settings.screen_keep if settings.screen else 0)  # seeds + sampled

@@ -10,7 +10,11 @@ sweeps and confirmations, the references' FE beside the search, figures) is made
 - watch their parent: a daemon thread checks every ``PARENT_POLL_S`` seconds whether the
   parent's PID is still theirs, and ends the worker (``os._exit``) as soon as it is not.
 
-A worker writes nothing itself (only the parent writes records), so ending it loses nothing.
+A worker's records are written atomically (the references' and the screen's FE beside the
+search write their own), so ending it loses at most the designs it was running.
+
+A pool made with ``nice`` > 0 runs at a lower priority: it takes the cores only when the rest of
+the job leaves them idle (the FE beside the search, ``explore._rounds.fe_alongside``).
 """
 
 from __future__ import annotations
@@ -42,15 +46,25 @@ def _exit_with_parent(parent: int) -> None:
     threading.Thread(target=watch, name="exit-with-parent", daemon=True).start()
 
 
-def worker_init(parent: int) -> None:
+def worker_init(parent: int, nice: int = 0) -> None:
     """The initializer of every worker of ``process_pool`` (module level: picklable)."""
     _single_thread()
     _exit_with_parent(parent)
+    if nice > 0 and hasattr(os, "nice"):
+        os.nice(nice)
 
 
-def process_pool(workers: int) -> ProcessPoolExecutor:
+def process_pool(workers: int, nice: int = 0, *, spawn: bool = False) -> ProcessPoolExecutor:
     """A ``ProcessPoolExecutor`` of ``workers`` single-threaded processes that end with their
-    parent (see the module docstring)."""
+    parent, at ``nice`` (0: the parent's priority; up to 19, the lowest) (see the module
+    docstring). ``spawn``: fresh interpreters instead of forks of this process, for work that
+    uses torch when this process has used it (a fork inherits its thread pools' locks in
+    whatever state they were, and can wait on them for ever)."""
+    import multiprocessing
+
     return ProcessPoolExecutor(
-        max_workers=workers, initializer=worker_init, initargs=(os.getpid(),)
+        max_workers=workers,
+        initializer=worker_init,
+        initargs=(os.getpid(), nice),
+        mp_context=multiprocessing.get_context("spawn") if spawn else None,
     )

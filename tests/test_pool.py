@@ -60,3 +60,12 @@ def test_workers_run_single_threaded_and_return_results(monkeypatch):
         env = pool.submit(os.getenv, "OMP_NUM_THREADS").result()
         assert env == "1"
         assert sorted(pool.map(abs, [-3, -1, 2])) == [1, 2, 3]
+
+
+def test_a_background_pool_runs_at_the_lowest_priority():
+    """``nice``: the FE beside the rounds takes idle cores only (``explore._rounds``)."""
+    here = os.nice(0)
+    with process_pool(1, nice=19) as pool:
+        assert pool.submit(os.nice, 0).result() == min(here + 19, 19)
+    with process_pool(1) as pool:
+        assert pool.submit(os.nice, 0).result() == here
