@@ -198,9 +198,10 @@ def _search_round(
     searches = _searches(config, run.setup)
     elsewhere = {}
     if helper is not None:
+        for search, _, _ in searches:  # studies.json (written here only) in the rounds' order
+            add_study(run.out, _study_name(run, r, search), search, r, config.mode)
         for search, space, n in searches[1:]:
             name = _study_name(run, r, search)
-            add_study(run.out, name, search, r, config.mode)  # the run folder's files: here
             elsewhere[search] = helper.submit(
                 _study_elsewhere, run.setup.record["storage"], surrogate_file, name, space,
                 run.setup.targets, dataclasses.replace(settings, trials=n), r, search, run.worker,
