@@ -99,9 +99,9 @@ class OptimizeConfig:
     # training sweep drawn afresh (``surrogate.fine_tune``'s ``replay``), not the whole sweep,
     # so the retraining's cost does not grow with the sweep. With the solver-2.3 surrogate
     # (runs/default_surrogate_v23c, 1434 training designs) and the main job's defaults, seeds
-    # 0, 1, 2 (runs/replay_study, session 11): best FE score of the run 0.398 / 0.397 / 0.391
-    # against 0.411 / 0.385 / 0.391 over the whole sweep, retraining 12-22 s against 45-72 s
-    # (the machine's speed varied by a third between those runs)
+    # 0, 1, 2 (scripts/seed_study.py, runs/replay_study, session 11): best FE score of the
+    # run 0.398 / 0.397 / 0.391 against 0.411 / 0.385 / 0.391 over the whole sweep, retraining
+    # 12-22 s against 45-72 s (the machine's speed varied by a third between those runs)
     retrain_replay: int = 256
     catalogues: tuple[str, ...] = ()
     buildable_fe: int = DEFAULT_FE_BUDGET
