@@ -92,11 +92,12 @@ def fe_alongside(run: Search) -> Iterator[None]:
     The searches and retrainings run on one core and leave the other idle; at the lowest
     priority (``BACKGROUND_NICE``), it takes that core and leaves the rounds' FE alone (at the
     same priority it slowed the first round's FE, the path the rounds wait on, by as much as it
-    saved: 199 s in all, runs/main_v29). Waited for when the block ends (the wait counts as FE
-    time), before the screen reads those records. With one worker, or when the records are
-    there already (a resumed run), the references run before the block, like any other FE,
-    and the screen's stacks with the screen. The records are the same either way: only their
-    timing moves."""
+    saved: 199 s in all, runs/main_v29). When the block ends it has usually finished; if not
+    (other work on the machine starved it), it is stopped, the references it did not make are
+    run in the foreground (counted as FE time) and the screen makes its own stacks. With one
+    worker, or when the records are there already (a resumed run), the references run before
+    the block, like any other FE, and the screen's stacks with the screen. The records are the
+    same either way: only their timing moves."""
     jobs = [(run.out / "fe" / "references" / f"{m}.json", reference_point(m)) for m in REFERENCES]
     if run.config.workers <= 1 or all(path.exists() for path, _ in jobs):
         with run.timed("fe_s"):
@@ -104,7 +105,7 @@ def fe_alongside(run: Search) -> Iterator[None]:
                    desc="FE references")  # fmt: skip
         yield
         return
-    from sim.pool import process_pool
+    from sim.pool import process_pool, stop_workers
 
     screen, materials = _screen_jobs(run)
     pool = process_pool(1, nice=BACKGROUND_NICE)
@@ -113,7 +114,12 @@ def fe_alongside(run: Search) -> Iterator[None]:
                              progress=False, materials=materials)  # fmt: skip
         yield
         with run.timed("fe_s"):
-            future.result()
+            if future.done():
+                future.result()  # its errors, if any
+            else:  # starved by other work on the machine: what is left runs in the foreground
+                stop_workers(pool)
+                run_fe(jobs, run.setup.options, workers=run.config.workers,
+                       progress=run.progress, desc="FE references")  # fmt: skip
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
 

@@ -24,7 +24,7 @@ import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 
-__all__ = ["PARENT_POLL_S", "process_pool", "worker_init"]
+__all__ = ["PARENT_POLL_S", "process_pool", "stop_workers", "worker_init"]
 
 #: how often a worker looks for its parent (s): an orphan lives at most this long
 PARENT_POLL_S = 0.5
@@ -68,3 +68,18 @@ def process_pool(workers: int, nice: int = 0, *, spawn: bool = False) -> Process
         initargs=(os.getpid(), nice),
         mp_context=multiprocessing.get_context("spawn") if spawn else None,
     )
+
+
+def stop_workers(pool: ProcessPoolExecutor) -> None:
+    """End ``pool``'s workers now (SIGKILL) and cancel its queued work: a worker loses the
+    design it was running (records are written atomically), nothing else. For a pool at a low
+    priority whose work is no longer worth waiting for: on a loaded machine a worker at nice 19
+    gets almost no CPU, and waiting for it would stall the job."""
+    # the worker processes (Python 3.14 has ``pool.kill_workers()``; 3.11 keeps them here)
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    processes = [p for p in processes if hasattr(p, "kill")]
+    pool.shutdown(wait=False, cancel_futures=True)
+    for proc in processes:
+        proc.kill()
+    for proc in processes:
+        proc.join()

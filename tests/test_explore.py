@@ -707,3 +707,48 @@ def test_the_screen_stacks_run_ahead_are_those_the_fe_only_screen_takes(tmp_path
     assert [path.stem for path, _ in jobs] == keys[:4]
     assert all(path.parent == tmp_path / "fe" / "records" for path, _ in jobs)
     assert screen_jobs(tmp_path, space, CATALOGUE, options, budget=0, seed=3) == ([], None)
+
+
+_PARENT = os.getpid()
+_FOREGROUND: list[list] = []
+
+
+def _fe_starved_in_the_background(jobs, options, **kwargs):
+    """``run_fe`` as the rounds see it: in the background process it never gets the CPU (it
+    sleeps); in the foreground it records what it was asked."""
+    if os.getpid() != _PARENT:
+        time.sleep(120)
+    _FOREGROUND.append([path.name for path, _ in jobs])
+    return {}
+
+
+def test_a_starved_background_fe_is_stopped_and_its_references_run_in_the_foreground(
+    tmp_path, monkeypatch
+):
+    """On a loaded machine the FE beside the rounds (nice 19) may not finish: the rounds do not
+    wait for it; the references it did not make run at the job's own priority."""
+    import contextlib
+    import types
+
+    import explore._rounds as rounds
+
+    monkeypatch.setattr(rounds, "run_fe", _fe_starved_in_the_background)
+    monkeypatch.setattr(rounds, "_screen_jobs", lambda run: ([], None))
+    timings = {"fe_s": 0.0}
+
+    @contextlib.contextmanager
+    def timed(what):
+        t0 = time.perf_counter()
+        yield
+        timings[what] += time.perf_counter() - t0
+
+    run = types.SimpleNamespace(
+        out=tmp_path, config=types.SimpleNamespace(workers=2), progress=False, timed=timed,
+        setup=types.SimpleNamespace(options=None),
+    )  # fmt: skip
+    t0 = time.perf_counter()
+    with rounds.fe_alongside(run):
+        time.sleep(1.0)  # the rounds
+    assert time.perf_counter() - t0 < 30
+    assert _FOREGROUND == [["silicone_gls40.json", "polyurethane_74_45.json"]]
+    assert timings["fe_s"] > 0

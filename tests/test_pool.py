@@ -69,3 +69,21 @@ def test_a_background_pool_runs_at_the_lowest_priority():
         assert pool.submit(os.nice, 0).result() == min(here + 19, 19)
     with process_pool(1) as pool:
         assert pool.submit(os.nice, 0).result() == here
+
+
+def test_stop_workers_ends_a_busy_worker_at_once():
+    """A starved background worker is stopped, not waited for (``explore._rounds``)."""
+    import time
+
+    from sim.pool import stop_workers
+
+    pool = process_pool(1, nice=19)
+    future = pool.submit(time.sleep, 60)
+    while not future.running():
+        time.sleep(0.01)
+    workers = [p.pid for p in pool._processes.values()]
+    t0 = time.perf_counter()
+    stop_workers(pool)
+    assert time.perf_counter() - t0 < 5
+    assert workers and not any(_alive(w) for w in workers)
+    pool.shutdown(wait=True)
