@@ -9,7 +9,9 @@ Public API::
     write_figures(run_dir), write_report(run_dir)      # fingertip report
     Candidate, Confirmation, Summary                   # the data of a run folder
 
-Importing this package is cheap; Optuna, torch and matplotlib load on first use.
+Importing this package is cheap; Optuna, torch and matplotlib load on first use. With two
+workers or more, ``optimize`` and ``run`` start a spawned helper process, which imports the
+calling script: a script needs the ``if __name__ == "__main__":`` guard.
 """
 
 from __future__ import annotations
