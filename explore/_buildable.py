@@ -36,18 +36,10 @@ from sim.materials import CATALOGUE, Material, material_tables
 from sim.metrics import METRICS
 from sim.options import SimOptions
 from sim.provenance import atomic_write, write_if_changed
-from sim.space import (
-    LAYER_ROLES,
-    DesignSpace,
-    Parameter,
-    active_roles,
-    mask_inactive,
-    with_every_layer,
-)
-from sim.sweep import record_key
+from sim.space import LAYER_ROLES, DesignSpace, Parameter, active_roles, mask_inactive
 from sim.targets import Targets
 
-from ._confirm import confirm
+from ._confirm import confirm, record_path
 from ._types import Candidate, Confirmation
 
 __all__ = [
@@ -152,7 +144,7 @@ def _choose(
     seen: set[str] = set()
 
     def add(reason: str, point: dict[str, Any]) -> None:
-        key = json.dumps(screen.design(point).to_dict(), sort_keys=True)
+        key = _stack_key(screen, point)
         if key not in seen and len(chosen) < budget:
             seen.add(key)
             chosen.append((reason, point))
@@ -181,12 +173,22 @@ def _choose(
     ]
 
 
+def _stack_key(screen: DesignSpace, point: dict[str, Any]) -> str:
+    """What tells two stacks apart: the design they make."""
+    return json.dumps(screen.design(point).to_dict(), sort_keys=True)
+
+
 def _screen_draws(screen: DesignSpace, budget: int, seed: int) -> Iterator[dict[str, Any]]:
-    """The screen's seeded random stacks, in order (a sample of a few catalogue materials
-    repeats itself: up to ``50 budget`` draws)."""
+    """The screen's seeded random stacks, in order, each once (a sample of a few catalogue
+    materials repeats itself: up to ``50 budget`` draws)."""
     rng = np.random.default_rng(seed)
+    seen: set[str] = set()
     for _ in range(50 * budget):
-        yield screen.point(rng.random(len(screen.sampled)))
+        point = screen.point(rng.random(len(screen.sampled)))
+        key = _stack_key(screen, point)
+        if key not in seen:
+            seen.add(key)
+            yield point
 
 
 def screen_jobs(
@@ -199,27 +201,15 @@ def screen_jobs(
     seed: int,
 ) -> tuple[list[tuple[Path, dict[str, Any]]], dict[str, dict[str, Any]] | None]:
     """The FE jobs (record path, point) of the random stacks :func:`fe_screen` takes whatever
-    the search finds (the first ``budget - budget // 2`` distinct ones: the "nearest" stacks
-    take at most ``budget // 2``), and the user materials' tables they need. Run ahead (beside
-    the rounds' searches), their records are there when :func:`fe_screen` wants them: the
-    same records, only their timing moves."""
+    the search finds (the first ``budget - budget // 2``: the "nearest" stacks take at most
+    ``budget // 2``), and the user materials' tables they need. Run ahead (beside the rounds'
+    searches), their records are there when :func:`fe_screen` wants them: the same records,
+    only their timing moves."""
     if budget <= 0:
         return [], None
     screen = screen_space(space, catalogue)
-    points: list[dict[str, Any]] = []
-    seen: set[str] = set()
-    for point in _screen_draws(screen, budget, seed):
-        if len(points) >= budget - budget // 2:
-            break
-        key = json.dumps(screen.design(point).to_dict(), sort_keys=True)
-        if key not in seen:
-            seen.add(key)
-            points.append(point)
-    records = out / "fe" / "records"
-    jobs = [
-        (records / f"{record_key(with_every_layer(p), options, screen.catalogue)}.json", p)
-        for p in points
-    ]
+    points = itertools.islice(_screen_draws(screen, budget, seed), budget - budget // 2)
+    jobs = [(record_path(out, p, options, screen.catalogue), p) for p in points]
     user = {str(m.name): m for m in screen.materials}
     return jobs, material_tables(user) or None
 

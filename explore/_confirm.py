@@ -30,7 +30,7 @@ from sim.targets import Targets
 from ._objective import closeness
 from ._types import Candidate, Confirmation
 
-__all__ = ["REFERENCES", "compare", "confirm", "reference_point", "run_fe"]
+__all__ = ["REFERENCES", "compare", "confirm", "record_path", "reference_point", "run_fe"]
 
 REFERENCES = ("silicone_gls40", "polyurethane_74_45")
 
@@ -119,16 +119,29 @@ def confirm(
     ``catalogue``: the names the points use (shipped + user materials; default shipped);
     ``materials``: the user ones as tables, for the worker processes (:func:`run_fe`)."""
     options = options or SimOptions()
-    records_dir = Path(run_dir) / "fe" / "records"
-    keyed = [(c, record_key(_full_point(c.point), options, catalogue)) for c in candidates]
+    paths = [record_path(run_dir, c.point, options, catalogue) for c in candidates]
     records = run_fe(
-        [(records_dir / f"{k}.json", c.point) for c, k in keyed],
+        [(path, c.point) for c, path in zip(candidates, paths, strict=True)],
         options,
         workers=workers,
         progress=progress,
         materials=materials,
     )
-    return [compare(c, k, records[records_dir / f"{k}.json"], targets) for c, k in keyed]
+    return [
+        compare(c, path.stem, records[path], targets)
+        for c, path in zip(candidates, paths, strict=True)
+    ]
+
+
+def record_path(
+    run_dir: str | Path,
+    point: dict[str, Any],
+    options: SimOptions,
+    catalogue: Mapping[str, Material] | None = None,
+) -> Path:
+    """Where a run folder keeps the FE record of ``point``: ``fe/records/<key>.json``."""
+    key = record_key(_full_point(point), options, catalogue)
+    return Path(run_dir) / "fe" / "records" / f"{key}.json"
 
 
 def compare(candidate: Candidate, key: str, record: dict, targets: Targets) -> Confirmation:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -127,11 +127,18 @@ def fe_alongside(run: Search) -> Iterator[None]:
 def _screen_jobs(run: Search) -> tuple[list[tuple[Path, dict[str, Any]]], dict | None]:
     """The FE-only screen's random stacks (``fe_only_screen``), when it will run."""
     s, config = run.setup, run.config
-    fe_only = set(s.catalogue) - predictable_materials(s.surrogate.space)
-    if not (config.buildable_trials and config.buildable_fe and fe_only):
+    if not _screen_asked(run):
         return [], None
     return screen_jobs(run.out, s.space, s.catalogue, s.options, budget=config.buildable_fe,
                        seed=config.seed)  # fmt: skip
+
+
+def _screen_asked(run: Search) -> bool:
+    """Whether the FE-only screen runs: it is asked and some catalogue material is one the
+    surrogate cannot predict."""
+    s, config = run.setup, run.config
+    fe_only = set(s.catalogue) - predictable_materials(s.surrogate.space)
+    return bool(config.buildable_trials and config.buildable_fe and fe_only)
 
 
 def run_rounds(run: Search):
@@ -186,7 +193,7 @@ def _searches(config: OptimizeConfig, s: Setup) -> list[tuple[str, Any, int]]:
 
 
 def _search_round(
-    run: Search, surrogate, r: int, helper=None, surrogate_file: str = ""
+    run: Search, surrogate, r: int, helper, surrogate_file: str
 ) -> dict[str, list[TrialRow]]:
     """Round ``r``'s studies, each run (or resumed) to its trials; their scored trials. With a
     ``helper`` process, it runs every study but the first (the continuous one) meanwhile, with
@@ -202,10 +209,10 @@ def _search_round(
         screen=config.screen,
     )
     searches = _searches(config, run.setup)
+    for search, _, _ in searches:  # studies.json (written here only) in the rounds' order
+        add_study(run.out, _study_name(run, r, search), search, r, config.mode)
     elsewhere = {}
     if helper is not None:
-        for search, _, _ in searches:  # studies.json (written here only) in the rounds' order
-            add_study(run.out, _study_name(run, r, search), search, r, config.mode)
         for search, space, n in searches[1:]:
             name = _study_name(run, r, search)
             elsewhere[search] = helper.submit(
@@ -251,8 +258,24 @@ def _study_elsewhere(
     if surrogate_file not in _SURROGATES:
         _SURROGATES[surrogate_file] = load_checkpoint(surrogate_file, allow_solver_mismatch=True)
     study = create_study(open_storage(storage), name, settings, worker)
+    surrogate = _SURROGATES[surrogate_file]
+    return _run_round_study(study, surrogate, space, targets, settings, r, search, worker)
+
+
+def _run_round_study(
+    study,
+    surrogate,
+    space,
+    targets: Targets,
+    settings: SearchSettings,
+    r: int,
+    search: str,
+    worker: str | None,
+    progress: Callable[[int], None] | None = None,
+) -> list[TrialRow]:
+    """``run_study`` of round ``r``'s study ``search``, in either process."""
     return run_study(
-        study, _SURROGATES[surrogate_file], space, targets, settings, round_=r, search=search,
+        study, surrogate, space, targets, settings, round_=r, search=search, progress=progress,
         shared=worker is not None, worker=worker,
     )  # fmt: skip
 
@@ -260,21 +283,18 @@ def _study_elsewhere(
 def _study(
     run: Search, surrogate, r: int, search: str, space, settings: SearchSettings
 ) -> list[TrialRow]:
-    """One study of round ``r``, recorded in the run folder as it starts, with its bar."""
+    """One study of round ``r`` (registered in the run folder by ``_search_round``), with its
+    bar."""
     from tqdm import tqdm
 
-    name = _study_name(run, r, search)
-    add_study(run.out, name, search, r, run.config.mode)
-    study = create_study(run.storage, name, settings, run.worker)
+    study = create_study(run.storage, _study_name(run, r, search), settings, run.worker)
     total = settings.trials + (settings.screen_keep if settings.screen else 0)  # seeds + sampled
     bar = tqdm(total=total, desc=f"round {r + 1}: search {search}", unit="trial",
                disable=not run.progress)  # fmt: skip
     bar.update(min(total, _finished(study)))
     with run.timed("search_s"):
-        rows = run_study(
-            study, surrogate, space, run.setup.targets, settings, round_=r, search=search,
-            progress=bar.update, shared=run.worker is not None, worker=run.worker,
-        )  # fmt: skip
+        rows = _run_round_study(study, surrogate, space, run.setup.targets, settings, r, search,
+                                run.worker, progress=bar.update)  # fmt: skip
         bar.close()
     return rows
 
@@ -341,8 +361,7 @@ def fe_only_screen(run: Search) -> list[Confirmation]:
     """After the rounds: the FE-only screen of buildable stacks of the catalogue materials the
     surrogate cannot predict (``explore._buildable``), when there are such and it is asked."""
     s, config = run.setup, run.config
-    fe_only = set(s.catalogue) - predictable_materials(s.surrogate.space)
-    if not (config.buildable_trials and config.buildable_fe and fe_only):
+    if not _screen_asked(run):
         return []
     trusted = [c for c in run.confirmations if credible(c, s.targets, config.allow_untrusted)]
     with run.timed("fe_s"):

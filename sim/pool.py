@@ -77,7 +77,6 @@ def stop_workers(pool: ProcessPoolExecutor) -> None:
     gets almost no CPU, and waiting for it would stall the job."""
     # the worker processes (Python 3.14 has ``pool.kill_workers()``; 3.11 keeps them here)
     processes = list((getattr(pool, "_processes", None) or {}).values())
-    processes = [p for p in processes if hasattr(p, "kill")]
     pool.shutdown(wait=False, cancel_futures=True)
     for proc in processes:
         proc.kill()
