@@ -40,7 +40,7 @@ from sim.metrics import SAME_METRICS_AS, SOLVER_VERSION
 from sim.options import options_from_dict
 from sim.provenance import json_safe, provenance
 from sim.space import space_from_dict
-from sim.sweep import _config, evaluate_point, record_key, sample_points
+from sim.sweep import evaluate_point, record_key, sample_points, sweep_config
 from sim.sweep_folder import SweepStore, read_config, write_config, write_meta
 
 #: how close a re-simulated carried design must come to its record. Records computed before FE
@@ -76,7 +76,7 @@ def migrate(source: Path, target: Path) -> tuple[list[str], list[str], dict]:
     if target.exists():
         sys.exit(f"{target} exists; choose a new folder")
     space = space_from_dict(old["space"])
-    config = _config(space, old["n"], old["seed"], old["sampler"], options)
+    config = sweep_config(space, old["n"], old["seed"], old["sampler"], options)
     if "catalogues" in old:
         config["catalogues"] = old["catalogues"]
     points = sample_points(space, old["n"], old["seed"], old["sampler"])

@@ -46,6 +46,7 @@ __all__ = [
     "record_key",
     "run_sweep",
     "sample_points",
+    "sweep_config",
 ]
 
 SAMPLERS = ("sobol", "lhs")
@@ -142,7 +143,9 @@ def evaluate_point(
     return record
 
 
-def _config(space: DesignSpace, n: int, seed: int, sampler: str, options: SimOptions) -> dict:
+def sweep_config(space: DesignSpace, n: int, seed: int, sampler: str, options: SimOptions) -> dict:
+    """A sweep folder's ``config.json``: what its records depend on (``run_sweep`` refuses to
+    resume a folder whose config differs, and ``scripts/migrate_sweep.py`` writes a new one)."""
     return {
         "space": space.to_dict(),
         "n": n,
@@ -234,7 +237,7 @@ def run_sweep(
     options = options or SimOptions()
     folder = Path(out)
     check_folder_kind(folder, "sweep")  # never into another command's folder
-    config = _config(space, n, seed, sampler, options)
+    config = sweep_config(space, n, seed, sampler, options)
     if catalogues:  # the --catalogue files, for the record (the space holds their materials)
         config["catalogues"] = [c.record() for c in catalogues]
     _check_config(folder, config)
