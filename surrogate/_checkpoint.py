@@ -112,6 +112,7 @@ def describe(surrogate) -> dict[str, Any]:
                 "shift": float(norm.shift[j]),
                 "scale": float(norm.scale[j]),
                 "observed": int(norm.observed[j]),
+                "interval_scale": float(norm.interval_scale[j]),
             }
             for j, m in enumerate(surrogate.metric_names)
         },

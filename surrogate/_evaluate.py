@@ -351,6 +351,13 @@ def _excluded_line(info: dict[str, Any]) -> str:
     return text
 
 
+def _factors(info: dict[str, Any]) -> str:
+    """``: factors 0.6 to 1.05`` from the checkpoint's calibration record, if any."""
+    scale = (info.get("calibration") or {}).get("interval_scale") or {}
+    values = [v for v in scale.values() if v != 1.0]
+    return f": factors {min(values):.3g} to {max(values):.3g}" if values else ""
+
+
 def write_report(report: Report, folder: Path, info: dict[str, Any]) -> None:
     """report.json, report.md and figures/parity_<metric>.png in ``folder``."""
     figures = folder / "figures"
@@ -405,7 +412,9 @@ def write_report(report: Report, folder: Path, info: dict[str, Any]) -> None:
         f"over the designs with |FE| >= {REL_FLOOR:g} x the median |FE| (n rel. in the table; "
         "e.g. an elastic skin's hysteresis is zero up to round-off); the 90 % interval is the "
         "ensemble's (mixture mean ± 1.645 std in the normalised space: log, or log(y + offset) "
-        "for a nonnegative metric that reaches zero). The hysteresis of an elastic design (no "
+        "for a nonnegative metric that reaches zero), its std multiplied per metric by the "
+        f"factor calibrated on the validation designs (split conformal{_factors(info)}). The "
+        "hysteresis of an elastic design (no "
         "layer relaxes) is 0 by physics: the surrogate predicts it exactly, does not learn it, "
         "and those designs (n rule) are left out of the coverage.",
         "",

@@ -10,11 +10,16 @@ all, see ``surrogate._surrogate.ZERO_IF_ELASTIC``: the rest is strictly positive
 log.) The network's Gaussian lives in z; ``to_physical`` maps a Gaussian in z back to the
 metric's units (a shifted log-normal for log metrics: mean ``exp(m + s^2 / 2) - offset``,
 quantiles ``exp(m +- q s) - offset``).
+
+``interval_scale`` widens or narrows the ensemble's spread per metric before that mapping
+(``s = scale * interval_scale * std_z``): 1 by default; ``surrogate._train.fit`` sets it so
+that 90 % of the validation designs' FE values fall inside the 90 % interval
+(``calibration_factors``: split conformal).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import torch
@@ -57,8 +62,8 @@ def _runs(mask: np.ndarray) -> list[slice]:
 
 @dataclass(frozen=True, eq=False)
 class OutputNormaliser:
-    """``log`` (bool), ``shift``, ``scale``, ``observed`` (training values) and ``offset``
-    (of the log, metric units) per metric.
+    """``log`` (bool), ``shift``, ``scale``, ``observed`` (training values), ``offset``
+    (of the log, metric units) and ``interval_scale`` (of the spread; None: 1) per metric.
 
     A metric without any finite training value cannot be predicted: its predictions are NaN.
     """
@@ -68,6 +73,18 @@ class OutputNormaliser:
     scale: np.ndarray
     observed: np.ndarray
     offset: np.ndarray
+    interval_scale: np.ndarray | None = field(default=None)
+
+    def __post_init__(self) -> None:
+        if self.interval_scale is None:
+            object.__setattr__(self, "interval_scale", np.ones_like(self.scale))
+
+    def calibrated(self, interval_scale: np.ndarray) -> OutputNormaliser:
+        """The same normaliser with another ``interval_scale`` (one positive factor per metric)."""
+        factors = np.asarray(interval_scale, dtype=np.float64)
+        if factors.shape != self.scale.shape or not np.all(factors > 0):
+            raise ValueError("interval_scale needs one positive factor per metric")
+        return replace(self, interval_scale=factors)
 
     @classmethod
     def fit(cls, y_train: np.ndarray) -> OutputNormaliser:
@@ -131,7 +148,7 @@ class OutputNormaliser:
         c = self.offset
         m = np.multiply(self.scale, mean_z)
         m += self.shift
-        s = np.multiply(self.scale, std_z)
+        s = np.multiply(self.scale * self.interval_scale, std_z)
         zs = np.multiply(Z90, s)
         lo = np.subtract(m, zs)
         hi = np.add(m, zs, out=zs)
@@ -167,6 +184,7 @@ class OutputNormaliser:
             "scale": self.scale,
             "observed": self.observed,
             "offset": self.offset,
+            "interval_scale": self.interval_scale,
         }
 
     @classmethod
@@ -177,4 +195,6 @@ class OutputNormaliser:
             np.asarray(a["scale"], dtype=np.float64),
             np.asarray(a["observed"], dtype=np.int64),
             np.asarray(a["offset"], dtype=np.float64),
+            # checkpoints before the calibration have none: the ensemble's own spread
+            None if "interval_scale" not in a else np.asarray(a["interval_scale"], np.float64),
         )

@@ -102,6 +102,7 @@ def train_surrogate(
             "n_val": len(split.val),
             "table_sha256": data.table_sha256,
             "validation": result.surrogate.header.get("validation"),
+            "calibration": result.surrogate.header.get("calibration"),
             # designs with FE results left out of training and testing, by reason
             "excluded": dict(data.excluded),
             "unchecked": data.unchecked,

@@ -1,5 +1,6 @@
 """Training: split a sweep, fit the normalisers on the training designs, train the ensemble with
-a Gaussian NLL and per-member early stopping on the validation loss.
+a Gaussian NLL and per-member early stopping on the validation loss; then calibrate each FE
+metric's 90 % interval on the validation designs (``calibration_factors``).
 
 Reproducible from the seed: the split, the initial weights and every member's minibatch order
 come from ``numpy.random.SeedSequence(seed)``; torch runs with deterministic algorithms (the
@@ -26,7 +27,7 @@ from sim.trust import TRUST_OUTPUTS
 from ._encoding import Encoder
 from ._io import SweepData
 from ._model import EnsembleMLP, gaussian_nll
-from ._normalise import OutputNormaliser
+from ._normalise import Z90, OutputNormaliser
 from ._surrogate import Surrogate, rule_mask
 
 __all__ = [
@@ -34,6 +35,7 @@ __all__ = [
     "FitResult",
     "Split",
     "TrainConfig",
+    "calibration_factors",
     "fine_tune",
     "fit",
     "metric_groups",
@@ -191,7 +193,12 @@ def fit(
     # values known by rule (an elastic design's hysteresis is 0) are not learnt
     targets = np.where(rule_mask(encoder, x_all, data.metric_names), np.nan, data.targets)
     # fitted on training designs ONLY; a warm start keeps the one its weights were trained in
-    normaliser = init.normaliser if init is not None else OutputNormaliser.fit(targets[split.train])
+    # (its intervals are calibrated again below, on this fit's validation designs)
+    normaliser = (
+        init.normaliser.calibrated(np.ones(len(data.metric_names)))
+        if init is not None
+        else OutputNormaliser.fit(targets[split.train])
+    )
     z_all = normaliser.transform(targets)
     mask_all = np.isfinite(z_all)
     z_all = np.where(mask_all, z_all, 0.0)
@@ -252,6 +259,12 @@ def fit(
     surrogate.header["validation"] = validation_metrics(
         surrogate, x_all[split.val], targets[split.val], best.loss.numpy()
     )
+    mean_z, std_z = surrogate.predict_normalised(x_all[split.val])
+    factors, info = calibration_factors(
+        mean_z, std_z, normaliser.transform(targets[split.val]), data.metric_names
+    )
+    surrogate.normaliser = normaliser.calibrated(factors)
+    surrogate.header["calibration"] = info
     return FitResult(surrogate, split, history, tuple(int(e) for e in best.epoch), epochs=epochs)
 
 
@@ -434,6 +447,52 @@ def _train_epoch(
         total += loss.detach()
         steps += 1
     return total / steps
+
+
+#: the coverage the 90 % intervals are calibrated to, and the fewest validation values a metric
+#: needs for it (fewer: the ensemble's own spread is kept)
+CALIBRATION_COVERAGE = 0.90
+CALIBRATION_MIN_N = 20
+
+
+def calibration_factors(
+    mean_z: np.ndarray,
+    std_z: np.ndarray,
+    z: np.ndarray,
+    metric_names: Sequence[str],
+    coverage: float = CALIBRATION_COVERAGE,
+    min_n: int = CALIBRATION_MIN_N,
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """Per-metric factors of the ensemble's spread such that the central 90 % interval holds
+    ``coverage`` of held-out FE values: split conformal prediction (Vovk et al. 2005; Angelopoulos
+    & Bates 2021, "A gentle introduction to conformal prediction", section 2) with the
+    normalised score ``r = |z - mean_z| / std_z`` on the validation designs. With ``n`` scores,
+    the factor is ``r_(k) / Z90``, ``k = ceil((n + 1) coverage)``: a new design exchangeable with
+    them falls inside with probability at least ``coverage``.
+
+    Only FE metrics (``sim.metrics.METRICS``) with ``min_n`` finite values are calibrated; trust
+    outputs (censored bounds, yes/no flags) keep 1. Returns the factors (n_metrics,) and the
+    header's ``calibration`` record."""
+    factors = np.ones(len(metric_names))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        scores = np.abs(np.asarray(z) - mean_z) / std_z
+    counts: dict[str, int] = {}
+    for j, name in enumerate(metric_names):
+        r = scores[:, j]
+        r = np.sort(r[np.isfinite(r)])
+        counts[name] = int(r.size)
+        if name not in METRICS or r.size < min_n:
+            continue
+        k = math.ceil((r.size + 1) * coverage)
+        if k <= r.size and r[k - 1] > 0:
+            factors[j] = float(r[k - 1]) / Z90
+    info = {
+        "method": "split conformal on the validation designs, score |z - mean| / std",
+        "coverage": coverage,
+        "interval_scale": {m: float(f) for m, f in zip(metric_names, factors, strict=True)},
+        "n": counts,
+    }
+    return factors, info
 
 
 def validation_metrics(

@@ -41,9 +41,9 @@ from surrogate import (
 from surrogate._checkpoint import SCHEMA_VERSION, read_checkpoint, write_checkpoint
 from surrogate._encoding import DESCRIPTOR_OMEGA_RAD_S, ELASTIC_FEATURE
 from surrogate._model import EnsembleMLP
-from surrogate._normalise import OutputNormaliser
+from surrogate._normalise import Z90, OutputNormaliser
 from surrogate._surrogate import ZERO_IF_ELASTIC, Surrogate
-from surrogate._train import fit, metric_groups
+from surrogate._train import calibration_factors, fit, metric_groups
 
 REPO = Path(explore.cli.__file__).resolve().parents[1]
 SHORT = TrainConfig(members=5, hidden=(16, 16), max_epochs=25, patience=25)
@@ -283,6 +283,56 @@ def test_output_normaliser_is_fitted_on_training_designs_only(data, ckpt):
     assert np.isnan(pred.mean[:, never]).all() and np.isfinite(pred.mean[:, observed]).all()
 
 
+def test_conformal_calibration_gives_the_90_percent_interval_its_coverage():
+    """An ensemble whose spread is half (metric 0) or twice (metric 1) the true scatter: the
+    calibrated factor is about 2 or 1/2, and fresh designs fall inside the calibrated 90 %
+    interval 90 % of the time (split conformal); a metric with too few validation values and a
+    trust output keep the ensemble's own spread."""
+    rng = np.random.default_rng(0)
+    names = ["disp_at_1N_mm", "hysteresis_Nmm", "sag_mm", next(iter(TRUST_OUTPUTS))]
+    true_sd = np.array([2.0, 0.5, 1.0, 3.0])
+
+    def draw(n):
+        mean = rng.normal(size=(n, 4))
+        std = rng.uniform(0.5, 1.5, size=(n, 4))  # per design, as an ensemble's
+        return mean, std, mean + true_sd * std * rng.normal(size=(n, 4))
+
+    mean, std, z = draw(2000)
+    z[19:, 2] = np.nan  # 19 values: fewer than the minimum
+    factors, info = calibration_factors(mean, std, z, names)
+    assert factors[0] == pytest.approx(2.0, rel=0.06)
+    assert factors[1] == pytest.approx(0.5, rel=0.06)
+    assert factors[2] == 1.0 and info["n"]["sag_mm"] == 19
+    assert factors[3] == 1.0  # a trust output
+    # on the calibration designs themselves at least 90 % inside (the conformal quantile)
+    inside = np.abs(z - mean) <= Z90 * factors * std
+    assert inside[:, :2].mean(axis=0).min() >= 0.90
+    # and on fresh ones 90 % up to sampling (binomial sd 0.3 % on 10000)
+    mean, std, z = draw(10000)
+    fresh = (np.abs(z - mean) <= Z90 * factors * std)[:, :2].mean(axis=0)
+    np.testing.assert_allclose(fresh, 0.90, atol=0.015)
+    uncalibrated = (np.abs(z - mean) <= Z90 * std)[:, :2].mean(axis=0)
+    assert uncalibrated[0] < 0.65 and uncalibrated[1] > 0.99
+
+
+def test_the_interval_scale_widens_the_interval_in_the_normalised_space():
+    rng = np.random.default_rng(1)
+    norm = OutputNormaliser.fit(rng.lognormal(size=(50, 2)) * [1.0, 3.0])
+    mean_z, std_z = rng.normal(size=(5, 2)), rng.uniform(0.1, 0.5, size=(5, 2))
+    plain = norm.to_physical(mean_z, std_z)
+    wide = norm.calibrated(np.array([2.0, 0.5])).to_physical(mean_z, std_z)
+    np.testing.assert_array_equal(wide["median"], plain["median"])  # the point prediction stays
+    half_plain = np.log(plain["upper_90"]) - np.log(plain["median"])  # Z90 x std in log space
+    half_wide = np.log(wide["upper_90"]) - np.log(wide["median"])
+    np.testing.assert_allclose(half_wide, half_plain * [2.0, 0.5], rtol=1e-12)
+    # a checkpoint written before the calibration has no factors: the ensemble's own spread
+    arrays = norm.arrays()
+    del arrays["interval_scale"]
+    np.testing.assert_array_equal(OutputNormaliser.from_arrays(arrays).interval_scale, [1, 1])
+    with pytest.raises(ValueError, match="one positive factor per metric"):
+        norm.calibrated(np.array([1.0, 0.0]))
+
+
 def test_a_nonnegative_metric_that_reaches_zero_is_learnt_on_a_shifted_log_scale():
     """Hysteresis is 0 (up to round-off, even -1e-4) for elastic skins and spans decades for the
     rest: log(y + offset) keeps both; a genuinely signed metric stays linear."""
@@ -470,8 +520,14 @@ def test_sweep_data_with_rows_appends_designs_outside_the_table(data):
 # ----------------------------------------------------------------------------- checkpoints
 def test_checkpoint_round_trip_gives_identical_predictions(data, sweep, tmp_path):
     trained = fit(data, SHORT, progress=False).surrogate
+    # the tiny sweep's few validation designs leave every interval as the ensemble's ...
+    assert set(trained.header["calibration"]["interval_scale"].values()) == {1.0}
+    # ... so set factors by hand: they travel with the checkpoint
+    factors = np.linspace(0.5, 1.5, len(trained.metric_names))
+    trained.normaliser = trained.normaliser.calibrated(factors)
     path = save_checkpoint(trained, tmp_path / "m.safetensors")
     loaded = load_checkpoint(path)
+    np.testing.assert_array_equal(loaded.normaliser.interval_scale, factors)
     p0, p1 = trained.predict(data.points), loaded.predict(data.points)
     for field in ("mean", "std", "lower_90", "upper_90", "in_domain"):
         np.testing.assert_array_equal(getattr(p0, field), getattr(p1, field))
