@@ -57,6 +57,8 @@ def test_shipped_report_is_reproduced_on_the_held_out_designs(model):
         if want["r2"] is not None:
             assert s.r2 == pytest.approx(want["r2"], rel=1e-6)
             assert s.median_rel_error == pytest.approx(want["median_rel_error"], rel=1e-6)
+            # the intervals too (calibrated on the validation designs since session 12)
+            assert s.coverage_90 == pytest.approx(want["coverage_90"], abs=1e-12)
 
 
 def test_readme_python_example_runs(model, monkeypatch):
