@@ -331,6 +331,7 @@ def gaussian_nll(
     mask: torch.Tensor,
     beta: float = 0.0,
     censor: torch.Tensor | None = None,
+    cap: float | None = None,
 ) -> torch.Tensor:
     """Per-member mean Gaussian NLL over the observed entries (``mask``), constant dropped.
 
@@ -341,6 +342,8 @@ def gaussian_nll(
     ``censor`` (like ``y``): +1 where ``y`` is only a lower bound of the value, -1 an upper
     bound, 0 exact; a bound's entry is the Tobit term -log P(value beyond y) =
     -log Phi(censor (mean - y) / sigma) (a probability: no constant to drop).
+    ``cap``: every entry's NLL at most this (a robust score for model selection, not a loss to
+    train on: an entry far outside its predicted spread counts as much as one just beyond it).
     """
     nll = 0.5 * (logvar + (y - mean) ** 2 * torch.exp(-logvar))
     if beta:
@@ -349,6 +352,8 @@ def gaussian_nll(
         censor = censor.expand_as(nll)
         t = censor * (mean - y) * torch.exp(-0.5 * logvar)
         nll = torch.where(censor != 0, -torch.special.log_ndtr(t), nll)
+    if cap is not None:
+        nll = nll.clamp(max=cap)
     mask = mask.expand_as(nll)
     return (nll * mask).sum(dim=(1, 2)) / mask.sum(dim=(1, 2)).clamp(min=1)
 

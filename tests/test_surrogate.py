@@ -315,6 +315,28 @@ def test_conformal_calibration_gives_the_90_percent_interval_its_coverage():
     assert uncalibrated[0] < 0.65 and uncalibrated[1] > 0.99
 
 
+def test_a_capped_validation_nll_is_not_ruled_by_one_unpredictable_entry():
+    """Early stopping's score (``VALIDATION_NLL_CAP``): a net that fits its outputs well but is
+    sure of a yes/no flag that one validation design breaks (an FE failure nothing predicts)
+    beats a net that fits everything loosely; the plain NLL ranks them the other way round,
+    which kept a whole net of the 4096-design sweep's ensemble at epoch 0."""
+    from surrogate._model import gaussian_nll
+    from surrogate._train import VALIDATION_NLL_CAP
+
+    n, m = 40, 5
+    y = torch.zeros(1, n, m)
+    y[0, 0, 4] = 4.0  # the flag of one design: 4 normalised units from all the others
+    mask = torch.ones(1, n, m)
+    sure = (torch.zeros(1, n, m), torch.full((1, n, m), -6.0))  # sigma 0.05 everywhere
+    loose = (torch.zeros(1, n, m), torch.full((1, n, m), 1.0))  # sigma 1.6 everywhere
+    plain = [float(gaussian_nll(*net, y, mask)) for net in (sure, loose)]
+    capped = [float(gaussian_nll(*net, y, mask, cap=VALIDATION_NLL_CAP)) for net in (sure, loose)]
+    assert plain[0] > plain[1]  # 3200 nats on one entry outweigh 199 entries fitted 3 nats better
+    assert capped[0] < capped[1]
+    # the cap changes nothing where no entry reaches it
+    assert float(gaussian_nll(*loose, y, mask, cap=VALIDATION_NLL_CAP)) == plain[1]
+
+
 def test_the_interval_scale_widens_the_interval_in_the_normalised_space():
     rng = np.random.default_rng(1)
     norm = OutputNormaliser.fit(rng.lognormal(size=(50, 2)) * [1.0, 3.0])
