@@ -264,6 +264,7 @@ class Encoder:
     ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
     seen: dict[str, tuple[str, ...]] = field(default_factory=dict)
     omega_rad_s: float = DESCRIPTOR_OMEGA_RAD_S
+    log_tangents: bool = False
 
     # ------------------------------------------------------------------ layout
     @property
@@ -277,7 +278,7 @@ class Encoder:
             elif p.kind == "choice":
                 out += [f"{p.name}={_choice_key(c)}" for c in p.choices]
         for role in self.material_roles:
-            out += [f"{role}:{d}" for d in _DESCRIPTOR_NAMES]
+            out += [f"{role}:{d}" for d in descriptor_names(self.log_tangents)]
         out.append(ELASTIC_FEATURE)
         return out
 
@@ -298,17 +299,20 @@ class Encoder:
             },
             "seen": {k: list(v) for k, v in self.seen.items()},
             "omega_rad_s": self.omega_rad_s,
+            "log_tangents": self.log_tangents,
         }
 
     @classmethod
     def from_dict(cls, space: DesignSpace, d: Mapping[str, Any]) -> Encoder:
         """The encoder of a checkpoint's ``domain`` entry (one written before ``omega_rad_s``
-        was recorded encodes at the default tap's frequency, as it was trained)."""
+        was recorded encodes at the default tap's frequency, one written before
+        ``log_tangents`` without them, as each was trained)."""
         return cls(
             space,
             {k: (nan_if_none(a), nan_if_none(b)) for k, (a, b) in d["ranges"].items()},
             {k: tuple(v) for k, v in d["seen"].items()},
             float(d.get("omega_rad_s", DESCRIPTOR_OMEGA_RAD_S)),
+            bool(d.get("log_tangents", False)),
         )
 
     # ------------------------------------------------------------------ masking
@@ -432,7 +436,12 @@ class Encoder:
                     unseen = col.per_key(lambda v, s=seen: v != "" and v not in s, bool)
                     flag(unseen, f"{p.name}: choice never seen in training")
         desc, elastic = material_descriptors(
-            cols, n, self.material_roles, self.space.catalogue, self.omega_rad_s
+            cols,
+            n,
+            self.material_roles,
+            self.space.catalogue,
+            self.omega_rad_s,
+            log_tangents=self.log_tangents,
         )
         blocks += [desc, elastic[:, None].astype(float)]
         # the blocks side by side, as float32: written in place (np.concatenate of many thin
@@ -458,7 +467,7 @@ class Encoder:
                 )
             elif p.kind == "choice":
                 seen[p.name] = tuple(sorted({v for v in col if v != ""}))
-        return Encoder(self.space, ranges, seen, self.omega_rad_s)
+        return Encoder(self.space, ranges, seen, self.omega_rad_s, self.log_tangents)
 
     # ------------------------------------------------------------------ decoding
     def decode(self, features: np.ndarray) -> list[dict[str, Any]]:
@@ -492,6 +501,17 @@ _DESCRIPTOR_NAMES = (
     "log10_storage_MPa",
     *(f"tan_delta@{r:.3g}w" for r in _OMEGA_RATIOS),
 )
+#: the log loss tangents enter as (log10(max(tan d, floor)) - log10(floor)) / decades: 1e-5 -> 0,
+#: 1 -> 1. The floor is below every relaxing layer of the default space that dissipates a
+#: hysteresis the evaluation scores (a hundredth of the median); an elastic layer sits on it
+_LOG_TAN_FLOOR, _LOG_TAN_DECADES = 1e-5, 5.0
+
+
+def descriptor_names(log_tangents: bool = False) -> tuple[str, ...]:
+    """The names of one layer's material descriptors (``material_descriptors``)."""
+    if not log_tangents:
+        return _DESCRIPTOR_NAMES
+    return (*_DESCRIPTOR_NAMES, *(f"log10_tan_delta@{r:.3g}w" for r in _OMEGA_RATIOS))
 
 
 def _catalogue_entry(
@@ -524,6 +544,8 @@ def material_descriptors(
     roles: Sequence[str],
     catalogue: Mapping[str, Any] | None = None,
     omega_rad_s: float = DESCRIPTOR_OMEGA_RAD_S,
+    *,
+    log_tangents: bool = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Linear-viscoelastic descriptors of each layer's material, and the elastic-design flag.
 
@@ -593,7 +615,14 @@ def material_descriptors(
                 moduli.append(storage)
             tangents.append(loss / storage)
         log_moduli = (np.log10(np.stack(moduli)) - _LOG_MODULUS_LOW) / _LOG_MODULUS_DECADES
-        blocks += [np.where(on, b, 0.0) for b in (*log_moduli, *tangents)]
+        log_tangents_ = []
+        if log_tangents:
+            floor = math.log10(_LOG_TAN_FLOOR)
+            log_tangents_ = [
+                (np.log10(np.maximum(t, _LOG_TAN_FLOOR)) - floor) / _LOG_TAN_DECADES
+                for t in tangents
+            ]
+        blocks += [np.where(on, b, 0.0) for b in (*log_moduli, *tangents, *log_tangents_)]
     out = np.empty((n, len(blocks)))
     for j, b in enumerate(blocks):
         out[:, j] = b

@@ -62,6 +62,15 @@ class TrainConfig:
     # rehearsal (``fine_tune``): 0, every epoch passes over every training design; k > 0, over
     # the new designs (``Split.new``) and k of the others, drawn afresh every epoch
     replay: int = 0
+    # material descriptors: also the log10 of each layer's loss tangents (``Encoder.log_tangents``)
+    log_tangents: bool = False
+    # learning rate on a plateau (``_LearningRate``): after ``decay_patience`` epochs in which no
+    # net improved its validation NLL, the rate is multiplied by ``lr_decay``, at most
+    # ``lr_decays`` times; training stops ``patience`` epochs after the last improvement or
+    # decay once no decay is left. ``lr_decay = 1``: a constant rate (the rule before)
+    lr_decay: float = 1.0
+    lr_decays: int = 3
+    decay_patience: int = 50
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -188,7 +197,11 @@ def fit(
     _, init_seed, _ = _seeds(config.seed)
     train_points = [data.points[i] for i in split.train]
     omega = 2.0 * math.pi * data.tapping_frequency_Hz  # the taps the sweep was made with
-    encoder = Encoder(data.space, omega_rad_s=omega).fit_domain(train_points)
+    # a warm start keeps the descriptors its weights were trained on (a checkpoint may predate
+    # the log loss tangents)
+    log_tangents = init.encoder.log_tangents if init is not None else config.log_tangents
+    encoder = Encoder(data.space, omega_rad_s=omega, log_tangents=log_tangents)
+    encoder = encoder.fit_domain(train_points)
     x_all = encoder.encode(data.points).features
     # values known by rule (an elastic design's hysteresis is 0) are not learnt
     targets = np.where(rule_mask(encoder, x_all, data.metric_names), np.nan, data.targets)
@@ -240,6 +253,7 @@ def fit(
         "git_commit": git_commit(),
         "training": {
             **config.to_dict(),
+            "log_tangents": log_tangents,
             "epochs": epochs,
             "best_epoch": [int(e) for e in best.epoch],
         },
@@ -389,6 +403,7 @@ def _train(
     x_va, z_va, m_va, c_va = val
     m_va = m_va.unsqueeze(0) * net_mask
     best = _Best.start(model)
+    rate = _LearningRate(opt, model, config)
     history: dict[str, list[float]] = {"train_nll": [], "val_nll": []}
     epoch = 0
     with _deterministic():
@@ -402,7 +417,7 @@ def _train(
         tick = progress if callable(progress) else None
         for epoch in bar:
             order = _epoch_order(config.members, n, new, config.replay, gen)
-            train_nll = _train_epoch(model, opt, train, net_mask, order, config)
+            train_nll = _train_epoch(model, opt, train, net_mask, order, config, rate)
             model.eval()
             with torch.no_grad():
                 val_nll = gaussian_nll(
@@ -414,10 +429,62 @@ def _train(
             bar.set_postfix(val_nll=f"{float(best.loss.mean()):.3f}", refresh=False)
             if tick is not None:
                 tick(1)
-            if epoch - int(best.epoch.max()) >= config.patience:
+            if rate.stop_after(epoch, best):
                 break
         bar.close()
     return best, history, epoch + 1
+
+
+class _LearningRate:
+    """Each net's learning rate on a plateau of its validation NLL, and the stopping rule
+    (``TrainConfig.lr_decay``). Net s, ``decay_patience`` epochs after its last improvement (or
+    decay) with decays left, goes back to its best weights and has its rate multiplied by
+    ``lr_decay`` (``torch.optim.lr_scheduler.ReduceLROnPlateau``'s rule, net by net, with a
+    restart from the best). Training stops when every net has gone ``patience`` epochs without
+    an improvement or a decay and has no decay left. The nets share one optimiser: a net's
+    rate is applied by scaling its update (Adam's step is proportional to the rate)."""
+
+    def __init__(self, opt: torch.optim.Optimizer, model: EnsembleMLP, config: TrainConfig) -> None:
+        self.opt, self.config = opt, config
+        self.params = list(model.parameters())
+        decays = config.lr_decays if config.lr_decay < 1.0 else 0
+        self.left = torch.full((model.nets,), decays, dtype=torch.long)
+        self.since = torch.full((model.nets,), -1, dtype=torch.long)
+        self.scale = torch.ones(model.nets)
+        self._before: list[torch.Tensor] | None = None
+
+    @property
+    def constant(self) -> bool:
+        """Every net at the configured rate (the optimiser's steps are left as they are)."""
+        return bool((self.scale == 1.0).all())
+
+    def before_step(self) -> None:
+        if not self.constant:
+            self._before = [p.detach().clone() for p in self.params]
+
+    def after_step(self) -> None:
+        """Each net's update scaled by its rate's factor."""
+        if self._before is None:
+            return
+        with torch.no_grad():
+            for p, old in zip(self.params, self._before, strict=True):
+                f = self.scale.view(-1, *([1] * (p.dim() - 1)))
+                p.copy_(old + f * (p - old))
+        self._before = None
+
+    def stop_after(self, epoch: int, best: _Best) -> bool:
+        """After ``epoch``: decay the rate of every net due; True when training is over."""
+        quiet = epoch - torch.maximum(best.epoch, self.since)
+        due = (self.left > 0) & (quiet >= self.config.decay_patience)
+        if due.any():
+            self.scale[due] *= self.config.lr_decay
+            self.left[due] -= 1
+            self.since[due] = epoch
+            with torch.no_grad():  # back to the best weights of the decayed nets
+                for kept, p in zip(best.state, self.params, strict=True):
+                    p[due] = kept[due]
+            quiet = epoch - torch.maximum(best.epoch, self.since)
+        return bool(((self.left == 0) & (quiet >= self.config.patience)).all())
 
 
 def _epoch_order(members: int, n: int, new: int, replay: int, gen: torch.Generator) -> torch.Tensor:
@@ -440,6 +507,7 @@ def _train_epoch(
     net_mask: torch.Tensor,
     order: torch.Tensor,
     config: TrainConfig,
+    rate: _LearningRate | None = None,
 ) -> torch.Tensor:
     """One pass over the training designs in minibatches, each member in its own ``order`` (a
     row per member); the mean training loss of each net."""
@@ -455,7 +523,11 @@ def _train_epoch(
         )
         opt.zero_grad(set_to_none=True)
         loss.sum().backward()
+        if rate is not None:
+            rate.before_step()
         opt.step()
+        if rate is not None:
+            rate.after_step()
         total += loss.detach()
         steps += 1
     return total / steps

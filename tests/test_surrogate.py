@@ -435,6 +435,55 @@ def test_training_is_reproducible_from_the_seed(data):
     np.testing.assert_array_equal(a.split.train, b.split.train)
 
 
+def test_the_learning_rate_decays_net_by_net_on_a_plateau():
+    """``_LearningRate``: a net whose validation NLL last improved at epoch b has its rate cut
+    by ``lr_decay`` at epochs b + k ``decay_patience`` (k = 1..lr_decays), going back to its
+    best weights each time; a cut net's update is the optimiser's scaled by its factor; training
+    stops when every net is ``patience`` epochs past its last improvement or cut with no cut
+    left. ``lr_decay = 1``: a constant rate, stopping ``patience`` epochs after the last
+    improvement of any net (the rule before)."""
+    from surrogate._train import _Best, _LearningRate
+
+    model = EnsembleMLP(3, 2, members=2, hidden=(4,), seed=0)  # 2 nets
+    best = _Best.start(model)
+    best.epoch = torch.tensor([9, 20])  # the nets' last improvements
+    base = TrainConfig(lr=1.0, patience=30, decay_patience=7, lr_decays=3)
+
+    def run(config):
+        for p in model.parameters():
+            p.data.fill_(1.0)  # the "current" weights; the best are the initial ones
+        opt = torch.optim.SGD(model.parameters(), lr=config.lr)
+        rate, cuts = _LearningRate(opt, model, config), []
+        for epoch in range(21, 10_000):
+            before = rate.scale.clone()
+            stop = rate.stop_after(epoch, best)
+            cuts += [(s, epoch) for s in torch.nonzero(rate.scale != before).flatten().tolist()]
+            if stop:
+                return epoch, cuts, rate
+        raise AssertionError("never stopped")
+
+    stop, cuts, rate = run(TrainConfig(**{**base.__dict__, "lr_decay": 0.5}))
+    # net 0: quiet since 9, at epoch 21 already past 7: cut at once, then every 7 epochs
+    assert sorted(cuts) == [(0, 21), (0, 28), (0, 35), (1, 27), (1, 34), (1, 41)]
+    assert stop == 41 + 30
+    torch.testing.assert_close(rate.scale, torch.tensor([0.125, 0.125]))
+    for kept, p in zip(best.state, model.parameters(), strict=True):  # back to the best
+        torch.testing.assert_close(p, kept)
+    # a net's update is scaled by its factor: SGD on a gradient of ones
+    rate.scale = torch.tensor([1.0, 0.25])
+    w = model.weights[0]
+    start = w.detach().clone()
+    rate.before_step()
+    w.grad = torch.ones_like(w)
+    rate.opt.step()
+    rate.after_step()
+    torch.testing.assert_close(
+        w.detach() - start, -torch.tensor([1.0, 0.25]).view(2, 1, 1) * w.grad
+    )
+    stop, cuts, _ = run(base)  # lr_decay = 1
+    assert cuts == [] and stop == 20 + 30
+
+
 def _warm_start_as_before(surrogate, data, points, targets, weight, epochs, seed):
     """What ``explore``'s retraining did before ``fine_tune`` (commit fb8dc93, with
     ``surrogate._train.fit`` and the sweep copied field by field): the reference."""
@@ -861,6 +910,50 @@ def test_the_encoding_takes_the_tap_frequency_of_the_sweep(tmp_path):
     np.testing.assert_array_equal(loaded.encoder.encode(pts).features, b)
 
 
+def test_log_loss_tangents_are_extra_features_that_survive_a_round_trip(tmp_path):
+    """``log_tangents``: each layer's three loss tangents once more as log10, scaled so that
+    tan d = 1e-5 (and below: an elastic layer) gives 0 and tan d = 1 gives 1; the other
+    features are unchanged; training records it, a checkpoint round trip keeps it, and a
+    checkpoint written before it existed (no ``log_tangents`` entry) encodes without it."""
+    import dataclasses
+
+    from surrogate._encoding import Encoder as Enc
+    from surrogate._io import SweepData
+
+    space = load_space()
+    rng = np.random.default_rng(1)
+    pts = [space.point(rng.random(len(space.sampled))) for _ in range(40)]
+    plain, logged = Enc(space), Enc(space, log_tangents=True)
+    a, b = plain.encode(pts).features, logged.encode(pts).features
+    assert logged.n_features == plain.n_features + 3 * len(plain.material_roles)
+    names = logged.feature_names
+    for j, name in enumerate(plain.feature_names):  # the old features, unchanged
+        np.testing.assert_array_equal(b[:, names.index(name)], a[:, j])
+    for role in plain.material_roles:
+        for r in ("0.333", "1", "3"):
+            tan = b[:, names.index(f"{role}:tan_delta@{r}w")].astype(np.float64)
+            log = b[:, names.index(f"{role}:log10_tan_delta@{r}w")].astype(np.float64)
+            expect = (np.log10(np.maximum(tan, 1e-5)) + 5.0) / 5.0
+            on = tan > 0  # inactive and elastic layers: 0 in both
+            assert on.sum() > 10
+            np.testing.assert_allclose(log[on], expect[on], atol=1e-6)
+            assert np.all(log[~on] == 0.0)
+    data = SweepData(
+        folder=tmp_path, space=space, solver_version=SOLVER_VERSION, points=pts,
+        targets=rng.lognormal(size=(40, 2)), index=np.arange(40),
+        metric_names=("disp_at_1N_mm", "hysteresis_Nmm"), table_sha256="", n_rows=40,
+    )  # fmt: skip
+    config = dataclasses.replace(SHORT, max_epochs=2, patience=2, log_tangents=True)
+    trained = fit(data, config, progress=False).surrogate
+    assert trained.encoder.log_tangents and trained.model.n_inputs == logged.n_features
+    loaded = load_checkpoint(save_checkpoint(trained, tmp_path / "m.safetensors"))
+    assert loaded.encoder.log_tangents
+    np.testing.assert_array_equal(loaded.encoder.encode(pts).features, b)
+    old = dict(loaded.encoder.to_dict())
+    del old["log_tangents"]
+    assert not Enc.from_dict(space, old).log_tangents
+
+
 def test_predict_reads_the_design_file_of_simulate(tmp_path, capsys):
     """``fingertip predict`` takes the design TOML ``fingertip simulate`` takes: the same
     prediction as the design's point; outside the space, one line naming the parameter and its
@@ -918,6 +1011,24 @@ def test_a_warm_start_keeps_the_grouping_of_its_checkpoint(data):
     new = fit(data, config, progress=False, split=Split(split.train, split.val, split.test),
               init=old.surrogate)  # fmt: skip
     assert new.surrogate.model.groups == old.surrogate.model.groups
+    x = old.surrogate.encoder.encode(data.points).features
+    a = old.surrogate.predict_features(x)["mean"]
+    np.testing.assert_allclose(new.surrogate.predict_features(x)["mean"], a, rtol=1e-6)
+
+
+@pytest.mark.parametrize("before", [False, True])
+def test_a_warm_start_keeps_the_descriptors_of_its_checkpoint(data, before):
+    """A checkpoint trained with or without the log loss tangents is warm-started with its own
+    descriptors whatever the config says, and starts from exactly its weights."""
+    from surrogate._train import Split, TrainConfig, split_indices
+
+    split = split_indices(len(data.points), 0)
+    old = fit(data, TrainConfig(members=2, max_epochs=2, log_tangents=before), progress=False)
+    config = TrainConfig(members=2, max_epochs=1, patience=1, lr=0.0, log_tangents=not before)
+    new = fit(data, config, progress=False, split=Split(split.train, split.val, split.test),
+              init=old.surrogate)  # fmt: skip
+    assert new.surrogate.encoder.log_tangents is before
+    assert new.surrogate.header["training"]["log_tangents"] is before
     x = old.surrogate.encoder.encode(data.points).features
     a = old.surrogate.predict_features(x)["mean"]
     np.testing.assert_allclose(new.surrogate.predict_features(x)["mean"], a, rtol=1e-6)
