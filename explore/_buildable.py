@@ -278,8 +278,9 @@ def material_notes(
         e_best = best["errors_vs_targets"][m]
         if abs(e_best) >= abs(e):
             notes.append(
-                f"buildable: {m}: no FE-confirmed design does better ({100 * e_best:+.1f} %), "
-                "so the search names no material property for it"
+                f"buildable: {m}: the best credible design does no better "
+                f"({100 * e_best:+.1f} % against {100 * e:+.1f} %), so it names no material "
+                "property for it"
             )
             continue
         if m.startswith("hysteresis"):

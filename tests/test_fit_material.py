@@ -526,7 +526,9 @@ def test_notes_name_the_material_a_missed_target_needs() -> None:
     # a target the best design misses as badly: no property is named
     worse = {**best, "errors_vs_targets": {**best["errors_vs_targets"], "hysteresis_Nmm": -0.9}}
     notes = material_notes({"best": worse, "buildable": build}, CATALOGUE, 0.05)
-    assert any("no FE-confirmed design does better" in n for n in notes)
+    assert any(
+        "the best credible design does no better (-90.0 % against -87.0 %)" in n for n in notes
+    )
     # no trusted design at all: what the catalogue offers, no property made up
     notes = material_notes({"best": None, "buildable": build}, CATALOGUE, 0.05)
     assert len(notes) == 3 and not any("would need" in n for n in notes)
