@@ -447,7 +447,7 @@ def test_the_learning_rate_decays_net_by_net_on_a_plateau():
     model = EnsembleMLP(3, 2, members=2, hidden=(4,), seed=0)  # 2 nets
     best = _Best.start(model)
     best.epoch = torch.tensor([9, 20])  # the nets' last improvements
-    base = TrainConfig(lr=1.0, patience=30, decay_patience=7, lr_decays=3)
+    base = TrainConfig(lr=1.0, patience=30, decay_patience=7, lr_decays=3, lr_decay=1.0)
 
     def run(config):
         for p in model.parameters():
@@ -888,8 +888,8 @@ def test_the_encoding_takes_the_tap_frequency_of_the_sweep(tmp_path):
     space = load_space()
     rng = np.random.default_rng(0)
     pts = [space.point(rng.random(len(space.sampled))) for _ in range(40)]
-    slow = Encoder(space)
-    fast = Encoder(space, omega_rad_s=2 * math.pi * 1.0)
+    slow = Encoder(space, log_tangents=True)  # as trained by default
+    fast = Encoder(space, omega_rad_s=2 * math.pi * 1.0, log_tangents=True)
     a, b = slow.encode(pts).features, fast.encode(pts).features
     tan = [j for j, f in enumerate(slow.feature_names) if "tan_delta" in f or "storage" in f]
     rest = [j for j in range(a.shape[1]) if j not in tan]
