@@ -191,6 +191,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         retry_failed=args.retry_failed,
         progress=not args.no_progress,
         catalogues=user,
+        start=args.start,
     )
     print(
         f"{summary.n_designs} designs in {summary.folder}: {summary.ok} ok, {summary.failed} "
@@ -220,6 +221,13 @@ def _add_sweep(p: argparse.ArgumentParser) -> None:
         "folder needs the same seed",
     )
     p.add_argument("--sampler", choices=["sobol", "lhs"], default="sobol")
+    p.add_argument(
+        "--start",
+        type=int,
+        default=0,
+        help="first design of the sample to run (default 0): --start 4096 --n 6144 runs designs "
+        "4096-6143 of the Sobol sample, a segment that scripts/merge_sweeps.py joins to others",
+    )
     p.add_argument("--retry-failed", action="store_true", help="run failed designs again")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--set", action="append", metavar="SECTION.FIELD=VALUE")

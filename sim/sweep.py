@@ -33,7 +33,7 @@ from .pool import process_pool
 from .provenance import check_folder_kind, json_safe, provenance
 from .simulate import simulate
 from .space import DesignSpace, point_to_design, space_from_dict
-from .sweep_folder import SweepStore, read_config, write_config, write_meta
+from .sweep_folder import SweepStore, merge_tables, read_config, write_config, write_meta
 
 __all__ = [
     "SweepStore",
@@ -143,10 +143,14 @@ def evaluate_point(
     return record
 
 
-def sweep_config(space: DesignSpace, n: int, seed: int, sampler: str, options: SimOptions) -> dict:
+def sweep_config(
+    space: DesignSpace, n: int, seed: int, sampler: str, options: SimOptions, start: int = 0
+) -> dict:
     """A sweep folder's ``config.json``: what its records depend on (``run_sweep`` refuses to
-    resume a folder whose config differs, and ``scripts/migrate_sweep.py`` writes a new one)."""
-    return {
+    resume a folder whose config differs, and ``scripts/migrate_sweep.py`` writes a new one).
+    ``start`` > 0 (a segment: the sample's designs ``start`` to ``n - 1``) is recorded; a whole
+    sample's config has no ``start``, as before segments existed."""
+    config = {
         "space": space.to_dict(),
         "n": n,
         "seed": seed,
@@ -154,6 +158,9 @@ def sweep_config(space: DesignSpace, n: int, seed: int, sampler: str, options: S
         "options": dataclasses.asdict(options),
         "solver_version": SOLVER_VERSION,
     }
+    if start:
+        config["start"] = start
+    return config
 
 
 #: what a sweep's config field is called in an error message
@@ -163,6 +170,7 @@ _FIELD_WORDS = {
     "sampler": "another --sampler",
     "options": "other simulation options (--set)",
     "solver_version": "another solver version",
+    "start": "another --start",
 }
 
 
@@ -179,8 +187,14 @@ def _check_config(folder: Path, config: dict) -> None:
         raise DesignError(
             "--out", f"{path} is not readable JSON ({exc}); choose a new folder"
         ) from None
+    if "segments" in old:
+        raise DesignError(
+            "--out",
+            f"{folder} is a merge of sweep folders (scripts/merge_sweeps.py): resume the "
+            "segments in their own folders, then merge them again",
+        )
     for field, words in _FIELD_WORDS.items():
-        if old.get(field) != json.loads(json.dumps(config[field])):
+        if old.get(field) != json.loads(json.dumps(config.get(field))):
             raise DesignError(
                 "--out",
                 f"{folder} holds a sweep with {words}; resume it with the same arguments "
@@ -224,8 +238,13 @@ def run_sweep(
     progress: bool = True,
     on_record: Callable[[str, dict], None] | None = None,
     catalogues: Sequence[UserCatalogue] = (),
+    start: int = 0,
 ) -> SweepSummary:
     """Evaluate ``n`` sampled designs of ``space`` into the folder ``out`` (resumable).
+
+    ``start`` > 0: a segment, the Sobol sample's designs ``start`` to ``n - 1`` only (their
+    ``index`` in table.csv is their position in the sample), so that a large sweep can be made
+    in pieces, in several folders or sessions, and joined by ``scripts/merge_sweeps.py``.
 
     ``catalogues``: the user's ``--catalogue`` files, recorded (path, sha256) in config.json; a
     resume with other files is refused. The user materials the space names travel with it
@@ -234,14 +253,20 @@ def run_sweep(
         raise DesignError("--n", f"must be >= 1, got {n}")
     if workers < 1:
         raise DesignError("--workers", f"must be >= 1, got {workers}")
+    if not 0 <= start < n:
+        raise DesignError("--start", f"must be in [0, --n - 1] = [0, {n - 1}], got {start}")
+    if start and sampler != "sobol":
+        raise DesignError(
+            "--start", f"a segment needs --sampler sobol (its prefixes nest), got {sampler}"
+        )
     options = options or SimOptions()
     folder = Path(out)
     check_folder_kind(folder, "sweep")  # never into another command's folder
-    config = sweep_config(space, n, seed, sampler, options)
+    config = sweep_config(space, n, seed, sampler, options, start)
     if catalogues:  # the --catalogue files, for the record (the space holds their materials)
         config["catalogues"] = [c.record() for c in catalogues]
     _check_config(folder, config)
-    points = sample_points(space, n, seed, sampler)
+    points = sample_points(space, n, seed, sampler)[start:]
     keys = [record_key(p, options, space.catalogue) for p in points]
     materials = material_tables({str(m.name): m for m in space.materials}) or None
     client = _connect(scheduler) if scheduler else None  # refused before the folder is made
@@ -283,7 +308,7 @@ def run_sweep(
             _run_local(workers, todo, options_dict, store_result, materials)
     finally:
         bar.close()
-        store.consolidate(keys, space.names)
+        store.consolidate(keys, space.names, first_index=start)
     final = store.load()
     statuses = [final[k]["status"] for k in dict.fromkeys(keys) if k in final]
     return SweepSummary(
@@ -295,6 +320,54 @@ def run_sweep(
         computed=len(todo),
         wall_time_s=time.perf_counter() - t0,
     )
+
+
+def merge_sweeps(folders: Sequence[str | Path], out: str | Path) -> tuple[int, int]:
+    """Join segments of one sample (``run_sweep(..., start=)``: the same space, seed, sampler,
+    options, solver version and catalogues) into the new sweep folder ``out``, whose table
+    ``fingertip train`` reads: config.json (``n`` the largest, ``start`` the smallest, the
+    segments listed), meta.json, and the tables' rows by index (no records nor curves: train
+    from it, resume the segments). Returns ``(rows, segments)``; a ``DesignError`` naming the
+    folder whose configuration differs or whose designs overlap another's."""
+    folders = [Path(f) for f in folders]
+    out = Path(out)
+    if len(folders) < 2:
+        raise DesignError("SWEEPS", f"give at least two sweep folders, got {len(folders)}")
+    if out.exists():
+        raise DesignError("--out", f"{out} exists; choose a new folder")
+    configs = []
+    for folder in folders:
+        try:
+            configs.append(read_config(folder))
+        except (OSError, ValueError) as exc:
+            raise DesignError("SWEEPS", f"{folder} is not a sweep folder ({exc})") from None
+    first = configs[0]
+    for folder, config in zip(folders[1:], configs[1:], strict=True):
+        for field, words in _FIELD_WORDS.items():
+            if field != "start" and config.get(field) != first.get(field):
+                raise DesignError("SWEEPS", f"{folder} is a sweep with {words} than {folders[0]}")
+        if catalogue_hashes(config) != catalogue_hashes(first):
+            raise DesignError("SWEEPS", f"{folder} has other --catalogue files than {folders[0]}")
+    merged = {k: v for k, v in first.items() if k != "start"}
+    merged["n"] = max(c["n"] for c in configs)
+    start = min(c.get("start", 0) for c in configs)
+    if start:
+        merged["start"] = start
+    merged["segments"] = [
+        {"folder": str(f), "start": c.get("start", 0), "n": c["n"]}
+        for f, c in zip(folders, configs, strict=True)
+    ]
+    out.mkdir(parents=True)
+    try:
+        rows, _ = merge_tables(folders, out)
+    except (OSError, ValueError) as exc:
+        for path in out.iterdir():
+            path.unlink()
+        out.rmdir()
+        raise DesignError("SWEEPS", str(exc).splitlines()[0]) from None
+    write_config(out, merged)
+    write_meta(out, provenance(merged, merged["seed"], kind="sweep"))
+    return rows, len(folders)
 
 
 def _progress(total: int, enabled: bool):

@@ -34,6 +34,7 @@ __all__ = [
     "RECORDS",
     "TABLE",
     "SweepStore",
+    "merge_tables",
     "read_config",
     "table_header",
     "write_config",
@@ -102,8 +103,9 @@ class SweepStore:
         self.records_dir.mkdir(parents=True, exist_ok=True)
         write_json(self.records_dir / f"{key}.json", {"key": key, **record}, indent=None)
 
-    def consolidate(self, keys: list[str], names: list[str]) -> None:
-        """Rebuild table.csv and curves.jsonl for ``keys`` (the sweep's designs, in order)."""
+    def consolidate(self, keys: list[str], names: list[str], first_index: int = 0) -> None:
+        """Rebuild table.csv and curves.jsonl for ``keys`` (the sweep's designs, in order; the
+        first one's ``index`` is ``first_index``: a segment's, its position in the sample)."""
         records = self.load()
         metric_names = list(METRICS)
         diag_names = diagnostic_names()
@@ -115,7 +117,7 @@ class SweepStore:
         ):
             writer = csv.writer(fh)
             writer.writerow(table_header(names))
-            for i, key in enumerate(keys):
+            for i, key in enumerate(keys, start=first_index):
                 rec = records.get(key)
                 if rec is None:
                     continue
@@ -140,6 +142,33 @@ class SweepStore:
                     fc.write(
                         json.dumps({"index": i, "key": key, "curves": rec.get("curves", {})}) + "\n"
                     )
+
+
+def merge_tables(folders: list[Path], out: Path) -> tuple[int, list[str]]:
+    """Write ``out``/table.csv: the rows of every folder's table.csv, by ``index``; returns the
+    number of rows and the header. A ``ValueError`` when the headers differ or an ``index``
+    occurs twice (segments of one sample never overlap)."""
+    header: list[str] | None = None
+    rows: dict[int, list[str]] = {}
+    for folder in folders:
+        with (Path(folder) / TABLE).open(newline="") as fh:
+            reader = csv.reader(fh)
+            head = next(reader)
+            if header is None:
+                header = head
+            elif head != header:
+                raise ValueError(f"{folder / TABLE} has other columns than {folders[0] / TABLE}")
+            for row in reader:
+                i = int(row[0])
+                if i in rows:
+                    raise ValueError(f"design {i} is in more than one table ({folder / TABLE})")
+                rows[i] = row
+    assert header is not None
+    with replacing(Path(out) / TABLE) as tmp, tmp.open("w", newline="") as fh:
+        writer = csv.writer(fh)
+        writer.writerow(header)
+        writer.writerows(rows[i] for i in sorted(rows))
+    return len(rows), header
 
 
 def _cells(values: dict[str, Any], names: list[str]) -> list[Any]:

@@ -322,3 +322,66 @@ def test_default_space_brackets_every_human_value():
     for name, target in load_targets().values.items():
         vals = [r[name] for r in results.values()]
         assert min(vals) < target < max(vals), (name, vals)
+
+
+# ----------------------------------------------------------------------------- segments
+def _fake_fe(point, options_dict, materials=None):
+    """A record without FE: metrics that are functions of the point (same point, same bits)."""
+    from sim.metrics import METRICS
+    from sim.provenance import json_safe
+
+    h = float(point["core.mu0_MPa"]) * 10 + float(point["core.alpha"])
+    metrics = {m: h + k for k, m in enumerate(METRICS)}
+    return {"params": json_safe(point), "status": "ok", "reason": "", "metrics": metrics,
+            "diagnostics": {}, "curves": {}, "wall_time_s": 0.0}  # fmt: skip
+
+
+def test_segments_of_a_sample_merge_into_the_whole_sweep(tiny_space, tmp_path, monkeypatch):
+    """``run_sweep(start=)`` runs the sample's designs start..n-1 only, indexed by their position
+    in the sample; ``merge_sweeps`` of segments [0, 3) and [3, 6) gives the very table of one
+    sweep of 6, which ``read_sweep`` reads; overlapping segments, segments of another seed, a
+    start out of range or with another sampler, and resuming a merged folder are refused with
+    the field named."""
+    import sim.sweep as sweep_mod
+    from sim.sweep import merge_sweeps
+    from surrogate._io import read_sweep
+
+    monkeypatch.setattr(sweep_mod, "evaluate_point", _fake_fe)
+    space = load_space(tiny_space)
+    kw = {"workers": 1, "progress": False}
+    run_sweep(space, 6, tmp_path / "whole", **kw)
+    run_sweep(space, 3, tmp_path / "a", **kw)
+    seg = run_sweep(space, 6, tmp_path / "b", start=3, **kw)
+    assert seg.n_designs == 3 and seg.computed == 3
+    assert [r["index"] for r in _table(tmp_path / "b")] == ["3", "4", "5"]
+    assert json.loads((tmp_path / "b" / "config.json").read_text())["start"] == 3
+    assert "start" not in json.loads((tmp_path / "a" / "config.json").read_text())
+    rows, n = merge_sweeps([tmp_path / "b", tmp_path / "a"], tmp_path / "ab")
+    assert (rows, n) == (6, 2)
+    assert _table(tmp_path / "ab") == _table(tmp_path / "whole")
+    config = json.loads((tmp_path / "ab" / "config.json").read_text())
+    assert config["n"] == 6 and "start" not in config and len(config["segments"]) == 2
+    data = read_sweep(tmp_path / "ab", trusted_only=False)
+    assert sorted(int(i) for i in data.index) == list(range(6))
+    # refusals, each naming its field
+    run_sweep(space, 4, tmp_path / "a4", **kw)
+    with pytest.raises(DesignError, match="more than one table"):
+        merge_sweeps([tmp_path / "a", tmp_path / "a4"], tmp_path / "x")
+    assert not (tmp_path / "x").exists()
+    run_sweep(space, 6, tmp_path / "s7", start=3, seed=7, **kw)
+    with pytest.raises(DesignError, match="another --seed"):
+        merge_sweeps([tmp_path / "a", tmp_path / "s7"], tmp_path / "y")
+    with pytest.raises(DesignError, match=r"--start.*\[0, 5\]"):
+        run_sweep(space, 6, tmp_path / "z", start=6, **kw)
+    with pytest.raises(DesignError, match=r"--start.*sobol"):
+        run_sweep(space, 6, tmp_path / "z", start=3, sampler="lhs", **kw)
+    with pytest.raises(DesignError, match="merge of sweep folders"):
+        run_sweep(space, 6, tmp_path / "ab", **kw)
+    with pytest.raises(DesignError, match="another --start"):
+        run_sweep(space, 6, tmp_path / "b", start=2, **kw)
+
+
+def test_cli_sweep_start_out_of_range_is_one_line(tiny_space, tmp_path):
+    p = _cli("sweep", tiny_space, "--n", 3, "--start", 3, "--out", tmp_path / "s")
+    assert p.returncode == 2 and "--start" in p.stderr and "Traceback" not in p.stderr
+    assert len(p.stderr.strip().splitlines()) == 1 and not (tmp_path / "s").exists()
