@@ -357,13 +357,9 @@ def merge_sweeps(folders: Sequence[str | Path], out: str | Path) -> tuple[int, i
         {"folder": str(f), "start": c.get("start", 0), "n": c["n"]}
         for f, c in zip(folders, configs, strict=True)
     ]
-    out.mkdir(parents=True)
     try:
         rows, _ = merge_tables(folders, out)
     except (OSError, ValueError) as exc:
-        for path in out.iterdir():
-            path.unlink()
-        out.rmdir()
         raise DesignError("SWEEPS", str(exc).splitlines()[0]) from None
     write_config(out, merged)
     write_meta(out, provenance(merged, merged["seed"], kind="sweep"))

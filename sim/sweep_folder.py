@@ -145,9 +145,10 @@ class SweepStore:
 
 
 def merge_tables(folders: list[Path], out: Path) -> tuple[int, list[str]]:
-    """Write ``out``/table.csv: the rows of every folder's table.csv, by ``index``; returns the
-    number of rows and the header. A ``ValueError`` when the headers differ or an ``index``
-    occurs twice (segments of one sample never overlap)."""
+    """Make the folder ``out`` with a table.csv of the rows of every folder's table.csv, by
+    ``index``; returns the number of rows and the header. A ``ValueError`` (and no ``out``)
+    when the headers differ or an ``index`` occurs twice (segments of one sample never
+    overlap)."""
     header: list[str] | None = None
     rows: dict[int, list[str]] = {}
     for folder in folders:
@@ -164,6 +165,7 @@ def merge_tables(folders: list[Path], out: Path) -> tuple[int, list[str]]:
                     raise ValueError(f"design {i} is in more than one table ({folder / TABLE})")
                 rows[i] = row
     assert header is not None
+    Path(out).mkdir(parents=True)
     with replacing(Path(out) / TABLE) as tmp, tmp.open("w", newline="") as fh:
         writer = csv.writer(fh)
         writer.writerow(header)

@@ -70,7 +70,10 @@ class TrainConfig:
     # (``lr_decay = 1``: a constant rate, the rule before session 13). On the 4096-design sweep
     # (``docs/surrogate_accuracy.md``, 3482 designs, fixed test split, 3 seeds) the two
     # together took the hysteresis median from 2.20 to 2.06 % and its 95th percentile from 20
-    # to 18 %, the displacement medians from 0.34-0.38 to 0.27-0.31 %, in half the epochs
+    # to 18 %, the displacement medians from 0.34-0.38 to 0.27-0.31 %, in half the epochs.
+    # One setting, not tuned: a decay after half the early-stopping patience, by 0.3 (between
+    # ReduceLROnPlateau's default 0.1 and a gentle 0.5), three times: the last rate 1/37 of
+    # the first
     log_tangents: bool = True
     lr_decay: float = 0.3
     lr_decays: int = 3
@@ -407,7 +410,7 @@ def _train(
     x_va, z_va, m_va, c_va = val
     m_va = m_va.unsqueeze(0) * net_mask
     best = _Best.start(model)
-    rate = _LearningRate(opt, model, config)
+    rate = _LearningRate(model, config)
     history: dict[str, list[float]] = {"train_nll": [], "val_nll": []}
     epoch = 0
     with _deterministic():
@@ -448,33 +451,28 @@ class _LearningRate:
     an improvement or a decay and has no decay left. The nets share one optimiser: a net's
     rate is applied by scaling its update (Adam's step is proportional to the rate)."""
 
-    def __init__(self, opt: torch.optim.Optimizer, model: EnsembleMLP, config: TrainConfig) -> None:
-        self.opt, self.config = opt, config
+    def __init__(self, model: EnsembleMLP, config: TrainConfig) -> None:
+        self.config = config
         self.params = list(model.parameters())
         decays = config.lr_decays if config.lr_decay < 1.0 else 0
         self.left = torch.full((model.nets,), decays, dtype=torch.long)
         self.since = torch.full((model.nets,), -1, dtype=torch.long)
         self.scale = torch.ones(model.nets)
-        self._before: list[torch.Tensor] | None = None
-
-    @property
-    def constant(self) -> bool:
-        """Every net at the configured rate (the optimiser's steps are left as they are)."""
-        return bool((self.scale == 1.0).all())
+        # the weights before a step (buffers made at the first decay) and, per parameter, the
+        # scale shaped to broadcast over its net (none while every net is at the full rate)
+        self._before: list[torch.Tensor] = []
+        self._factor: list[torch.Tensor] = []
 
     def before_step(self) -> None:
-        if not self.constant:
-            self._before = [p.detach().clone() for p in self.params]
+        for old, p in zip(self._before, self.params, strict=False):  # none before a decay
+            old.copy_(p.detach())
 
     def after_step(self) -> None:
-        """Each net's update scaled by its rate's factor."""
-        if self._before is None:
-            return
-        with torch.no_grad():
-            for p, old in zip(self.params, self._before, strict=True):
-                f = self.scale.view(-1, *([1] * (p.dim() - 1)))
-                p.copy_(old + f * (p - old))
-        self._before = None
+        """Each net's update scaled by its rate's factor: ``old + scale (new - old)``."""
+        if self._factor:
+            with torch.no_grad():
+                for p, old, f in zip(self.params, self._before, self._factor, strict=True):
+                    p.sub_(old).mul_(f).add_(old)
 
     def stop_after(self, epoch: int, best: _Best) -> bool:
         """After ``epoch``: decay the rate of every net due; True when training is over."""
@@ -484,6 +482,9 @@ class _LearningRate:
             self.scale[due] *= self.config.lr_decay
             self.left[due] -= 1
             self.since[due] = epoch
+            if not self._before:  # views of ``scale``: they follow its later decays
+                self._before = [torch.empty_like(p) for p in self.params]
+                self._factor = [self.scale.view(-1, *[1] * (p.dim() - 1)) for p in self.params]
             with torch.no_grad():  # back to the best weights of the decayed nets
                 for kept, p in zip(best.state, self.params, strict=True):
                     p[due] = kept[due]
@@ -511,7 +512,7 @@ def _train_epoch(
     net_mask: torch.Tensor,
     order: torch.Tensor,
     config: TrainConfig,
-    rate: _LearningRate | None = None,
+    rate: _LearningRate,
 ) -> torch.Tensor:
     """One pass over the training designs in minibatches, each member in its own ``order`` (a
     row per member); the mean training loss of each net."""
@@ -527,11 +528,9 @@ def _train_epoch(
         )
         opt.zero_grad(set_to_none=True)
         loss.sum().backward()
-        if rate is not None:
-            rate.before_step()
+        rate.before_step()
         opt.step()
-        if rate is not None:
-            rate.after_step()
+        rate.after_step()
         total += loss.detach()
         steps += 1
     return total / steps

@@ -452,8 +452,7 @@ def test_the_learning_rate_decays_net_by_net_on_a_plateau():
     def run(config):
         for p in model.parameters():
             p.data.fill_(1.0)  # the "current" weights; the best are the initial ones
-        opt = torch.optim.SGD(model.parameters(), lr=config.lr)
-        rate, cuts = _LearningRate(opt, model, config), []
+        rate, cuts = _LearningRate(model, config), []
         for epoch in range(21, 10_000):
             before = rate.scale.clone()
             stop = rate.stop_after(epoch, best)
@@ -469,17 +468,19 @@ def test_the_learning_rate_decays_net_by_net_on_a_plateau():
     torch.testing.assert_close(rate.scale, torch.tensor([0.125, 0.125]))
     for kept, p in zip(best.state, model.parameters(), strict=True):  # back to the best
         torch.testing.assert_close(p, kept)
-    # a net's update is scaled by its factor: SGD on a gradient of ones
-    rate.scale = torch.tensor([1.0, 0.25])
+    # a net's update is scaled by its factor: net 0 alone cut at epoch 16, then SGD on a
+    # gradient of ones
+    rate = _LearningRate(model, TrainConfig(**{**base.__dict__, "lr_decay": 0.5}))
+    assert not rate.stop_after(16, best)
+    torch.testing.assert_close(rate.scale, torch.tensor([0.5, 1.0]))
+    opt = torch.optim.SGD(model.parameters(), lr=1.0)
     w = model.weights[0]
     start = w.detach().clone()
     rate.before_step()
     w.grad = torch.ones_like(w)
-    rate.opt.step()
+    opt.step()
     rate.after_step()
-    torch.testing.assert_close(
-        w.detach() - start, -torch.tensor([1.0, 0.25]).view(2, 1, 1) * w.grad
-    )
+    torch.testing.assert_close(w.detach() - start, -torch.tensor([0.5, 1.0]).view(2, 1, 1) * w.grad)
     stop, cuts, _ = run(base)  # lr_decay = 1
     assert cuts == [] and stop == 20 + 30
 
@@ -917,13 +918,12 @@ def test_log_loss_tangents_are_extra_features_that_survive_a_round_trip(tmp_path
     checkpoint written before it existed (no ``log_tangents`` entry) encodes without it."""
     import dataclasses
 
-    from surrogate._encoding import Encoder as Enc
     from surrogate._io import SweepData
 
     space = load_space()
     rng = np.random.default_rng(1)
     pts = [space.point(rng.random(len(space.sampled))) for _ in range(40)]
-    plain, logged = Enc(space), Enc(space, log_tangents=True)
+    plain, logged = Encoder(space), Encoder(space, log_tangents=True)
     a, b = plain.encode(pts).features, logged.encode(pts).features
     assert logged.n_features == plain.n_features + 3 * len(plain.material_roles)
     names = logged.feature_names
@@ -951,7 +951,7 @@ def test_log_loss_tangents_are_extra_features_that_survive_a_round_trip(tmp_path
     np.testing.assert_array_equal(loaded.encoder.encode(pts).features, b)
     old = dict(loaded.encoder.to_dict())
     del old["log_tangents"]
-    assert not Enc.from_dict(space, old).log_tangents
+    assert not Encoder.from_dict(space, old).log_tangents
 
 
 def test_predict_reads_the_design_file_of_simulate(tmp_path, capsys):
