@@ -179,7 +179,8 @@ def mms_section(lines: list[str], quick: bool) -> tuple[float, float]:
         f"u_exact = ({fv.MMS_FIELD[0]}, {fv.MMS_FIELD[1]}) mm: smooth, not polynomial, strains "
         "up to ~10 %. Body force b = -Div P(u_exact) from the energy written from scratch in "
         "sympy (A = d2U/dF dF, b_i = -A_iJkL u_k,LJ), assembled with a scikit-fem `LinearForm` "
-        "on `disc.basis`; u_exact prescribed at every boundary P2 node; the load applied in "
+        "on `disc.skfem_basis()`; u_exact prescribed at every boundary P2 node; the load applied "
+        "in "
         "4 steps from rest (each started from the linearised response to the boundary "
         "increment) and solved with Newton on `disc.evaluate`/`tangent` to |r| < 1e-10 mu0 L.",
         "",

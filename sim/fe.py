@@ -1,10 +1,11 @@
 """Total-Lagrangian P2 plane-strain discretisation with a lean, vectorised assembly.
 
-scikit-fem supplies the P2 basis (shape-function gradients and quadrature weights on the reference
-configuration) and the degree-of-freedom map. The Newton loop then needs the residual and the
-tangent thousands of times per design, so they are assembled here directly from those arrays:
-one batched evaluation of the constitutive law per layer, element vectors and matrices from a
-few batched ``matmul`` calls, and a scatter into a CSR pattern that is built once
+The P2 basis (shape-function gradients and quadrature weights on the reference configuration)
+and the degree-of-freedom map are scikit-fem's, computed by ``sim._p2`` without importing it
+(equal bit for bit; ``skfem_basis`` gives scikit-fem's own). The Newton loop then needs the
+residual and the tangent thousands of times per design, so they are assembled here directly
+from those arrays: one batched evaluation of the constitutive law per layer, element vectors and
+matrices from a few batched ``matmul`` calls, and a scatter into a CSR pattern that is built once
 (``np.bincount`` into fixed positions).
 ``tests/test_fe.py`` checks this assembly against scikit-fem's own ``BilinearForm``/``LinearForm``
 assembly of the same weak form and against finite differences.
@@ -23,10 +24,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ._p2 import P2Basis, TriMesh
 from .mesh import FingertipMesh
 
 if TYPE_CHECKING:
     import scipy.sparse as sp
+    from skfem import Basis
 
     from .materials import Material
 
@@ -88,13 +91,11 @@ class Discretization:
         fixed, x fixed on the symmetry axis). Constrained dofs keep whatever value the
         displacement array holds, so prescribed displacements are set there."""
         order = np.argsort(fmesh.layer, kind="stable")
-        mesh = fmesh.mesh.__class__(fmesh.mesh.p, np.ascontiguousarray(fmesh.mesh.t[:, order]))
+        mesh = TriMesh(fmesh.mesh.p, np.ascontiguousarray(fmesh.mesh.t[:, order]))
         self.fmesh = fmesh
         self.mesh = mesh
         self.materials = materials
-        from skfem import Basis, ElementTriP2  # here: `import sim` stays light
-
-        basis = Basis(mesh, ElementTriP2(), intorder=INTORDER)
+        basis = P2Basis(mesh, INTORDER)  # = scikit-fem's Basis(mesh, ElementTriP2(), ...)
         self.basis = basis
         self.n_nodes = basis.N
         self.X = basis.doflocs.T.copy()  # (n_nodes, 2) reference coordinates
@@ -103,7 +104,7 @@ class Discretization:
         bounds = np.concatenate([[0], np.cumsum(counts)])
         self.slices = [slice(int(bounds[k]), int(bounds[k + 1])) for k in range(len(materials))]
         # shape-function gradients (6, 2, n_el, n_q) and weights (n_el, n_q)
-        self.dN = np.stack([basis.basis[a][0].grad for a in range(6)])
+        self.dN = basis.grads
         self._dN0 = np.ascontiguousarray(self.dN[:, 0].transpose(1, 2, 0))  # (e, q, a)
         self._dN1 = np.ascontiguousarray(self.dN[:, 1].transpose(1, 2, 0))
         self._dN01 = np.concatenate([self._dN0, self._dN1], axis=1)  # (e, 2q, a)
@@ -170,6 +171,13 @@ class Discretization:
         self.upper_indptr = np.searchsorted(
             self.pattern_rows[lower], np.arange(self.n_free + 1)
         ).astype(np.int32)
+
+    def skfem_basis(self, intorder: int = INTORDER) -> Basis:
+        """scikit-fem's own P2 basis on this mesh (imports scikit-fem: for verification, and
+        for forms assembled with scikit-fem on the FE's dof numbering, which it shares)."""
+        from skfem import Basis, ElementTriP2, MeshTri
+
+        return Basis(MeshTri(self.mesh.p, self.mesh.t), ElementTriP2(), intorder=intorder)
 
     # ------------------------------------------------------------------ helpers
     def _boundary_nodes(self, vertices: np.ndarray) -> np.ndarray:

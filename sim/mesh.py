@@ -1,4 +1,4 @@
-"""Conforming triangle meshes of the layered half cross-section (Triangle + scikit-fem).
+"""Conforming triangle meshes of the layered half cross-section (Triangle).
 
 The half x >= 0 is meshed with quality triangles (no angle below 30 degrees) that conform to the
 layer interfaces. The elements are smallest at the apex (the wedge's tip) and along the top of the
@@ -10,14 +10,11 @@ sampled nodes.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ._p2 import TriMesh
 from .geometry import Geometry, sample_curve, superellipse_points
-
-if TYPE_CHECKING:
-    from skfem import MeshTri
 
 __all__ = ["DEFAULT_MESH", "FingertipMesh", "MeshOptions", "build_mesh"]
 
@@ -86,7 +83,8 @@ class FingertipMesh:
     """A linear triangle mesh of the half section with its labelled boundaries.
 
     Attributes:
-        mesh: scikit-fem ``MeshTri`` (vertices ``p`` (2, n), triangles ``t`` (3, m)).
+        mesh: ``TriMesh`` (vertices ``p`` (2, n), triangles ``t`` (3, m); scikit-fem's
+            ``MeshTri`` numbering, ``sim._p2``).
         layer: (m,) layer index of each triangle, 0 = outermost.
         surface: vertex indices of the free outer surface ordered from the apex to the base
             corner.
@@ -94,7 +92,7 @@ class FingertipMesh:
         axis: vertex indices on the symmetry axis x = 0 (u_x = 0).
     """
 
-    mesh: MeshTri
+    mesh: TriMesh
     layer: np.ndarray
     surface: np.ndarray
     base: np.ndarray
@@ -109,7 +107,6 @@ def build_mesh(
     ``thicknesses_mm`` are the thicknesses of all layers but the last (outermost first).
     """
     import triangle
-    from skfem import MeshTri
 
     a, b, n = geometry.half_width_mm, geometry.height_mm, geometry.exponent
     size = options.sizer(geometry)
@@ -167,7 +164,7 @@ def build_mesh(
         )
     p, t = tri["vertices"], tri["triangles"]
     layer = tri["triangle_attributes"][:, 0].astype(int)
-    mesh = MeshTri(p.T.copy(), t.T.copy())
+    mesh = TriMesh(p.T.copy(), t.T.copy())
     return FingertipMesh(mesh, layer, *_boundaries(mesh, a, b, n))
 
 
@@ -177,7 +174,7 @@ def _areas(p: np.ndarray, t: np.ndarray) -> np.ndarray:
     return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
 
 
-def _boundaries(mesh: MeshTri, a: float, b: float, n: float):
+def _boundaries(mesh: TriMesh, a: float, b: float, n: float):
     tol = 1e-9 * max(a, b)
     facets = mesh.facets[:, mesh.boundary_facets()]
     p = mesh.p

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from fe_helpers import cauchy, compress, square_mesh, uniaxial_body
 from scipy.optimize import brentq
-from skfem import Basis, BilinearForm, ElementTriP2, ElementVector, LinearForm, asm
+from skfem import Basis, BilinearForm, ElementTriP2, ElementVector, LinearForm, MeshTri, asm
 from skfem.helpers import grad
 
 from sim import MeshOptions, SimOptions, homogeneous_design, simulate
@@ -234,7 +234,7 @@ def test_assembly_matches_scikit_fem_forms():
         dP = np.einsum("ij...,jk...->ik...", dF, S) + np.einsum("ij...,jk...->ik...", F, dS)
         return np.einsum("ij...,ij...", dP, grad(v))
 
-    vb = Basis(disc.mesh, ElementVector(ElementTriP2()), intorder=2)
+    vb = Basis(MeshTri(disc.mesh.p, disc.mesh.t), ElementVector(ElementTriP2()), intorder=2)
     nv = disc.mesh.p.shape[1]
     perm = np.empty(2 * disc.n_nodes, dtype=int)
     for c in range(2):
@@ -305,7 +305,6 @@ def test_rigid_base_contact_supports_the_body():
     below the base rests on it (no surface node penetrates more than the penalty allows) and the
     contact tangent matches finite differences."""
     import numpy as np
-    from skfem import MeshTri
 
     from sim.mesh import FingertipMesh
 
