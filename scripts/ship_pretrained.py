@@ -53,12 +53,12 @@ def main() -> None:
         "",
         "```bash",
         *(f"python scripts/migrate_sweep.py {src} {sweep}" for src in sorted(migrated)),
-        f"fingertip sweep --n {sweep_cfg['n']} --out {sweep} --workers 2 "
-        f"--seed {sweep_cfg['seed']}",
+        *_sweep_commands(sweep, sweep_cfg),
         f"fingertip train {sweep} --out {run} --seed {header['training']['seed']}",
         f"python scripts/ship_pretrained.py {run} {sweep}",
         "```",
         "",
+        *_segments_note(sweep_cfg),
         *(
             f"{n} of the sweep's records were carried over from `{src}` (an earlier solver "
             "version that computed them bit for bit as this one; `migrated` in each record)."
@@ -79,6 +79,37 @@ def main() -> None:
     ]
     (DEST / "README.md").write_text("\n".join(lines))
     print(f"shipped to {DEST}")
+
+
+def _sweep_commands(sweep: str, cfg: dict) -> list[str]:
+    """The commands that made the sweep: one ``fingertip sweep``, or, for a sweep merged from
+    segments (``config.json``'s ``segments``), one per segment and the merge."""
+    seed = cfg["seed"]
+    segments = cfg.get("segments")
+    if not segments:
+        return [f"fingertip sweep --n {cfg['n']} --out {sweep} --workers 2 --seed {seed}"]
+    lines = []
+    for seg in segments:
+        start = f"--start {seg['start']} " if seg["start"] else ""
+        lines.append(
+            f"fingertip sweep {start}--n {seg['n']} --out runs/seg_{seg['start']}_{seg['n']} "
+            f"--workers 2 --seed {seed}  # kept as {seg['folder']}"
+        )
+    folders = " ".join(seg["folder"] for seg in segments)
+    lines.append(f"python scripts/merge_sweeps.py {folders} --out {sweep}")
+    return lines
+
+
+def _segments_note(cfg: dict) -> list[str]:
+    if not cfg.get("segments"):
+        return []
+    return [
+        "The sweep was made in segments of the same Sobol sample (designs `start` to `n - 1`"
+        " each), whose tables were kept where each command's comment says, and merged"
+        " (`sim.sweep.merge_sweeps`). A segment kept as `surrogate/pretrained/default` is the"
+        " table shipped before this one (in the git history of that folder).",
+        "",
+    ]
 
 
 def _migrated(sweep: Path) -> dict[str, int]:
