@@ -107,7 +107,8 @@ def _segments_note(cfg: dict) -> list[str]:
         "The sweep was made in segments of the same Sobol sample (designs `start` to `n - 1`"
         " each), whose tables were kept where each command's comment says, and merged"
         " (`sim.sweep.merge_sweeps`). A segment kept as `surrogate/pretrained/default` is the"
-        " table shipped before this one (in the git history of that folder).",
+        " table shipped before this one; the `datasets/` copies are removed once shipped: both"
+        " stay in the git history.",
         "",
     ]
 
