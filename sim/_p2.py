@@ -43,7 +43,7 @@ class TriMesh:
 
     def __init__(self, p: np.ndarray, t: np.ndarray) -> None:
         self.p = np.ascontiguousarray(np.asarray(p, dtype=np.float64))
-        self.t = np.ascontiguousarray(np.sort(t, axis=0).astype(np.int32))
+        self.t = np.sort(t, axis=0).astype(np.int32)  # a new, contiguous array
 
     @cached_property
     def _entities(self) -> tuple[np.ndarray, np.ndarray]:
@@ -97,9 +97,7 @@ class P2Basis:
         self._A, self._b = A, b
         # ElementH1.gbasis: grad = invDF^T dphi, invDF = invA broadcast over the points
         invDF = np.einsum("ijk,l->ijkl", invA, np.ones(_QP.shape[-1]))
-        self.grads = np.stack(
-            [np.einsum("ijkl,il->jkl", invDF, _lbasis_grad(_QP, a)) for a in range(6)]
-        )
+        self.grads = np.stack([np.einsum("ijkl,il->jkl", invDF, g) for g in _lbasis_grads(_QP)])
         # CellBasis.dx: |det DF| times the weights
         self.dx = np.abs(np.tile(detA, (_QP.shape[-1], 1)).T) * np.broadcast_to(
             _QW, (nt, _QW.shape[-1])
@@ -123,14 +121,15 @@ class P2Basis:
         return self._map(_QP)
 
 
-def _lbasis_grad(X: np.ndarray, i: int) -> np.ndarray:
-    """ElementTriP2.lbasis: reference gradient (2, n) of shape function ``i`` at X (2, n)."""
+def _lbasis_grads(X: np.ndarray) -> list[np.ndarray]:
+    """ElementTriP2.lbasis: the reference gradients (2, n) of the six shape functions at X
+    (2, n), in its order and with its expressions."""
     x, y = X
-    return {
-        0: lambda: np.array([-3 + 4.0 * x + 4.0 * y, -3 + 4.0 * x + 4.0 * y]),
-        1: lambda: np.array([4.0 * x - 1, 0.0 * x]),
-        2: lambda: np.array([0.0 * x, 4.0 * y - 1]),
-        3: lambda: np.array([4 - 8.0 * x - 4.0 * y, -4.0 * x]),
-        4: lambda: np.array([4.0 * y, 4.0 * x]),
-        5: lambda: np.array([-4.0 * y, 4 - 4.0 * x - 8.0 * y]),
-    }[i]()
+    return [
+        np.array([-3 + 4.0 * x + 4.0 * y, -3 + 4.0 * x + 4.0 * y]),
+        np.array([4.0 * x - 1, 0.0 * x]),
+        np.array([0.0 * x, 4.0 * y - 1]),
+        np.array([4 - 8.0 * x - 4.0 * y, -4.0 * x]),
+        np.array([4.0 * y, 4.0 * x]),
+        np.array([-4.0 * y, 4 - 4.0 * x - 8.0 * y]),
+    ]

@@ -91,7 +91,7 @@ class Discretization:
         fixed, x fixed on the symmetry axis). Constrained dofs keep whatever value the
         displacement array holds, so prescribed displacements are set there."""
         order = np.argsort(fmesh.layer, kind="stable")
-        mesh = TriMesh(fmesh.mesh.p, np.ascontiguousarray(fmesh.mesh.t[:, order]))
+        mesh = TriMesh(fmesh.mesh.p, fmesh.mesh.t[:, order])  # contiguous, as scikit-fem's
         self.fmesh = fmesh
         self.mesh = mesh
         self.materials = materials

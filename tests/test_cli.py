@@ -836,3 +836,16 @@ def test_an_sqlite_file_given_as_a_journal_is_refused_with_its_url(
     assert main(["optimize", "--storage", str(db), "--out", str(out), "--no-progress"]) == 2
     line = assert_one_line_error(capsys.readouterr().err, "--storage")
     assert f"give it as sqlite:///{db}" in line and not out.exists()
+
+
+def test_run_from_scratch_sweeps_as_many_designs_as_the_shipped_table():
+    """``fingertip run --from-scratch`` remakes the shipped surrogate: its default ``--n`` is
+    the shipped sweep's (re-shipping a larger table must move it too)."""
+    import json
+    from pathlib import Path
+
+    from explore.cli import build_parser
+
+    shipped = Path(__file__).resolve().parents[1] / "surrogate/pretrained/default/config.json"
+    args = build_parser("run").parse_args(["run", "--from-scratch"])
+    assert args.n == json.loads(shipped.read_text())["n"]
