@@ -2,6 +2,7 @@
 
     python scripts/fe_time_study.py --n 12 --seed 1
     python scripts/fe_time_study.py --sweep runs/sweep_v22
+    python scripts/fe_time_study.py --breakdown --n 64 --seed 0
 
 Simulates ``n`` designs of the default space (a scrambled Sobol sample,
 ``sim.sweep.sample_points``) with every protocol and prints, summed over the designs:
@@ -15,6 +16,14 @@ Simulates ``n`` designs of the default space (a scrambled Sobol sample,
   stopped at its first violation would not do (its metrics are untrusted from there on);
 - the solver's own timings (``timings_s``) per factorisation and per evaluation, and the wall
   time per design: seconds, meaningful on a quiet machine only.
+
+``--breakdown`` instead simulates the designs as the sweep does (``SimOptions()``: a protocol
+stops at its first violation; ``--seed 0`` gives the first designs of the default sweep, those
+of ``benchmarks/bench_sweep.py``) and splits the mean wall time per design into the solver's
+timed parts (factorisation, triangular solves, tangent assembly, residual + material law) and
+the rest (Python's Newton loop, contact, recording, metrics), with the counts per design. The
+factorisations and solves alone are a floor for any faster assembly or law on this mesh:
+seconds, so on a quiet machine only.
 
 ``--sweep FOLDER`` instead reads a sweep's ``table.csv`` and prints the share of its FE wall
 time spent on designs beyond the validity limits (as recorded), by protocol.
@@ -127,6 +136,43 @@ def study(n: int, seed: int) -> None:
     )
 
 
+def breakdown(n: int, seed: int) -> None:
+    from sim.solver import TIMED
+
+    seconds = dict.fromkeys(TIMED, 0.0)
+    counts = dict.fromkeys(("factorizations", "evaluations", "newton_iterations"), 0)
+    wall = 0.0
+    for i, point in enumerate(sample_points(load_space(), n, seed)):
+        t0 = time.perf_counter()
+        res = simulate(point_to_design(point))
+        dt = time.perf_counter() - t0
+        wall += dt
+        for fig in res.protocols.values():
+            for key in seconds:
+                seconds[key] += fig.get("timings_s", {}).get(key, 0.0)
+            for key in counts:
+                counts[key] += fig.get(key, 0) or 0
+        made = sum(f.get("factorizations", 0) or 0 for f in res.protocols.values())
+        print(f"design {i}: {dt:.2f} s, {made} factorisations")
+    other = wall - sum(seconds.values())
+    print(f"\n{n} designs (seed {seed}), default options (stop at the first violation)")
+    print("per design: " + ", ".join(f"{v / n:.0f} {k}" for k, v in counts.items()))
+    print("| part | s per design | share | per call |")
+    print("|---|---|---|---|")
+    calls = {
+        "LDL^T factorisation": counts["factorizations"],
+        "tangent assembly": counts["factorizations"],
+        "residual+material": counts["evaluations"],
+    }
+    for key, s in seconds.items():
+        per = f"{1e3 * s / calls[key]:.2f} ms" if calls.get(key) else "-"
+        print(f"| {key} | {s / n:.3f} | {100 * s / wall:.0f} % | {per} |")
+    print(f"| the rest | {other / n:.3f} | {100 * other / wall:.0f} % | - |")
+    print(f"| wall | {wall / n:.3f} | 100 % | - |")
+    floor = (seconds["LDL^T factorisation"] + seconds["triangular solves"]) / n
+    print(f"\nfactorisations and solves alone: {floor:.2f} s per design (a floor at these counts)")
+
+
 def sweep_shares(folder: Path) -> None:
     with (folder / "table.csv").open(newline="") as fh:
         rows = [r for r in csv.DictReader(fh) if r["status"] == "ok"]
@@ -151,8 +197,11 @@ def main() -> None:
     ap.add_argument("--n", type=int, default=12)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sweep", type=Path, help="a sweep folder: time shares by validity")
+    ap.add_argument("--breakdown", action="store_true", help="seconds per part, as swept")
     args = ap.parse_args()
-    if args.sweep is not None:
+    if args.breakdown:
+        breakdown(args.n, args.seed)
+    elif args.sweep is not None:
         sweep_shares(args.sweep)
     else:
         study(args.n, args.seed)

@@ -62,10 +62,15 @@ class TriMesh:
         """The facets of each triangle (3, n_triangles): 0-1, 1-2, 0-2."""
         return self._entities[1]
 
-    def boundary_facets(self) -> np.ndarray:
-        """Indices of the facets that belong to one triangle only, ascending."""
+    @cached_property
+    def _boundary_facets(self) -> np.ndarray:
         counts = np.bincount(self.t2f.ravel(), minlength=self.facets.shape[1])
         return np.flatnonzero(counts == 1).astype(np.int32)
+
+    def boundary_facets(self) -> np.ndarray:
+        """Indices of the facets that belong to one triangle only, ascending (counted once per
+        mesh; a copy, so a caller cannot change the mesh's)."""
+        return self._boundary_facets.copy()
 
 
 class P2Basis:
