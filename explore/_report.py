@@ -122,14 +122,29 @@ def _design_words(answer: Mapping[str, Any]) -> list[str]:
 # ---------------------------------------------------------------------------------------------
 
 
+def _grouped(n: int) -> str:
+    """``n`` with its thousands apart, as the README writes them: 65 536."""
+    return f"{n:,}".replace(",", " ")
+
+
 def _intro(run: RunData) -> list[str]:
     rounds = {int(r) for r in run.column("round") if math.isfinite(r)}
     n_ok = sum(c.status == "ok" for c in run.confirmations)
+    screen = int(run.config.get("screen") or 0)
+    screened = (
+        f"screened {_grouped(screen * len(run.studies))} quasi-random designs "
+        f"({_grouped(screen)} for each of "
+        f"its {len(run.studies)} studies) and "
+        if screen and run.studies
+        else ""
+    )
+    best = " (the screens' best among them)" if screened else ""
     return [
         f"# Fingertip skin search: `{run.run_dir.name}`",
         "",
-        f"The search scored {run.n_trials} candidate designs with the neural surrogate over "
-        f"{len(rounds)} round(s), then re-ran {len(run.confirmations)} of them with the full "
+        f"With the neural surrogate, the search {screened}scored {run.n_trials} Optuna trials"
+        f"{best} over {len(rounds)} "
+        f"round(s), then re-ran {len(run.confirmations)} of them with the full "
         f"finite-element (FE) solver ({n_ok} succeeded). Only FE-confirmed designs count as "
         "answers: the surrogate proposes, the FE model decides. A design's score is the rms "
         f"relative error to the three tapping targets plus {WEDGE_WEIGHT:g} x its wedge effort "

@@ -371,6 +371,14 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     assert f"{best['readings']['sag_mm']:.2f}" in row and "outline" in row
     report = (out / "report.md").read_text()
     assert "figures/loops.png" in report or "figures/" in report
+    # what the surrogate scored: every study's screen (--screen 2048) and the Optuna trials
+    n_studies = len(json.loads((out / "studies.json").read_text()))
+    n_trials = len((out / "trials.csv").read_text().splitlines()) - 1
+    assert (
+        f"screened {2048 * n_studies:,} quasi-random designs (2,048 for each of its {n_studies} "
+        f"studies) and scored {n_trials} Optuna trials".replace(",", " ")
+        in report
+    )
     assert (out / "figures").is_dir() and any((out / "figures").glob("*.png"))
     # re-running the finished command computes nothing and rewrites nothing: every file keeps
     # its bytes and its modification time (summary.json its first wall_time_s), the same report
