@@ -19,7 +19,7 @@ import json
 import sys
 from pathlib import Path
 
-from explore._run_folder import read_summary
+from explore._run_folder import read_config, read_studies, read_summary, read_trials
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 START, END = "<!-- answer:start -->", "<!-- answer:end -->"
@@ -68,6 +68,22 @@ def _percent(e: float) -> str:
     return f"{'−' if e < 0 else '+'}{abs(100 * e):.0f} %"
 
 
+def _scored(folder: Path, rounds: int) -> str:
+    """What the surrogate scored: every study's quasi-random screen and the Optuna trials."""
+    screen = int((read_config(folder) or {}).get("screen") or 0)
+    studies = len(read_studies(folder))
+    trials, _ = read_trials(folder)
+    n_trials = len(next(iter(trials.values()))) if trials else 0
+    if not (screen and studies):
+        return f" The surrogate scored {n_trials} Optuna trials."
+    per_round = screen * studies // max(rounds, 1)
+    return (
+        f" The surrogate screened {screen * studies:,} designs ({per_round:,} a round: "
+        f"{screen:,} for each of {studies // max(rounds, 1)} studies) and scored "
+        f"{n_trials} Optuna trials.".replace(",", " ")
+    )
+
+
 def render(folder: Path) -> str:
     """The README block for the run folder ``folder``."""
     summary = read_summary(folder)
@@ -78,7 +94,8 @@ def render(folder: Path) -> str:
         f"`fingertip run --out {folder.as_posix()}`: {len(summary['rounds'])} rounds, "
         f"{summary['wall_time_s']:.0f} s (search {t.get('search_s', 0):.0f} s, FE "
         f"{t.get('fe_s', 0):.0f} s, retraining {t.get('retrain_s', 0):.0f} s); "
-        f"{len(confirmations)} designs confirmed with full FE, {credible} of them trusted.",
+        f"{len(confirmations)} designs confirmed with full FE, {credible} of them trusted."
+        + _scored(folder, len(summary["rounds"])),
         "",
         "| answer | design | 1 N / 4 N from touch (mm) | from the top (mm) | sag (mm) | "
         "hysteresis (N mm) | errors |",

@@ -366,6 +366,7 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     # the README's answer block is made from a run folder by scripts/readme_answer.py
     block = _readme_answer().render(out)
     assert f"{len(confs)} designs confirmed with full FE" in block
+    assert "(6 144 a round: 2 048 for each of 3 studies)" in block  # 2 rounds, --screen 2048
     assert block.count("\n| best ") == 4
     row = next(line for line in block.splitlines() if line.startswith("| best credible |"))
     assert f"{best['readings']['sag_mm']:.2f}" in row and "outline" in row
