@@ -21,7 +21,8 @@ Simulates ``n`` designs of the default space (a scrambled Sobol sample,
 stops at its first violation; ``--seed 0`` gives the first designs of the default sweep, those
 of ``benchmarks/bench_sweep.py``) and splits the mean wall time per design into the solver's
 timed parts (factorisation, triangular solves, tangent assembly, residual + material law) and
-the rest (Python's Newton loop, contact, recording, metrics), with the counts per design. The
+the rest (Python's Newton loop, contact, recording, metrics, and any protocol that failed:
+the solver's figures of a failed protocol are not returned), with the counts per design. The
 factorisations and solves alone are a floor for any faster assembly or law on this mesh:
 seconds, so on a quiet machine only.
 
