@@ -27,7 +27,7 @@ DEFAULT = ROOT / "surrogate" / "pretrained" / "default"
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--checkpoint", type=Path, default=DEFAULT / "model.safetensors")
-    ap.add_argument("--designs", type=Path, default=DEFAULT / "table.csv")
+    ap.add_argument("--designs", type=Path, default=DEFAULT / "table.csv.gz")
     ap.add_argument("--n", type=int, default=65536)
     ap.add_argument("--repeats", type=int, default=5)
     args = ap.parse_args()

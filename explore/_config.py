@@ -212,10 +212,9 @@ def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:
 # ----------------------------------------------------------------------------- setup
 def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     """The surrogate's training sweep: --dataset, the checkpoint's folder (a shipped checkpoint
-    carries its table.csv), or the sweep named in its header, whichever holds the table whose
+    carries its table, gzipped), or the sweep named in its header, whichever holds the table whose
     sha256 the header records."""
     from sim import sweep_folder
-    from sim.provenance import sha256_file
 
     want = surrogate.header.get("training_data", {}).get("table_sha256")
     places = [config.dataset, str(Path(config.surrogate).parent),
@@ -223,9 +222,9 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     for p in places:
         if not p:
             continue
-        table = Path(p) / sweep_folder.TABLE
+        table = sweep_folder.table_path(p)
         if table.exists() and (Path(p) / sweep_folder.CONFIG).exists():
-            if config.dataset or sha256_file(table) == want:
+            if config.dataset or sweep_folder.table_sha256(table) == want:
                 return Path(p)
     return None
 

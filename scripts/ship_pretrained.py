@@ -3,8 +3,9 @@
     python scripts/ship_pretrained.py runs/default_surrogate runs/default_sweep
 
 The shipped folder is what ``fingertip run`` starts from: ``model.safetensors`` (the
-checkpoint), ``table.csv`` + ``config.json`` (the training sweep without its curves: the
-checkpoint's header records the table's sha256, and active learning retrains on it),
+checkpoint), ``table.csv.gz`` + ``config.json`` (the training sweep without its curves,
+gzipped: the checkpoint's header records the sha256 of the uncompressed table, and active
+learning retrains on it),
 ``report.md`` / ``report.json`` (the held-out evaluation) and a README saying how it was made.
 """
 
@@ -15,7 +16,7 @@ import json
 import shutil
 from pathlib import Path
 
-from sim.provenance import sha256_file
+from sim.sweep_folder import TABLE, TABLE_GZ, table_path, table_sha256, write_table_gz
 from surrogate import load_checkpoint
 
 DEST = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained" / "default"
@@ -27,20 +28,22 @@ def main() -> None:
     ap.add_argument("sweep", type=Path, help="the sweep it was trained on")
     args = ap.parse_args()
     model = load_checkpoint(args.run / "model.safetensors")
-    table = args.sweep / "table.csv"
-    digest = sha256_file(table)
+    table = table_path(args.sweep)
+    digest = table_sha256(table)
     header = model.header
     if header["training_data"]["table_sha256"] != digest:
-        raise SystemExit("the checkpoint was not trained on this sweep's table.csv")
+        raise SystemExit(f"the checkpoint was not trained on this sweep's table ({table})")
     DEST.mkdir(parents=True, exist_ok=True)
     for src, name in (
         (args.run / "model.safetensors", "model.safetensors"),
         (args.run / "report.md", "report.md"),
         (args.run / "report.json", "report.json"),
-        (table, "table.csv"),
         (args.sweep / "config.json", "config.json"),
     ):
         shutil.copyfile(src, DEST / name)
+    if table != DEST / TABLE_GZ:
+        write_table_gz(table, DEST / TABLE_GZ)
+    (DEST / TABLE).unlink(missing_ok=True)  # the plain table of an earlier ship
     sweep_cfg = json.loads((args.sweep / "config.json").read_text())
     data = header["training_data"]
     report = json.loads((args.run / "report.json").read_text())
@@ -67,7 +70,8 @@ def main() -> None:
         "",
         f"- design space: `sim/data/default_space.toml` ({sweep_cfg['sampler']} sampling, "
         f"seed {sweep_cfg['seed']}), solver version {header['solver_version']}",
-        f"- dataset: `table.csv`, {data['n_rows']} designs, {data['n_used']} with FE results "
+        f"- dataset: `table.csv.gz` (gzip of the sweep's `table.csv`; the sha256 is that of the "
+        f"uncompressed table), {data['n_rows']} designs, {data['n_used']} with FE results "
         f"(train {len(data['split_table_index']['train'])}, validation "
         f"{len(data['split_table_index']['val'])}, test {len(data['split_table_index']['test'])})"
         f"; sha256 `{digest}`",

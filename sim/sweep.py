@@ -17,6 +17,7 @@ import json
 import math
 import os
 import time
+import zlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, wait
 from dataclasses import dataclass
@@ -359,7 +360,7 @@ def merge_sweeps(folders: Sequence[str | Path], out: str | Path) -> tuple[int, i
     ]
     try:
         rows, _ = merge_tables(folders, out)
-    except (OSError, ValueError) as exc:
+    except (OSError, ValueError, EOFError, zlib.error) as exc:  # EOFError, zlib: a damaged .gz
         raise DesignError("SWEEPS", str(exc).splitlines()[0]) from None
     write_config(out, merged)
     write_meta(out, provenance(merged, merged["seed"], kind="sweep"))

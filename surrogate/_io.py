@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import csv
+import gzip
 import json
 import math
+import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -16,7 +18,7 @@ from sim.errors import DesignError, read_toml
 from sim.metrics import METRICS, PROTOCOLS, diagnostic_names
 from sim.provenance import KINDS, folder_kind, sha256_file
 from sim.space import DesignSpace, space_from_dict
-from sim.sweep_folder import CONFIG, TABLE, read_config
+from sim.sweep_folder import CONFIG, open_table, read_config, table_path, table_sha256
 from sim.trust import TRUST_OUTPUTS, trust_censoring, trust_values
 
 __all__ = ["SweepData", "check_point", "read_points", "read_sweep", "sha256_file"]
@@ -52,7 +54,7 @@ def _cell(space: DesignSpace, name: str, text: str, where: str) -> Any:
 
 
 def _read_csv(path: Path, space: DesignSpace) -> list[dict[str, Any]]:
-    with path.open(newline="") as fh:
+    with open_table(path) as fh:
         reader = csv.DictReader(fh)
         header = reader.fieldnames or []
         unknown = [c for c in header if c not in space.names and c not in TABLE_COLUMNS]
@@ -90,9 +92,9 @@ def read_points(path: str | Path, space: DesignSpace) -> list[dict[str, Any]]:
     the space; or one flat table ``name = value``, dotted keys such as ``core.mu0_MPa = 0.05``
     work too) or a CSV file (one point per
     row, columns = point names, empty cell = inactive; a sweep's table.csv works, its
-    non-parameter columns are ignored)."""
+    non-parameter columns are ignored; ``.csv.gz``: gzip-compressed, as the shipped table)."""
     path = Path(path)
-    if path.suffix.lower() != ".csv":
+    if not path.name.lower().endswith((".csv", ".csv.gz")):
         data = read_toml(path, "DESIGNS")
         if isinstance(data.get("layers"), list):  # a design file, as `fingertip simulate` reads
             return [check_point(space, _design_point(data, space))]
@@ -103,6 +105,8 @@ def read_points(path: str | Path, space: DesignSpace) -> list[dict[str, Any]]:
         raise DesignError("DESIGNS", f"no such file: {path}") from None
     except IsADirectoryError:
         raise DesignError("DESIGNS", f"{path} is a directory, not a CSV file") from None
+    except (EOFError, gzip.BadGzipFile, zlib.error) as exc:
+        raise DesignError("DESIGNS", f"damaged gzip file {path}: {exc}") from None
     except OSError as exc:
         raise DesignError("DESIGNS", f"cannot read {path}: {exc.strerror}") from None
     except UnicodeDecodeError:
@@ -310,13 +314,13 @@ def read_sweep(
     16 to 7 %, wedge_peak_force_N from 5.8 to 3.5 %. A table without these columns (a sweep made
     before they were recorded) is used whole, its designs counted in ``unchecked``."""
     folder = Path(folder)
-    config_path, table_path = folder / CONFIG, folder / TABLE
+    config_path, table = folder / CONFIG, table_path(folder)
     if not folder.is_dir():
         raise DesignError("SWEEP", f"no such sweep folder: {folder}")
     kind = folder_kind(folder)
-    if kind not in ("sweep", None) and not table_path.exists():
+    if kind not in ("sweep", None) and not table.exists():
         raise DesignError("SWEEP", f"{folder} holds a {KINDS[kind]}, not a {KINDS['sweep']}")
-    if not config_path.exists() or not table_path.exists():
+    if not config_path.exists() or not table.exists():
         raise DesignError(
             "SWEEP", f"{folder} has no config.json and table.csv; run `fingertip sweep` first"
         )
@@ -332,7 +336,7 @@ def read_sweep(
     excluded: dict[str, int] = {}
     rebuild = "re-run the same `fingertip sweep` command to rebuild it from the records"
     try:
-        with table_path.open(newline="") as fh:
+        with open_table(table) as fh:
             reader = csv.DictReader(fh)
             header = reader.fieldnames or []
             # the metrics the table has (a table from before a metric was added lacks it), then
@@ -345,10 +349,10 @@ def read_sweep(
             missing = [c for c in ("index", *space.names) if c not in header]
             if missing or not metric_names:
                 what = missing[0] if missing else next(iter(METRICS))
-                raise DesignError("SWEEP", f"{table_path} has no column {what!r}")
+                raise DesignError("SWEEP", f"{table} has no column {what!r}")
             for row in reader:
                 n_rows += 1
-                where = f"{table_path} row {n_rows}"
+                where = f"{table} row {n_rows}"
                 if None in row or any(v is None for v in row.values()):
                     raise DesignError(
                         "SWEEP",
@@ -378,9 +382,11 @@ def read_sweep(
                 targets.append(y)
                 index.append(int(_number(row["index"], f"{where}: index", integer=True)))
     except UnicodeDecodeError:
-        raise DesignError("SWEEP", f"{table_path} is not UTF-8 text; {rebuild}") from None
+        raise DesignError("SWEEP", f"{table} is not UTF-8 text; {rebuild}") from None
     except csv.Error as exc:
-        raise DesignError("SWEEP", f"malformed CSV in {table_path}: {exc}; {rebuild}") from None
+        raise DesignError("SWEEP", f"malformed CSV in {table}: {exc}; {rebuild}") from None
+    except (EOFError, gzip.BadGzipFile, zlib.error) as exc:
+        raise DesignError("SWEEP", f"damaged gzip file {table}: {exc}") from None
     return SweepData(
         folder=folder,
         space=space,
@@ -389,7 +395,7 @@ def read_sweep(
         targets=np.asarray(targets, dtype=np.float64).reshape(len(points), len(metric_names)),
         index=np.asarray(index, dtype=np.int64),
         metric_names=metric_names,
-        table_sha256=sha256_file(table_path),
+        table_sha256=table_sha256(table),
         n_rows=n_rows,
         excluded=excluded,
         unchecked=unchecked,

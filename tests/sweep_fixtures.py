@@ -6,6 +6,19 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
+#: the shipped surrogate and its training sweep (config.json, table.csv.gz)
+SHIPPED = REPO / "surrogate" / "pretrained" / "default"
+
+
+def shipped_table_lines(n: int) -> list[str]:
+    """The first ``n`` lines of the shipped training table (header included), as text lines
+    ending in ``\\n`` (what ``Path.read_text`` gave when the table was shipped uncompressed)."""
+    import gzip
+    import itertools
+
+    with gzip.open(SHIPPED / "table.csv.gz", "rt", encoding="utf-8") as fh:
+        return list(itertools.islice(fh, n))
+
 
 TINY = """
 [geometry]

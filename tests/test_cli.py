@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sweep_fixtures import shipped_table_lines
 
 import explore.cli
 import sim
@@ -566,7 +567,7 @@ def _sweep_copy(tmp_path: Path) -> Path:
     folder = tmp_path / "sweep"
     folder.mkdir()
     shutil.copy(SHIPPED / "config.json", folder / "config.json")
-    lines = (SHIPPED / "table.csv").read_text().splitlines(keepends=True)[:6]
+    lines = shipped_table_lines(6)
     (folder / "table.csv").write_text("".join(lines))
     return folder
 

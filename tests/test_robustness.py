@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from sweep_fixtures import shipped_table_lines
 
 from sim import Design, Layer, SimOptions, homogeneous_design, simulate
 from sim.errors import DesignError
@@ -135,7 +136,7 @@ def _damaged_sweep(tmp_path: Path, damage: str) -> Path:
     folder = tmp_path / "sweep"
     folder.mkdir()
     (folder / "config.json").write_text((SHIPPED / "config.json").read_text())
-    lines = (SHIPPED / "table.csv").read_text().splitlines(keepends=True)[:41]
+    lines = shipped_table_lines(41)
     if damage == "truncated":  # a copy cut off mid-line
         text = "".join(lines)
         text = text[: len(text) - len(lines[-1]) // 2]
@@ -148,6 +149,12 @@ def _damaged_sweep(tmp_path: Path, damage: str) -> Path:
     elif damage == "binary":
         text = None
         (folder / "table.csv").write_bytes(b"\xff\xfe\x00" * 50)
+    elif damage == "gzip-cut":  # a shipped (gzipped) table cut short
+        import gzip
+
+        text = None
+        data = gzip.compress("".join(lines).encode(), mtime=0)
+        (folder / "table.csv.gz").write_bytes(data[: len(data) // 2])
     else:
         raise AssertionError(damage)
     if text is not None:
@@ -161,6 +168,7 @@ def _damaged_sweep(tmp_path: Path, damage: str) -> Path:
         ("truncated", "row 40 does not have the"),
         ("non-numeric", "row 7: hysteresis_Nmm: expected a number"),
         ("binary", "not UTF-8"),
+        ("gzip-cut", "damaged gzip file"),
     ],
 )
 def test_train_on_a_damaged_table_is_one_line(tmp_path, damage, words):
@@ -179,7 +187,7 @@ def test_the_undamaged_copy_reads(tmp_path):
     folder = tmp_path / "sweep"
     folder.mkdir()
     (folder / "config.json").write_text((SHIPPED / "config.json").read_text())
-    lines = (SHIPPED / "table.csv").read_text().splitlines(keepends=True)[:41]
+    lines = shipped_table_lines(41)
     (folder / "table.csv").write_text("".join(lines))
     assert len(read_sweep(folder).points) == 40
 

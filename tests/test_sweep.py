@@ -381,6 +381,55 @@ def test_segments_of_a_sample_merge_into_the_whole_sweep(tiny_space, tmp_path, m
         run_sweep(space, 6, tmp_path / "b", start=2, **kw)
 
 
+def test_a_gzipped_table_reads_hashes_and_merges_as_the_plain_one(
+    tiny_space, tmp_path, monkeypatch
+):
+    """A sweep folder whose table is ``table.csv.gz`` (the shipped surrogate's: git keeps files
+    under 5 MB) is the same sweep: the same hash (of the CSV bytes), the same ``read_sweep`` and
+    ``read_points``, the same merge; the gzip bytes do not depend on when they were written; a
+    damaged one is refused naming the file."""
+    import shutil
+
+    import sim.sweep as sweep_mod
+    from sim.provenance import sha256_file
+    from sim.sweep import merge_sweeps
+    from sim.sweep_folder import table_path, table_sha256, write_table_gz
+    from surrogate._io import read_points, read_sweep
+
+    monkeypatch.setattr(sweep_mod, "evaluate_point", _fake_fe)
+    space = load_space(tiny_space)
+    kw = {"workers": 1, "progress": False}
+    run_sweep(space, 6, tmp_path / "whole", **kw)
+    run_sweep(space, 3, tmp_path / "a", **kw)
+    run_sweep(space, 6, tmp_path / "b", start=3, **kw)
+    for name in ("whole", "a"):
+        src, gz = tmp_path / name, tmp_path / f"{name}_gz"
+        gz.mkdir()
+        shutil.copy(src / "config.json", gz / "config.json")
+        write_table_gz(src / "table.csv", gz / "table.csv.gz")
+        assert table_path(gz) == gz / "table.csv.gz" and table_path(src) == src / "table.csv"
+    plain, gz = tmp_path / "whole" / "table.csv", tmp_path / "whole_gz" / "table.csv.gz"
+    assert table_sha256(gz) == table_sha256(plain) == sha256_file(plain)
+    first = gz.read_bytes()
+    time.sleep(1.1)  # a gzip header's time stamp counts seconds
+    write_table_gz(plain, gz)
+    assert gz.read_bytes() == first
+    a, b = read_sweep(tmp_path / "whole", False), read_sweep(tmp_path / "whole_gz", False)
+    assert a.points == b.points and a.table_sha256 == b.table_sha256
+    np.testing.assert_array_equal(a.targets, b.targets)
+    assert read_points(gz, space) == read_points(plain, space)
+    merge_sweeps([tmp_path / "a_gz", tmp_path / "b"], tmp_path / "ab")
+    assert _table(tmp_path / "ab") == _table(tmp_path / "whole")
+    gz.write_bytes(first[: len(first) // 2])  # a copy cut short
+    with pytest.raises(DesignError, match=r"damaged gzip file .*table\.csv\.gz"):
+        read_sweep(tmp_path / "whole_gz")
+    with pytest.raises(DesignError, match=r"damaged gzip file .*table\.csv\.gz"):
+        read_points(gz, space)
+    with pytest.raises(DesignError, match="SWEEPS"):
+        merge_sweeps([tmp_path / "whole_gz", tmp_path / "b"], tmp_path / "x")
+    assert not (tmp_path / "x").exists()
+
+
 def test_cli_sweep_start_out_of_range_is_one_line(tiny_space, tmp_path):
     p = _cli("sweep", tiny_space, "--n", 3, "--start", 3, "--out", tmp_path / "s")
     assert p.returncode == 2 and "--start" in p.stderr and "Traceback" not in p.stderr
