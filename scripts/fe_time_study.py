@@ -175,7 +175,9 @@ def breakdown(n: int, seed: int) -> None:
 
 
 def sweep_shares(folder: Path) -> None:
-    with (folder / "table.csv").open(newline="") as fh:
+    from sim.sweep_folder import open_table, table_path
+
+    with open_table(table_path(folder)) as fh:
         rows = [r for r in csv.DictReader(fh) if r["status"] == "ok"]
     wall = [float(r["wall_time_s"]) for r in rows]
     total = sum(wall)

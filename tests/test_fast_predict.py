@@ -40,7 +40,7 @@ def model() -> Surrogate:
 def points(model: Surrogate) -> list[dict]:
     """Designs of the shipped table (catalogue and family materials, one to three layers) and
     fresh samples of its space (some outside the training domain)."""
-    table = read_points(SHIPPED / "table.csv", model.space)
+    table = read_points(SHIPPED / "table.csv.gz", model.space)
     return table[::7] + sample_points(model.space, 24, 5)
 
 

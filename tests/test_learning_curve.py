@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from sim.sweep_folder import open_table
+
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "scripts"))
 
@@ -54,7 +56,7 @@ def test_small_curve_on_the_shipped_dataset(tmp_path):
     assert proc.returncode == 0, proc.stderr
     result = json.loads(out.with_suffix(".json").read_text())
     assert [r["n_designs"] for r in result["rows"]] == [64, 128]
-    with (SHIPPED / "table.csv").open() as fh:
+    with open_table(SHIPPED / "table.csv.gz") as fh:
         n = sum(1 for _ in fh) - 1  # every design of the shipped table is read (trust outputs)
     assert result["repeats"] == 2 and result["n_designs_with_results"] == n
     assert result["n_test"] == round(0.15 * n)  # the same fixed test set for every size
