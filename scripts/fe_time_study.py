@@ -43,6 +43,7 @@ from sim import SimOptions, simulate
 from sim.contact import Wedge
 from sim.space import load_space, point_to_design
 from sim.sweep import sample_points
+from sim.sweep_folder import open_table, table_path
 
 COUNTS = ("steps", "factorizations", "evaluations")
 
@@ -175,8 +176,6 @@ def breakdown(n: int, seed: int) -> None:
 
 
 def sweep_shares(folder: Path) -> None:
-    from sim.sweep_folder import open_table, table_path
-
     with open_table(table_path(folder)) as fh:
         rows = [r for r in csv.DictReader(fh) if r["status"] == "ok"]
     wall = [float(r["wall_time_s"]) for r in rows]

@@ -17,7 +17,6 @@ import json
 import math
 import os
 import time
-import zlib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import FIRST_COMPLETED, wait
 from dataclasses import dataclass
@@ -34,7 +33,14 @@ from .pool import process_pool
 from .provenance import check_folder_kind, json_safe, provenance
 from .simulate import simulate
 from .space import DesignSpace, point_to_design, space_from_dict
-from .sweep_folder import SweepStore, merge_tables, read_config, write_config, write_meta
+from .sweep_folder import (
+    DAMAGED_GZIP,
+    SweepStore,
+    merge_tables,
+    read_config,
+    write_config,
+    write_meta,
+)
 
 __all__ = [
     "SweepStore",
@@ -360,7 +366,7 @@ def merge_sweeps(folders: Sequence[str | Path], out: str | Path) -> tuple[int, i
     ]
     try:
         rows, _ = merge_tables(folders, out)
-    except (OSError, ValueError, EOFError, zlib.error) as exc:  # EOFError, zlib: a damaged .gz
+    except (OSError, ValueError, *DAMAGED_GZIP) as exc:
         raise DesignError("SWEEPS", str(exc).splitlines()[0]) from None
     write_config(out, merged)
     write_meta(out, provenance(merged, merged["seed"], kind="sweep"))

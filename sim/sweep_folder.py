@@ -16,7 +16,8 @@
   ``{"index", "key", "curves"}`` per design. ``surrogate.read_sweep`` reads the table.
 - ``table.csv.gz`` instead of ``table.csv`` (:func:`write_table_gz`): the same bytes,
   gzip-compressed, in a folder kept in git (``surrogate/pretrained/default``: the table of
-  8960 designs is 6.4 MB, 2.6 MB compressed; git hosts warn above 5 MB). Every reader finds the
+  8960 designs is 6.4 MB, 2.6 MB compressed; the project keeps each tracked file under 5 MB so
+  that a clone stays small). Every reader finds the
   table with :func:`table_path`, opens it with :func:`open_table` and hashes it with
   :func:`table_sha256` (the hash of the CSV bytes, whichever form holds them).
 """
@@ -28,16 +29,18 @@ import gzip
 import hashlib
 import json
 import shutil
+import zlib
 from pathlib import Path
 from typing import IO, Any
 
 from .metrics import METRICS, diagnostic_names
 from .protocols import profile_summary
-from .provenance import json_safe, replacing, write_json
+from .provenance import json_safe, replacing, sha256_file, write_json
 
 __all__ = [
     "CONFIG",
     "CURVES",
+    "DAMAGED_GZIP",
     "META",
     "RECORDS",
     "TABLE",
@@ -74,9 +77,14 @@ def table_path(folder: str | Path) -> Path:
     return folder / TABLE
 
 
+#: what reading a damaged ``.gz`` raises (a cut file: ``EOFError``; a bad header:
+#: ``gzip.BadGzipFile``; corrupt data: ``zlib.error``): every reader of a table catches these
+DAMAGED_GZIP = (EOFError, gzip.BadGzipFile, zlib.error)
+
+
 def open_table(path: str | Path) -> IO[str]:
     """A table (``table.csv``, or gzip-compressed ``*.gz``) opened as UTF-8 text for ``csv``
-    (``newline=""``). A damaged ``.gz`` raises ``OSError`` or ``EOFError`` while it is read."""
+    (``newline=""``). A damaged ``.gz`` raises one of :data:`DAMAGED_GZIP` while it is read."""
     path = Path(path)
     if path.suffix == ".gz":
         return gzip.open(path, "rt", encoding="utf-8", newline="")
@@ -87,12 +95,10 @@ def table_sha256(path: str | Path) -> str:
     """The sha256 (hex) of a table's CSV bytes, decompressed for a ``.gz``: a checkpoint trained
     on ``table.csv`` names the same table after :func:`write_table_gz`."""
     path = Path(path)
-    h = hashlib.sha256()
-    opener = gzip.open if path.suffix == ".gz" else open
-    with opener(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
+    if path.suffix != ".gz":
+        return sha256_file(path)
+    with gzip.open(path, "rb") as fh:
+        return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
 def write_table_gz(src: str | Path, dest: str | Path) -> None:

@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 import csv
-import gzip
 import json
 import math
-import zlib
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -18,7 +16,14 @@ from sim.errors import DesignError, read_toml
 from sim.metrics import METRICS, PROTOCOLS, diagnostic_names
 from sim.provenance import KINDS, folder_kind, sha256_file
 from sim.space import DesignSpace, space_from_dict
-from sim.sweep_folder import CONFIG, open_table, read_config, table_path, table_sha256
+from sim.sweep_folder import (
+    CONFIG,
+    DAMAGED_GZIP,
+    open_table,
+    read_config,
+    table_path,
+    table_sha256,
+)
 from sim.trust import TRUST_OUTPUTS, trust_censoring, trust_values
 
 __all__ = ["SweepData", "check_point", "read_points", "read_sweep", "sha256_file"]
@@ -105,7 +110,7 @@ def read_points(path: str | Path, space: DesignSpace) -> list[dict[str, Any]]:
         raise DesignError("DESIGNS", f"no such file: {path}") from None
     except IsADirectoryError:
         raise DesignError("DESIGNS", f"{path} is a directory, not a CSV file") from None
-    except (EOFError, gzip.BadGzipFile, zlib.error) as exc:
+    except DAMAGED_GZIP as exc:
         raise DesignError("DESIGNS", f"damaged gzip file {path}: {exc}") from None
     except OSError as exc:
         raise DesignError("DESIGNS", f"cannot read {path}: {exc.strerror}") from None
@@ -385,7 +390,7 @@ def read_sweep(
         raise DesignError("SWEEP", f"{table} is not UTF-8 text; {rebuild}") from None
     except csv.Error as exc:
         raise DesignError("SWEEP", f"malformed CSV in {table}: {exc}; {rebuild}") from None
-    except (EOFError, gzip.BadGzipFile, zlib.error) as exc:
+    except DAMAGED_GZIP as exc:
         raise DesignError("SWEEP", f"damaged gzip file {table}: {exc}") from None
     return SweepData(
         folder=folder,

@@ -36,7 +36,7 @@ def model():
 def test_shipped_checkpoint_matches_its_data_and_the_solver(model):
     header = model.header
     assert header["solver_version"] in ACCEPTED_SOLVERS  # else: re-sweep and retrain
-    assert not (SHIPPED / "table.csv").exists()  # git keeps files under 5 MB: shipped gzipped
+    assert not (SHIPPED / "table.csv").exists()  # tracked files stay under 5 MB: shipped gzipped
     assert (SHIPPED / "table.csv.gz").stat().st_size < 5_000_000
     digest = table_sha256(SHIPPED / "table.csv.gz")  # the hash of the CSV bytes
     assert header["training_data"]["table_sha256"] == digest
