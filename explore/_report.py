@@ -19,6 +19,7 @@ from sim.targets import Targets
 
 from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
 from ._plots import FIGURES, RunData, load_run, run_targets, write_figures
+from ._run_folder import screened_designs
 
 __all__ = ["write_report"]
 
@@ -130,12 +131,12 @@ def _grouped(n: int) -> str:
 def _intro(run: RunData) -> list[str]:
     rounds = {int(r) for r in run.column("round") if math.isfinite(r)}
     n_ok = sum(c.status == "ok" for c in run.confirmations)
-    screen = int(run.config.get("screen") or 0)
+    screen, total = screened_designs(run.config, list(run.studies))
     screened = (
-        f"screened {_grouped(screen * len(run.studies))} quasi-random designs "
+        f"screened {_grouped(total)} quasi-random designs "
         f"({_grouped(screen)} for each of "
         f"its {len(run.studies)} studies) and "
-        if screen and run.studies
+        if total
         else ""
     )
     best = " (the screens' best among them)" if screened else ""

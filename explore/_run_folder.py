@@ -72,6 +72,7 @@ __all__ = [
     "read_studies",
     "read_summary",
     "read_trials",
+    "screened_designs",
     "surrogate_path",
     "trials_header",
     "write_candidates",
@@ -148,6 +149,14 @@ def read_studies(out: Path) -> list[dict[str, Any]]:
     if not isinstance(studies, list):
         raise DesignError(str(path), "not a list of studies")
     return studies
+
+
+def screened_designs(config: dict[str, Any] | None, studies: list[Any]) -> tuple[int, int]:
+    """(designs each study's quasi-random screen scored, designs all the studies screened):
+    config.json's ``screen`` times the studies of studies.json; (0, 0) for a run without
+    screens. The one count the report and the README block both state."""
+    screen = int((config or {}).get("screen") or 0)
+    return (screen, screen * len(studies)) if screen and studies else (0, 0)
 
 
 def add_study(out: Path, name: str, search: str, round_: int, mode: str) -> None:

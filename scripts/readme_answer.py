@@ -19,7 +19,13 @@ import json
 import sys
 from pathlib import Path
 
-from explore._run_folder import read_config, read_studies, read_summary, read_trials
+from explore._run_folder import (
+    read_config,
+    read_studies,
+    read_summary,
+    read_trials,
+    screened_designs,
+)
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 START, END = "<!-- answer:start -->", "<!-- answer:end -->"
@@ -70,16 +76,16 @@ def _percent(e: float) -> str:
 
 def _scored(folder: Path, rounds: int) -> str:
     """What the surrogate scored: every study's quasi-random screen and the Optuna trials."""
-    screen = int((read_config(folder) or {}).get("screen") or 0)
-    studies = len(read_studies(folder))
+    studies = read_studies(folder)
+    screen, total = screened_designs(read_config(folder), studies)
     trials, _ = read_trials(folder)
     n_trials = len(next(iter(trials.values()))) if trials else 0
-    if not (screen and studies):
+    if not total:
         return f" The surrogate scored {n_trials} Optuna trials."
-    per_round = screen * studies // max(rounds, 1)
+    per_round = total // max(rounds, 1)
     return (
-        f" The surrogate screened {screen * studies:,} designs ({per_round:,} a round: "
-        f"{screen:,} for each of {studies // max(rounds, 1)} studies) and scored "
+        f" The surrogate screened {total:,} designs ({per_round:,} a round: "
+        f"{screen:,} for each of {len(studies) // max(rounds, 1)} studies) and scored "
         f"{n_trials} Optuna trials.".replace(",", " ")
     )
 

@@ -541,6 +541,18 @@ def test_the_readme_answer_block_has_its_markers():
     assert _readme_answer().replace_block(text, block) == text  # the block round-trips
 
 
+def test_the_screened_count_is_the_screen_times_the_studies():
+    from explore._run_folder import screened_designs
+
+    studies = [{"name": f"s{i}"} for i in range(6)]
+    assert screened_designs({"screen": 2048}, studies) == (2048, 12288)
+    # no screen (an older run, or --screen 0), or no study yet: nothing screened
+    assert screened_designs({"screen": 0}, studies) == (0, 0)
+    assert screened_designs({}, studies) == (0, 0)
+    assert screened_designs(None, studies) == (0, 0)
+    assert screened_designs({"screen": 2048}, []) == (0, 0)
+
+
 def torch_equal(a, b) -> bool:
     import torch
 
