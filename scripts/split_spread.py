@@ -76,24 +76,39 @@ def table(reports: dict[int, dict]) -> list[str]:
     return lines
 
 
+def _mean(values: list[float]) -> float:
+    return sum(values) / len(values)
+
+
 def verdicts(reports: dict[int, dict]) -> list[str]:
-    """One line per target: met by which seeds, and by the mean over the seeds."""
+    """One line per target: met by which seeds, and by the mean over the seeds (per metric: the
+    seeds' medians and coverages averaged metric by metric)."""
     n = len(reports)
-    p95 = [r["metrics"][HYSTERESIS]["p95_rel_error"] for r in reports.values()]
-    med = [max(r["metrics"][k]["median_rel_error"] for k in CHECKED) for r in reports.values()]
-    cov = [[r["metrics"][k]["coverage_90"] for k in CHECKED] for r in reports.values()]
-    cov_ok = [all(COVERAGE[0] <= c <= COVERAGE[1] for c in cs) for cs in cov]
-    mean_p95 = sum(p95) / n
-    p95_met = sum(p <= TARGET_P95_HYSTERESIS for p in p95)
+    metrics = [r["metrics"] for r in reports.values()]
+    p95 = [m[HYSTERESIS]["p95_rel_error"] for m in metrics]
+    med = [max(m[k]["median_rel_error"] for k in CHECKED) for m in metrics]
+    mean_med = max(_mean([m[k]["median_rel_error"] for m in metrics]) for k in CHECKED)
+    cov_ok = [
+        all(COVERAGE[0] <= m[k]["coverage_90"] <= COVERAGE[1] for k in CHECKED) for m in metrics
+    ]
+    mean_cov = [_mean([m[k]["coverage_90"] for m in metrics]) for k in CHECKED]
+    mean_p95 = _mean(p95)
     p95_all = ", ".join(f"{100 * p:.1f} %" for p in p95)
+
+    def met(ok: bool) -> str:
+        return "met" if ok else "not met"
+
     return [
         f"- median error <= {100 * TARGET_MEDIAN:g} % for every tapping metric: met by "
-        f"{sum(m <= TARGET_MEDIAN for m in med)} of {n} seeds (largest {100 * max(med):.2f} %)",
-        f"- hysteresis p95 <= {100 * TARGET_P95_HYSTERESIS:g} %: met by {p95_met} of {n} "
-        f"seeds ({p95_all}); mean over the seeds "
-        f"{100 * mean_p95:.1f} %: {'met' if mean_p95 <= TARGET_P95_HYSTERESIS else 'not met'}",
+        f"{sum(m <= TARGET_MEDIAN for m in med)} of {n} seeds (largest {100 * max(med):.2f} %); "
+        f"mean over the seeds, largest {100 * mean_med:.2f} %: {met(mean_med <= TARGET_MEDIAN)}",
+        f"- hysteresis p95 <= {100 * TARGET_P95_HYSTERESIS:g} %: met by "
+        f"{sum(p <= TARGET_P95_HYSTERESIS for p in p95)} of {n} seeds ({p95_all}); mean over "
+        f"the seeds {100 * mean_p95:.1f} %: {met(mean_p95 <= TARGET_P95_HYSTERESIS)}",
         f"- {100 * COVERAGE[0]:g}-{100 * COVERAGE[1]:g} % inside the 90 % interval, every "
-        f"tapping metric: met by {sum(cov_ok)} of {n} seeds",
+        f"tapping metric: met by {sum(cov_ok)} of {n} seeds; mean over the seeds "
+        f"{100 * min(mean_cov):.1f}-{100 * max(mean_cov):.1f} %: "
+        f"{met(all(COVERAGE[0] <= c <= COVERAGE[1] for c in mean_cov))}",
     ]
 
 
