@@ -522,7 +522,7 @@ def _add_run(p: argparse.ArgumentParser) -> None:
         help="sweep the default space and train a surrogate first (about 5 hours on 2 cores)",
     )
     p.add_argument(
-        "--n", type=int, default=8960, help="designs of the --from-scratch sweep (as shipped)"
+        "--n", type=int, default=11008, help="designs of the --from-scratch sweep (as shipped)"
     )
     p.set_defaults(func=_cmd_run)
 

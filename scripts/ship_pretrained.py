@@ -26,6 +26,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run", type=Path, help="fingertip train output folder")
     ap.add_argument("sweep", type=Path, help="the sweep it was trained on")
+    ap.add_argument(
+        "--spread",
+        type=Path,
+        help="scripts/split_spread.py's folder for this sweep: its spread.md (the targets over "
+        "other seeds' splits) is shipped beside the report",
+    )
     args = ap.parse_args()
     model = load_checkpoint(args.run / "model.safetensors")
     table = table_path(args.sweep)
@@ -44,6 +50,11 @@ def main() -> None:
     if table != DEST / TABLE_GZ:
         write_table_gz(table, DEST / TABLE_GZ)
     (DEST / TABLE).unlink(missing_ok=True)  # the plain table of an earlier ship
+    spread = args.spread / "spread.md" if args.spread else None
+    if spread is not None:
+        shutil.copyfile(spread, DEST / "spread.md")
+    else:
+        (DEST / "spread.md").unlink(missing_ok=True)  # an earlier ship's, not this checkpoint's
     sweep_cfg = json.loads((args.sweep / "config.json").read_text())
     data = header["training_data"]
     report = json.loads((args.run / "report.json").read_text())
@@ -58,7 +69,8 @@ def main() -> None:
         *(f"python scripts/migrate_sweep.py {src} {sweep}" for src in sorted(migrated)),
         *_sweep_commands(sweep, sweep_cfg),
         f"fingertip train {sweep} --out {run} --seed {header['training']['seed']}",
-        f"python scripts/ship_pretrained.py {run} {sweep}",
+        f"python scripts/ship_pretrained.py {run} {sweep}"
+        + (f" --spread {args.spread.as_posix()}" if spread else ""),
         "```",
         "",
         *_segments_note(sweep_cfg),
@@ -79,6 +91,14 @@ def main() -> None:
         f"bytes), {header['architecture']['members']} members, git commit "
         f"`{header['git_commit'][:12]}`",
         f"- held-out test designs: {report['n_test']}; see `report.md`",
+        *(
+            [
+                "- the same sweep trained with other seeds (other held-out designs): `spread.md` "
+                "(its first line gives the command)"
+            ]
+            if spread
+            else []
+        ),
         "",
     ]
     (DEST / "README.md").write_text("\n".join(lines))
@@ -93,7 +113,7 @@ def _sweep_commands(sweep: str, cfg: dict) -> list[str]:
     if not segments:
         return [f"fingertip sweep --n {cfg['n']} --out {sweep} --workers 2 --seed {seed}"]
     lines = []
-    for seg in segments:
+    for seg in sorted(segments, key=lambda seg: seg["start"]):  # merged in the given order
         start = f"--start {seg['start']} " if seg["start"] else ""
         lines.append(
             f"fingertip sweep {start}--n {seg['n']} --out runs/seg_{seg['start']}_{seg['n']} "
