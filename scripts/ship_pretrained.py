@@ -33,6 +33,9 @@ def main() -> None:
         "other seeds' splits) is shipped beside the report",
     )
     args = ap.parse_args()
+    spread = args.spread / "spread.md" if args.spread else None
+    if spread is not None and not spread.is_file():  # before anything is copied
+        raise SystemExit(f"--spread: {spread} not found (run scripts/split_spread.py first)")
     model = load_checkpoint(args.run / "model.safetensors")
     table = table_path(args.sweep)
     digest = table_sha256(table)
@@ -50,7 +53,6 @@ def main() -> None:
     if table != DEST / TABLE_GZ:
         write_table_gz(table, DEST / TABLE_GZ)
     (DEST / TABLE).unlink(missing_ok=True)  # the plain table of an earlier ship
-    spread = args.spread / "spread.md" if args.spread else None
     if spread is not None:
         shutil.copyfile(spread, DEST / "spread.md")
     else:
