@@ -131,7 +131,7 @@ def _grouped(n: int) -> str:
 def _intro(run: RunData) -> list[str]:
     rounds = {int(r) for r in run.column("round") if math.isfinite(r)}
     n_ok = sum(c.status == "ok" for c in run.confirmations)
-    screen, total = screened_designs(run.config, list(run.studies))
+    screen, total = screened_designs(run.config, run.studies)
     screened = (
         f"screened {_grouped(total)} quasi-random designs "
         f"({_grouped(screen)} for each of "

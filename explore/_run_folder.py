@@ -151,7 +151,7 @@ def read_studies(out: Path) -> list[dict[str, Any]]:
     return studies
 
 
-def screened_designs(config: dict[str, Any] | None, studies: list[Any]) -> tuple[int, int]:
+def screened_designs(config: dict[str, Any] | None, studies: Sequence[Any]) -> tuple[int, int]:
     """(designs each study's quasi-random screen scored, designs all the studies screened):
     config.json's ``screen`` times the studies of studies.json; (0, 0) for a run without
     screens. The one count the report and the README block both state."""

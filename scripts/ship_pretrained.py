@@ -16,6 +16,8 @@ import json
 import shutil
 from pathlib import Path
 
+from split_spread import SPREAD_MD  # scripts/, this script's folder
+
 from sim.sweep_folder import TABLE, TABLE_GZ, table_path, table_sha256, write_table_gz
 from surrogate import load_checkpoint
 
@@ -33,7 +35,7 @@ def main() -> None:
         "other seeds' splits) is shipped beside the report",
     )
     args = ap.parse_args()
-    spread = args.spread / "spread.md" if args.spread else None
+    spread = args.spread / SPREAD_MD if args.spread else None
     if spread is not None and not spread.is_file():  # before anything is copied
         raise SystemExit(f"--spread: {spread} not found (run scripts/split_spread.py first)")
     model = load_checkpoint(args.run / "model.safetensors")
@@ -54,9 +56,9 @@ def main() -> None:
         write_table_gz(table, DEST / TABLE_GZ)
     (DEST / TABLE).unlink(missing_ok=True)  # the plain table of an earlier ship
     if spread is not None:
-        shutil.copyfile(spread, DEST / "spread.md")
+        shutil.copyfile(spread, DEST / SPREAD_MD)
     else:
-        (DEST / "spread.md").unlink(missing_ok=True)  # an earlier ship's, not this checkpoint's
+        (DEST / SPREAD_MD).unlink(missing_ok=True)  # an earlier ship's, not this checkpoint's
     sweep_cfg = json.loads((args.sweep / "config.json").read_text())
     data = header["training_data"]
     report = json.loads((args.run / "report.json").read_text())

@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import statistics
 import subprocess
 import sys
 from concurrent.futures import ThreadPoolExecutor
@@ -31,6 +32,8 @@ from pathlib import Path
 from learning_curve import CHECKED, COVERAGE, TARGET_MEDIAN, TARGET_P95_HYSTERESIS
 
 HYSTERESIS = "hysteresis_Nmm"
+#: the table this script writes into ``--out`` (and ``ship_pretrained --spread`` ships)
+SPREAD_MD = "spread.md"
 
 
 def train(sweep: Path, out: Path, seed: int, extra: list[str]) -> Path:
@@ -76,8 +79,8 @@ def table(reports: dict[int, dict]) -> list[str]:
     return lines
 
 
-def _mean(values: list[float]) -> float:
-    return sum(values) / len(values)
+def _met(ok: bool) -> str:
+    return "met" if ok else "not met"
 
 
 def verdicts(reports: dict[int, dict]) -> list[str]:
@@ -87,28 +90,24 @@ def verdicts(reports: dict[int, dict]) -> list[str]:
     metrics = [r["metrics"] for r in reports.values()]
     p95 = [m[HYSTERESIS]["p95_rel_error"] for m in metrics]
     med = [max(m[k]["median_rel_error"] for k in CHECKED) for m in metrics]
-    mean_med = max(_mean([m[k]["median_rel_error"] for m in metrics]) for k in CHECKED)
+    mean_med = max(statistics.fmean([m[k]["median_rel_error"] for m in metrics]) for k in CHECKED)
     cov_ok = [
         all(COVERAGE[0] <= m[k]["coverage_90"] <= COVERAGE[1] for k in CHECKED) for m in metrics
     ]
-    mean_cov = [_mean([m[k]["coverage_90"] for m in metrics]) for k in CHECKED]
-    mean_p95 = _mean(p95)
+    mean_cov = [statistics.fmean([m[k]["coverage_90"] for m in metrics]) for k in CHECKED]
+    mean_p95 = statistics.fmean(p95)
     p95_all = ", ".join(f"{100 * p:.1f} %" for p in p95)
-
-    def met(ok: bool) -> str:
-        return "met" if ok else "not met"
-
     return [
         f"- median error <= {100 * TARGET_MEDIAN:g} % for every tapping metric: met by "
         f"{sum(m <= TARGET_MEDIAN for m in med)} of {n} seeds (largest {100 * max(med):.2f} %); "
-        f"mean over the seeds, largest {100 * mean_med:.2f} %: {met(mean_med <= TARGET_MEDIAN)}",
+        f"mean over the seeds, largest {100 * mean_med:.2f} %: {_met(mean_med <= TARGET_MEDIAN)}",
         f"- hysteresis p95 <= {100 * TARGET_P95_HYSTERESIS:g} %: met by "
         f"{sum(p <= TARGET_P95_HYSTERESIS for p in p95)} of {n} seeds ({p95_all}); mean over "
-        f"the seeds {100 * mean_p95:.1f} %: {met(mean_p95 <= TARGET_P95_HYSTERESIS)}",
+        f"the seeds {100 * mean_p95:.1f} %: {_met(mean_p95 <= TARGET_P95_HYSTERESIS)}",
         f"- {100 * COVERAGE[0]:g}-{100 * COVERAGE[1]:g} % inside the 90 % interval, every "
         f"tapping metric: met by {sum(cov_ok)} of {n} seeds; mean over the seeds "
         f"{100 * min(mean_cov):.1f}-{100 * max(mean_cov):.1f} %: "
-        f"{met(all(COVERAGE[0] <= c <= COVERAGE[1] for c in mean_cov))}",
+        f"{_met(all(COVERAGE[0] <= c <= COVERAGE[1] for c in mean_cov))}",
     ]
 
 
@@ -135,7 +134,7 @@ def main() -> None:
         "",
         *table(reports),
     ]
-    (args.out / "spread.md").write_text("\n".join(lines) + "\n")
+    (args.out / SPREAD_MD).write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 
