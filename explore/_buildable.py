@@ -35,7 +35,7 @@ from sim.families import is_family
 from sim.materials import CATALOGUE, Material, material_tables
 from sim.metrics import METRICS
 from sim.options import SimOptions
-from sim.provenance import atomic_write, write_if_changed
+from sim.provenance import atomic_write, json_text, write_if_changed
 from sim.space import LAYER_ROLES, DesignSpace, Parameter, active_roles, mask_inactive
 from sim.targets import Targets
 
@@ -238,13 +238,13 @@ def fe_screen(
     else:
         chosen = _choose(best, space, screen, catalogue, budget, seed)
         path.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write(path, json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
+        atomic_write(path, json_text([c.to_json() for c in chosen], indent=1))
     user = {str(m.name): m for m in screen.materials}
     done = confirm(
         chosen, out, targets, options, workers=workers, progress=progress,
         materials=material_tables(user) or None, catalogue=screen.catalogue,
     )  # fmt: skip
-    text = json.dumps([c.to_json() for c in done], indent=1, allow_nan=False)
+    text = json_text([c.to_json() for c in done], indent=1)
     write_if_changed(out / "buildable_fe.json", text)
     return done
 

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from sim.errors import DesignError
+from sim.errors import DesignError, check_seed
 from sim.options import SimOptions
 from sim.provenance import check_folder_kind
 from sim.space import load_space
@@ -128,6 +128,7 @@ class OptimizeConfig:
         at_least("buildable_fe", self.buildable_fe, 0)
         at_least("family_trials", self.family_trials, 0)
         at_least("screen", self.screen, 0)
+        check_seed(self.seed, "--seed", uses=self.rounds)
         if self.mode not in ("single", "multi"):
             raise DesignError("--mode", f"must be single or multi, got {self.mode!r}")
         for name in ("tolerance", "max_disagreement"):
@@ -206,10 +207,29 @@ def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:
     catalogue = load_user_catalogues(config.catalogues)[1]  # the --catalogue files, checked
     if config.space:
         load_space(config.space, catalogue)
+    if config.dataset:  # given, it is used: never silently replaced by another sweep
+        why = _not_a_sweep(config.dataset)
+        if why:
+            raise DesignError("--dataset", f"{config.dataset} {why}")
     return targets
 
 
 # ----------------------------------------------------------------------------- setup
+def _not_a_sweep(folder: str | Path) -> str:
+    """Why ``folder`` is not a sweep folder a surrogate can retrain on ("" when it is one):
+    it must hold the sweep's config.json and its table (``table.csv`` or ``table.csv.gz``)."""
+    from sim import sweep_folder
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        return "is not a folder" if folder.exists() else "does not exist"
+    if not (folder / sweep_folder.CONFIG).exists():
+        return f"is not a sweep folder: it has no {sweep_folder.CONFIG}"
+    if not sweep_folder.table_path(folder).exists():
+        return f"is not a sweep folder: it has no {sweep_folder.TABLE} (nor its .gz)"
+    return ""
+
+
 def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     """The surrogate's training sweep: --dataset, the checkpoint's folder (a shipped checkpoint
     carries its table, gzipped), or the sweep named in its header, whichever holds the table whose
@@ -220,12 +240,10 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     places = [config.dataset, str(Path(config.surrogate).parent),
               surrogate.header.get("training_data", {}).get("sweep")]  # fmt: skip
     for p in places:
-        if not p:
+        if not p or _not_a_sweep(p):
             continue
-        table = sweep_folder.table_path(p)
-        if table.exists() and (Path(p) / sweep_folder.CONFIG).exists():
-            if config.dataset or sweep_folder.table_sha256(table) == want:
-                return Path(p)
+        if config.dataset or sweep_folder.table_sha256(sweep_folder.table_path(p)) == want:
+            return Path(p)
     return None
 
 

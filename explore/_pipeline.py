@@ -24,6 +24,7 @@ import dataclasses
 import socket
 import sys
 import time
+from collections.abc import Mapping
 from pathlib import Path
 
 from sim.metrics import SOLVER_VERSION, same_metrics
@@ -32,7 +33,16 @@ from sim.provenance import check_folder_kind, provenance
 from ._buildable import screen_summary
 from ._config import OptimizeConfig, Setup, check_inputs, check_storage, setup
 from ._rounds import Search, fe_alongside, fe_only_screen, run_rounds
-from ._run_folder import CONFIG, write_config, write_confirmations, write_summary, write_trials
+from ._run_folder import (
+    CONFIG,
+    SUMMARY,
+    run_time,
+    time_parts,
+    write_config,
+    write_confirmations,
+    write_summary,
+    write_trials,
+)
 from ._storage import is_database_url, open_storage, repair_journal
 from ._summary import summarise
 from ._types import Summary
@@ -40,15 +50,23 @@ from ._types import Summary
 __all__ = ["optimize", "run", "scratch_folders"]
 
 
-def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) -> Summary:
+def optimize(
+    config: OptimizeConfig,
+    out: str | Path,
+    *,
+    progress: bool = True,
+    stages: Mapping[str, float] | None = None,
+) -> Summary:
     """Run (or resume) a search in ``out``; returns the summary (also written to disk, with
-    the timing of the invocation that wrote it: ``Summary.timing``).
+    the run's timing: ``Summary.timing``, every invocation that worked on it summed, from the
+    run folder's time.json). ``stages``: seconds this invocation spent before the search, by
+    stage (``run --from-scratch``: ``sweep_s``, ``train_s``), counted in the run's time.
 
     Resumable at any point, with the same answer as an uninterrupted run: what each round has
     done is read from its own files (its studies, ``rounds/round-<r>-candidates.json``, the FE
     records, ``surrogates/round-<r+1>.safetensors``), and each round decides from the
     confirmations of the rounds up to it only. A finished run re-run computes and rewrites
-    nothing (``summary.json`` keeps the first run's ``wall_time_s``)."""
+    nothing (``summary.json`` keeps its ``wall_time_s``; time.json gets no part for it)."""
     out = Path(out)
     s = setup(config, out)
     _warn_of_another_solver(config, s)
@@ -59,7 +77,10 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
     worker = None if config.storage is None else f"{socket.gethostname()}:{out.resolve()}"
     search = Search(config, out, s, _open_own_storage(config, s.record["storage"]), worker,
                     progress)  # fmt: skip
-    t0 = time.perf_counter()
+    search.timings.update(stages or {})
+    search.started -= sum((stages or {}).values())
+    if not (out / SUMMARY).is_file():  # a finished run re-run adds no part to its time
+        search.time_part = time_parts(out)
     with fe_alongside(search):
         surrogate = run_rounds(search)
     write_confirmations(out, search.confirmations, final=True)
@@ -74,7 +95,9 @@ def optimize(config: OptimizeConfig, out: str | Path, *, progress: bool = True) 
         summary.notes.append(screen_summary(screen, len(s.catalogue)))
     if s.build_note:
         summary.notes.append(s.build_note)
-    timing = write_summary(out, summary, time.perf_counter() - t0, search.timings, resumed)
+    search.record_time()
+    wall_time_s, timings = run_time(out)
+    timing = write_summary(out, summary, wall_time_s, timings, resumed)
     return dataclasses.replace(summary, timing=timing)
 
 
@@ -134,10 +157,15 @@ def run(
     check_folder_kind(trained, "train")
     if config.storage is not None:
         check_storage(config.storage)
+    t0 = time.perf_counter()
     run_sweep(load_space(), from_scratch, sweep, workers=config.workers, seed=0,
               progress=progress)  # fmt: skip
+    t1 = time.perf_counter()
     ckpt = trained / CHECKPOINT_NAME
     if not ckpt.exists():
         train_surrogate(sweep, trained, seed=0, progress=progress)
+    # the run folder is made by the search: the time of a sweep or training killed before it
+    # is not in its time.json (the sweep keeps its designs, the training restarts)
+    stages = {"sweep_s": t1 - t0, "train_s": time.perf_counter() - t1}
     config = dataclasses.replace(config, surrogate=str(ckpt), dataset=str(sweep))
-    return optimize(config, out, progress=progress)
+    return optimize(config, out, progress=progress, stages=stages)

@@ -28,6 +28,8 @@ from matplotlib.collections import LineCollection
 from matplotlib.colors import LogNorm, Normalize
 from matplotlib.figure import Figure
 
+from sim.options import SimOptions
+from sim.protocols import shown_hysteresis
 from sim.provenance import write_if_changed
 from sim.targets import READINGS, Targets
 
@@ -73,6 +75,7 @@ __all__ = [
     "render_parity",
     "render_projections",
     "render_wedge",
+    "run_options",
     "run_targets",
     "spread_labels",
     "write_figures",
@@ -199,6 +202,15 @@ def run_targets(run: RunData) -> Targets | None:
     return Targets(
         values=values, reading=reading, max_sag_mm=sag if isinstance(sag, int | float) else None
     )
+
+
+def run_options(run: RunData) -> SimOptions:
+    """The simulation options the run's FE used (``config["sim_options"]``; default ones in a
+    folder that does not record them)."""
+    from sim.options import options_from_dict
+
+    recorded = run.config.get("sim_options")
+    return options_from_dict(recorded) if isinstance(recorded, Mapping) else SimOptions()
 
 
 def _finite_score_mask(run: RunData) -> np.ndarray:
@@ -644,8 +656,11 @@ def loops_info(run: RunData, n_best: int = 3) -> LoopsInfo:
     reading = targets.reading if targets else "from_undeformed_top"
     transform = _from_touch if reading == "from_first_touch" else None
     curves = []
+    options = run_options(run)
     for label, role, rec in _selected_records(run, n_best):
-        hyst = _metric(rec, "hysteresis_Nmm")
+        # 0 below what the solver's tolerances resolve (a record names its design's point, not
+        # its design: the resolution's indenter term alone)
+        hyst = shown_hysteresis(rec.get("metrics") or {}, None, options)
         c = _curve(label, role, rec, "tapping", ("displacement_mm", "force_N"), hyst, transform)
         if c is not None:
             curves.append(c)

@@ -14,11 +14,13 @@ from typing import Any
 
 import numpy as np
 
+from sim.options import SimOptions
+from sim.protocols import shown_hysteresis
 from sim.provenance import write_if_changed
 from sim.targets import Targets
 
 from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
-from ._plots import FIGURES, RunData, load_run, run_targets, write_figures
+from ._plots import FIGURES, RunData, load_run, run_options, run_targets, write_figures
 from ._run_folder import screened_designs
 
 __all__ = ["write_report"]
@@ -203,7 +205,9 @@ def _readings_rows(answer: Mapping[str, Any]) -> list[str]:
     ]
 
 
-def _answer_rows(answer: Mapping[str, Any], targets: Targets, tolerance: Any) -> list[str]:
+def _answer_rows(
+    answer: Mapping[str, Any], targets: Targets, tolerance: Any, options: SimOptions
+) -> list[str]:
     fe = answer.get("fe_metrics") or {}
     errors = answer.get("errors_vs_targets") or {}
     within = answer.get("within_tolerance") or {}
@@ -215,6 +219,8 @@ def _answer_rows(answer: Mapping[str, Any], targets: Targets, tolerance: Any) ->
     for name in (*TAPPING, "wedge_peak_force_N"):
         metric = targets.metric(name) if name in TAPPING else name
         value = fe.get(metric)
+        if metric == "hysteresis_Nmm":  # 0 below what the solver's tolerances resolve
+            value = shown_hysteresis(fe, answer.get("design"), options)
         target = targets.values.get(name)
         err = errors.get(name)
         if err is None and target and isinstance(value, int | float):
@@ -235,7 +241,11 @@ def _answer_rows(answer: Mapping[str, Any], targets: Targets, tolerance: Any) ->
 
 
 def _answer_section(
-    kind: str, answer: Mapping[str, Any] | None, targets: Targets | None, tolerance: Any
+    kind: str,
+    answer: Mapping[str, Any] | None,
+    targets: Targets | None,
+    tolerance: Any,
+    options: SimOptions,
 ) -> list[str]:
     lines = [f"### {_ANSWERS[kind]}", ""]
     if not answer:
@@ -245,7 +255,7 @@ def _answer_section(
     if answer.get("credible") is False:
         lines += ["**Not credible** (let in by `--allow-untrusted`): see its diagnostics.", ""]
     if targets is not None:
-        lines += [*_answer_rows(answer, targets, tolerance), ""]
+        lines += [*_answer_rows(answer, targets, tolerance, options), ""]
     lines += _readings_rows(answer)
     return lines
 
@@ -256,12 +266,19 @@ def _answers_section(run: RunData, targets: Targets | None) -> list[str]:
     lines = ["## Answers", ""]
     if not run.summary:
         return [*lines, "No summary.json: the run did not finish its confirmations.", ""]
+    options = run_options(run)
     for kind in _ANSWERS:
-        lines += _answer_section(kind, answers.get(kind), targets, tolerance)
+        lines += _answer_section(kind, answers.get(kind), targets, tolerance, options)
     return lines
 
 
+#: a round's ``best_fe_score`` when it confirmed no credible design (summary.json: null)
+_NO_CREDIBLE = "no credible design"
+
+
 def _cell(key: str, value: Any) -> str:
+    if value is None:
+        return _NO_CREDIBLE if key == "best_fe_score" else "–"
     if "rel_error" in key and isinstance(value, int | float) and not isinstance(value, bool):
         return _fmt(100 * value, ".1f") + " %" if math.isfinite(value) else "–"
     return _fmt(value) if isinstance(value, int | float) else str(value)
@@ -281,9 +298,15 @@ def _rounds_section(run: RunData) -> list[str]:
         "Relative error = (surrogate prediction (median) − FE) / |FE| over the scored "
         "metrics; a round agrees "
         "when the surrogate is close enough to FE to trust its ranking.",
-        "",
     ]
-    return lines
+    empty = [str(r.get("round", "?")) for r in rounds if r.get("best_fe_score", 0) is None]
+    if empty:
+        lines.append(
+            f"No credible design was found in round(s) {', '.join(empty)}: none of the designs "
+            "FE confirmed there ran, settled, stayed within the validity limits and recovered "
+            "between taps (see the notes and confirmations.json, `diagnostics`)."
+        )
+    return [*lines, ""]
 
 
 def _trust_lines(run: RunData) -> list[str]:

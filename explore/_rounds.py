@@ -15,7 +15,7 @@ import dataclasses
 import math
 import time
 from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -35,6 +35,7 @@ from ._run_folder import (
     surrogate_path,
     write_candidates,
     write_confirmations,
+    write_time_part,
     write_trials,
 )
 from ._search import (
@@ -57,7 +58,10 @@ __all__ = ["Search", "choose", "fe_alongside", "fe_only_screen", "run_rounds"]
 class Search:
     """A search in progress: its configuration, run folder and checked inputs, and what its
     rounds have made so far (in order): the confirmations, the scored trials, the rounds' log
-    (``Summary.rounds``) and the time spent searching, in FE and retraining."""
+    (``Summary.rounds``) and the time spent searching, in FE and retraining (``timings``, of
+    this invocation; ``time_part``: its entry of the run folder's time.json, which each stage
+    updates as it ends, None for one that records nothing: a finished run re-run; ``started``:
+    when it started, ``time.perf_counter``)."""
 
     config: OptimizeConfig
     out: Path
@@ -71,13 +75,26 @@ class Search:
     timings: dict[str, float] = field(
         default_factory=lambda: {"fe_s": 0.0, "search_s": 0.0, "retrain_s": 0.0}
     )
+    time_part: int | None = None
+    started: float = field(default_factory=time.perf_counter)
 
     @contextmanager
     def timed(self, what: str) -> Iterator[None]:
-        """Count the time of the block in ``timings[what]``."""
+        """Count the time of the block in ``timings[what]`` and record it in the run folder
+        (:meth:`record_time`), also when the block is interrupted."""
         tic = time.perf_counter()
-        yield
-        self.timings[what] += time.perf_counter() - tic
+        try:
+            yield
+        finally:
+            self.timings[what] = self.timings.get(what, 0.0) + time.perf_counter() - tic
+            self.record_time()
+
+    def record_time(self) -> None:
+        """This invocation's time so far, in its entry of time.json (``time_part``)."""
+        if self.time_part is not None:
+            write_time_part(
+                self.out, self.time_part, time.perf_counter() - self.started, self.timings
+            )
 
 
 #: the priority of the FE beside the rounds (19, the lowest): idle cores only
@@ -108,8 +125,7 @@ def fe_alongside(run: Search) -> Iterator[None]:
     from sim.pool import process_pool, stop_workers
 
     screen, materials = _screen_jobs(run)
-    pool = process_pool(1, nice=BACKGROUND_NICE)
-    try:
+    with process_pool(1, nice=BACKGROUND_NICE) as pool:  # interrupted: its worker stops at once
         future = pool.submit(run_fe, jobs + screen, run.setup.options, workers=1,
                              progress=False, materials=materials)  # fmt: skip
         yield
@@ -120,8 +136,6 @@ def fe_alongside(run: Search) -> Iterator[None]:
                 stop_workers(pool)
                 run_fe(jobs, run.setup.options, workers=run.config.workers,
                        progress=run.progress, desc="FE references")  # fmt: skip
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _screen_jobs(run: Search) -> tuple[list[tuple[Path, dict[str, Any]]], dict | None]:
@@ -151,11 +165,8 @@ def run_rounds(run: Search):
     from sim.pool import process_pool
 
     helper = process_pool(1, spawn=True) if run.config.workers > 1 else None
-    try:
+    with helper or nullcontext():  # interrupted: the helper stops at once (``sim.pool.Pool``)
         return _rounds(run, run.setup.surrogate, helper)
-    finally:
-        if helper is not None:
-            helper.shutdown(wait=True, cancel_futures=True)
 
 
 def _rounds(run: Search, surrogate, helper):
@@ -295,6 +306,9 @@ def _study(
     with run.timed("search_s"):
         rows = _run_round_study(study, surrogate, space, run.setup.targets, settings, r, search,
                                 run.worker, progress=bar.update)  # fmt: skip
+        # the bar ends at the work done: a screen that kept fewer seeds, or a shared study
+        # the other workers filled, makes it differ from the planned total
+        bar.total = bar.n
         bar.close()
     return rows
 
@@ -324,7 +338,7 @@ def _log_round(run: Search, r: int, new: list[Confirmation]) -> dict[str, Any]:
     """Round ``r``'s entry of the rounds' log (``_round_info`` and ``target_met``), and the
     trials so far in trials.csv."""
     s, tol = run.setup, run.config.tolerance
-    info = _round_info(r, new, s.targets, tol)
+    info = _round_info(r, new, s.targets, tol, run.config.allow_untrusted)
     run.rounds.append(info)
     write_trials(run.out, run.rows, s.space.names, list(s.surrogate.metric_names), final=False)
     info["target_met"] = target_met(run.confirmations, s.targets, tol)
@@ -347,10 +361,13 @@ def _retrain_after(run: Search, surrogate, r: int) -> None:
         bar = tqdm(total=config.retrain_epochs, desc=label, unit="epoch",
                    disable=not run.progress)  # fmt: skip
         try:
+            # torch's threads leave the core of the FE beside the rounds (``fe_alongside``:
+            # one process with two workers or more) alone
             model = retrain(surrogate, run.setup.dataset, run.confirmations,
                             config.retrain_epochs, config.seed, progress=bar.update,
                             batch_size=config.retrain_batch_size,
-                            replay=config.retrain_replay)  # fmt: skip
+                            replay=config.retrain_replay,
+                            fe_workers=1 if config.workers > 1 else 0)  # fmt: skip
         finally:
             bar.close()
     nxt.parent.mkdir(parents=True, exist_ok=True)
@@ -407,8 +424,12 @@ def choose(
     return chosen
 
 
-def _round_info(r: int, new: list[Confirmation], targets: Targets, tol: float) -> dict[str, Any]:
-    """How round ``r``'s FE results ``new`` compare with the surrogate's predictions."""
+def _round_info(
+    r: int, new: list[Confirmation], targets: Targets, tol: float, allow_untrusted: bool = False
+) -> dict[str, Any]:
+    """How round ``r``'s FE results ``new`` compare with the surrogate's predictions, and the
+    FE score of its best credible design (``best_fe_score``; None: the round confirmed no
+    credible design, e.g. each went beyond the validity limits: a normal outcome)."""
     errs = [
         abs(c.rel_error[targets.metric(m)])
         for c in new
@@ -424,7 +445,9 @@ def _round_info(r: int, new: list[Confirmation], targets: Targets, tol: float) -
         "max_rel_error": max(errs) if errs else None,
         "median_rel_error": float(np.median(errs)) if errs else None,
         "agreed": bool(errs) and max(errs) <= tol,
-        "best_fe_score": min((c.fe_score for c in ok), default=None),
+        "best_fe_score": min(
+            (c.fe_score for c in new if credible(c, targets, allow_untrusted)), default=None
+        ),
     }
 
 

@@ -32,9 +32,14 @@ that the search writes and the report reads, with its form, written and read her
   catalogue materials the surrogate cannot predict (search "buildable-fe", no prediction;
   ``explore._buildable``), its candidates and their ``Confirmation.to_json()``; never used to
   retrain the surrogate.
+- ``time.json`` (:func:`write_time_part`, :func:`run_time`): how long each invocation that
+  worked on the run took, one entry each in order (``wall_time_s`` and ``timings``, the time
+  of its stages: ``search_s``, ``fe_s``, ``retrain_s``; ``sweep_s``, ``train_s`` for
+  ``run --from-scratch``), updated as each stage ends, so a killed invocation keeps what it
+  spent up to its last finished stage (an interrupted one, its interrupted stage too).
 - ``summary.json`` (:func:`write_summary`, :func:`read_summary`): ``Summary.to_json()`` and the
-  timing of the invocation that wrote it (``TIMING_KEYS``); ``report.md`` and
-  ``figures/*.png``.
+  timing of the run when the answer was written (``TIMING_KEYS``: every invocation's part of
+  time.json summed); ``report.md`` and ``figures/*.png``.
 
 Every file is written atomically (``sim.provenance``), and only when its content changes.
 """
@@ -52,7 +57,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from sim.errors import DesignError
-from sim.provenance import atomic_write, write_if_changed, write_json
+from sim.provenance import atomic_write, json_text, write_if_changed, write_json
 
 from ._objective import OBJECTIVE_NAMES
 from ._types import Candidate, Confirmation, Summary
@@ -72,23 +77,27 @@ __all__ = [
     "read_studies",
     "read_summary",
     "read_trials",
+    "run_time",
     "screened_designs",
     "surrogate_path",
+    "time_parts",
     "trials_header",
     "write_candidates",
     "write_config",
     "write_confirmations",
     "write_summary",
+    "write_time_part",
     "write_trials",
 ]
 
-CONFIG, META, STUDIES, TRIALS, CONFIRMATIONS, SUMMARY = (
+CONFIG, META, STUDIES, TRIALS, CONFIRMATIONS, SUMMARY, TIME = (
     "config.json",
     "meta.json",
     "studies.json",
     "trials.csv",
     "confirmations.json",
     "summary.json",
+    "time.json",
 )
 
 #: trials.csv: the columns before the parameters, those after them, and the prefixes of the
@@ -99,7 +108,7 @@ TRIAL_PREDICTION_PREFIXES = ("pred.", "std.")
 TRIAL_TRUST = ("in_domain", "disagreement", "trusted")
 _NOT_PARAMETERS = frozenset((*TRIAL_KEYS, *TRIAL_SCORES, *TRIAL_TRUST))
 
-#: summary.json entries that say how long the invocation took (the rest is the answer)
+#: summary.json entries that say how long the run took (the rest is the answer)
 TIMING_KEYS = ("wall_time_s", "timings", "resumed")
 
 
@@ -268,7 +277,7 @@ def write_candidates(out: Path, r: int, chosen: list[Candidate]) -> None:
     """Record the designs round ``r`` sends to FE."""
     path = _candidates_path(out, r)
     path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write(path, json.dumps([c.to_json() for c in chosen], indent=1, allow_nan=False))
+    atomic_write(path, json_text([c.to_json() for c in chosen], indent=1))
 
 
 # ----------------------------------------------------------------------------- surrogates
@@ -291,7 +300,7 @@ def write_confirmations(out: Path, items: list[Confirmation], *, final: bool) ->
     """confirmations.json, rewritten only when its content changes. Before the end of the loop
     (``final`` False) a file that already continues ``items`` (a resumed run that made later
     rounds before) is left as it is."""
-    text = json.dumps([c.to_json() for c in items], indent=1, allow_nan=False)
+    text = json_text([c.to_json() for c in items], indent=1)
 
     def continues(old: str) -> bool:
         try:
@@ -312,11 +321,11 @@ def read_summary(out: Path) -> dict[str, Any]:
 def write_summary(
     out: Path, summary: Summary, wall_time_s: float, timings: dict[str, float], resumed: bool
 ) -> dict[str, Any]:
-    """summary.json: the answer, and how long the invocation that wrote it took
-    (``wall_time_s``, ``timings``; ``resumed``: it continued a run folder, so the time of the
-    killed invocations before it is not counted). Left as it is when the answer is the one it
-    holds already (a finished run re-run). Returns the timing the file holds (``TIMING_KEYS``:
-    this invocation's, or the one of the invocation that wrote the answer first)."""
+    """summary.json: the answer, and how long the run took (``wall_time_s``, ``timings``:
+    :func:`run_time`, every invocation that worked on it; ``resumed``: the invocation that
+    wrote it continued a run folder). Left as it is when the answer is the one it holds
+    already (a finished run re-run). Returns the timing the file holds (``TIMING_KEYS``: the
+    one given, or the one written with the answer first)."""
     data = summary.to_json()
     path = out / SUMMARY
     if path.exists():
@@ -326,8 +335,42 @@ def write_summary(
             old = None
         if isinstance(old, dict):
             answer = {k: v for k, v in old.items() if k not in TIMING_KEYS}
-            if answer == json.loads(json.dumps(data, allow_nan=False)):
+            if answer == json.loads(json_text(data)):
                 return {k: old[k] for k in TIMING_KEYS if k in old}
     timing = {"wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
-    write_if_changed(path, json.dumps({**data, **timing}, indent=1, allow_nan=False) + "\n")
+    write_if_changed(path, json_text({**data, **timing}, indent=1) + "\n")
     return timing
+
+
+# ----------------------------------------------------------------------------- time.json
+def _time_parts(out: Path) -> list[dict[str, Any]]:
+    path = out / TIME
+    parts = read_json(path) if path.is_file() else []
+    if not isinstance(parts, list) or not all(isinstance(p, dict) for p in parts):
+        raise DesignError(str(path), "not a list of the run's parts")
+    return parts
+
+
+def write_time_part(out: Path, index: int, wall_time_s: float, timings: dict[str, float]) -> None:
+    """Record in time.json that invocation ``index`` (its entry; ``len`` of the entries when it
+    started) has run ``wall_time_s`` so far, ``timings`` of it in each stage."""
+    parts = _time_parts(out)
+    parts[index : index + 1] = [{"wall_time_s": wall_time_s, "timings": dict(timings)}]
+    write_json(out / TIME, parts)
+
+
+def time_parts(out: Path) -> int:
+    """How many invocations time.json records (the index of the next one)."""
+    return len(_time_parts(out))
+
+
+def run_time(out: Path) -> tuple[float, dict[str, float]]:
+    """How long the run took: the wall time and each stage's time of every invocation that
+    worked on it (time.json), summed; a value a part lacks counts 0."""
+    parts = _time_parts(out)
+    wall = sum(float(p.get("wall_time_s") or 0.0) for p in parts)
+    timings: dict[str, float] = {}
+    for p in parts:
+        for stage, seconds in (p.get("timings") or {}).items():
+            timings[stage] = timings.get(stage, 0.0) + float(seconds or 0.0)
+    return wall, timings

@@ -362,6 +362,7 @@ def run_study(
     With ``settings.screen``, the study's first trials are the best designs of a quasi-random
     screen (``screen``), and ``settings.trials`` sampled trials follow them (``_seed``; in a
     shared study only the worker that created it adds them, so they are added once).
+    ``progress`` is told of every trial this call adds to the study, the seeds included.
     """
     import optuna
 
@@ -375,8 +376,11 @@ def run_study(
     seeder = shared and worker is not None and study.user_attrs.get("seeder") == worker
     n_seeds = _seed(study, stored, surrogate, space, targets, settings, round_, search,
                     shared=shared, seeder=seeder)  # fmt: skip
-    if n_seeds > sum(_is_seed(t) for t in stored):  # seeds were added: read them back
+    added = n_seeds - sum(_is_seed(t) for t in stored)
+    if added > 0:  # seeds were added: read them back, and count them as work done
         stored = sorted(study.get_trials(deepcopy=False, states=states), key=lambda t: t.number)
+        if progress is not None:
+            progress(added)
     total = n_seeds + settings.trials
     if shared:
         target, done, n_stored = study, len(stored), None

@@ -15,7 +15,8 @@ from collections.abc import Callable
 from sim import DesignError, homogeneous_design, load_design, simulate
 from sim.metrics import METRICS, PROTOCOLS
 from sim.options import SimOptions, apply_overrides, parse_override
-from sim.provenance import check_new_folder
+from sim.protocols import shown_hysteresis
+from sim.provenance import check_new_folder, json_text
 
 __all__ = ["main"]
 
@@ -73,11 +74,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         write_result(result, args.out, options, catalogues=user)
     tap = result.protocols.get("tapping", {})
     if args.json:
-        json.dump(result.to_json(), sys.stdout, allow_nan=False)
-        sys.stdout.write("\n")
+        sys.stdout.write(json_text(result.to_json()) + "\n")
     else:
         for name, value in result.metrics.items():
             unit = METRICS[name][1]
+            if name == "hysteresis_Nmm":  # 0 below what the solver's tolerances resolve
+                value = shown_hysteresis(result.metrics, design, options)
             if value is None or not math.isfinite(value):
                 if METRICS[name][0] in result.stopped:
                     text = "not computed: beyond the validity limits"
@@ -306,8 +308,7 @@ def _cmd_predict(args: argparse.Namespace) -> int:
             "units": dict(zip(pred.metric_names, pred.units, strict=True)),
             "designs": pred.to_records(),
         }
-        json.dump(out, sys.stdout, allow_nan=False)
-        sys.stdout.write("\n")
+        sys.stdout.write(json_text(out) + "\n")
         return 0
     records = pred.to_records()
     for i, rec in enumerate(records):
@@ -326,7 +327,12 @@ def _cmd_predict(args: argparse.Namespace) -> int:
 def _add_predict(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p.add_argument("checkpoint", type=Path, help="surrogate checkpoint (model.safetensors)")
+    p.add_argument(
+        "checkpoint",
+        type=Path,
+        help="surrogate checkpoint: a .safetensors file, or a training run folder holding "
+        "model.safetensors (e.g. surrogate/pretrained/default)",
+    )
     p.add_argument(
         "designs", type=Path, help="design-point TOML (name = value) or CSV (one point per row)"
     )
@@ -400,15 +406,27 @@ def _finish(summary, out) -> int:
         )
     for note in summary.notes:
         print(f"  {note}")
-    t = summary.timing.get("timings") or {}
-    if t:  # where the time went (this invocation; a resumed run counts its own part only)
-        print(
-            f"time: search {t.get('search_s', 0):.0f} s, FE {t.get('fe_s', 0):.0f} s, "
-            f"retraining {t.get('retrain_s', 0):.0f} s; "
-            f"{summary.timing['wall_time_s']:.0f} s in all"
-        )
+    if summary.timing.get("timings"):
+        print(_time_line(summary.timing))
     print(f"report: {report}")
     return 0
+
+
+def _time_line(timing: dict) -> str:
+    """Where the run's time went: every invocation that worked on it, a resumed run's earlier
+    (killed) ones too (``summary.json``'s timing, from the run folder's time.json)."""
+    t = timing.get("timings") or {}
+    names = (("sweep_s", "sweep"), ("train_s", "training"), ("search_s", "search"),
+             ("fe_s", "FE"), ("retrain_s", "retraining"))  # fmt: skip
+    stages = ", ".join(
+        f"{word} {t.get(key) or 0:.0f} s"
+        for key, word in names
+        if key in t or key in ("search_s", "fe_s", "retrain_s")
+    )
+    wall = timing.get("wall_time_s")
+    total = "not recorded" if wall is None else f"{wall:.0f} s in all"
+    resumed = " (a resumed run: its earlier parts included)" if timing.get("resumed") else ""
+    return f"time: {stages}; {total}{resumed}"
 
 
 def _cmd_optimize(args: argparse.Namespace) -> int:
@@ -500,9 +518,29 @@ def _add_optimize(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=_cmd_optimize)
 
 
+class _Given(argparse.Action):
+    """An option's value, stored with the fact that it was given (``<dest>_given``): an
+    option that only means something beside another one can then be refused without it."""
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        setattr(namespace, self.dest, values)
+        setattr(namespace, f"{self.dest}_given", True)
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from explore._pipeline import run
 
+    if getattr(args, "n_given", False) and not args.from_scratch:
+        raise UsageError(
+            "--n: the designs of the --from-scratch sweep; give --from-scratch too, or leave "
+            "--n out (without it the search starts from the shipped surrogate)"
+        )
     scratch = args.n if args.from_scratch else None
     summary = run(_optimize_config(args), args.out, from_scratch=scratch,
                   progress=not args.no_progress)  # fmt: skip
@@ -523,7 +561,11 @@ def _add_run(p: argparse.ArgumentParser) -> None:
         "8.6 h of sweep at 2.8 s a design, README)",
     )
     p.add_argument(
-        "--n", type=int, default=11008, help="designs of the --from-scratch sweep (as shipped)"
+        "--n",
+        type=int,
+        default=11008,
+        action=_Given,
+        help="designs of the --from-scratch sweep (as shipped; only with --from-scratch)",
     )
     p.set_defaults(func=_cmd_run)
 
@@ -689,22 +731,63 @@ def _input_errors() -> tuple[type[Exception], ...]:
     return errors if loaded is None else (*errors, loaded.CheckpointError)
 
 
+def _check_seed_option(args: argparse.Namespace) -> None:
+    """Every subcommand's ``--seed``, as it is parsed: an integer in [0, 2**32 - 1]
+    (``sim.errors.check_seed``), before any work."""
+    from sim.errors import check_seed
+
+    if getattr(args, "seed", None) is not None:
+        check_seed(args.seed)
+
+
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C's ``KeyboardInterrupt`` so that the same clean-up runs
+    (``sim.pool.Pool`` stops its workers, files are left whole); ``signum``: the signal."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _terminate_as_interrupt() -> Callable[[], None]:
+    """Make SIGTERM raise ``_Terminated`` in this (main) thread until the returned function
+    restores the handler before it; a no-op outside the main thread. A process killed by
+    SIGTERM's default action skips every ``finally``: its pools' workers and their queues'
+    semaphores were left to the resource tracker ("leaked semaphore objects")."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+
+    def terminate(signum: int, frame: object) -> None:
+        raise _Terminated(signum)
+
+    before = signal.signal(signal.SIGTERM, terminate)
+    return lambda: signal.signal(signal.SIGTERM, signal.SIG_DFL if before is None else before)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = build_parser(_command(argv)).parse_args(argv)
+    restore = _terminate_as_interrupt()
     try:
+        _check_seed_option(args)
         return args.func(args)
     except _input_errors() as exc:  # evaluated once something is raised
         print(f"fingertip: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("fingertip: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (_Terminated)
+        signum = exc.signum if isinstance(exc, _Terminated) else 2
+        print(f"fingertip: {'terminated' if signum != 2 else 'interrupted'}", file=sys.stderr)
+        return 128 + signum
     except BrokenPipeError:  # e.g. `fingertip predict ... | head`: the reader left, not an error
         import os
 
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0
+    finally:
+        restore()
 
 
 if __name__ == "__main__":

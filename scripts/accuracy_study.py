@@ -161,8 +161,10 @@ def main() -> None:
         }
         _print(f"mean of {len(runs)} repeats", means, None)
     if args.json:
+        from sim.provenance import json_text
+
         given = {k: str(v) if isinstance(v, Path) else v for k, v in vars(args).items()}
-        args.json.write_text(json.dumps({"args": given, "runs": runs}, indent=1) + "\n")
+        args.json.write_text(json_text({"args": given, "runs": runs}, indent=1) + "\n")
 
 
 if __name__ == "__main__":

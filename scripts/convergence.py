@@ -12,12 +12,12 @@ gives each metric's relative difference to the finest run and the observed order
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
 import numpy as np
 
 from sim import SimOptions, homogeneous_design, simulate
+from sim.provenance import json_text
 
 
 def scaled_options(kind: str, factor: float) -> SimOptions:
@@ -51,7 +51,7 @@ def main() -> None:
             )
             print(material, f, res.n_dofs, round(res.wall_time_s, 2), res.metrics, flush=True)
         path = args.out / f"{args.kind}_{material}.json"
-        path.write_text(json.dumps(rows, indent=1))
+        path.write_text(json_text(rows, indent=1))
         finest = rows[-1]["metrics"]
         print(f"\n{material}: relative difference to the finest run (factor {rows[-1]['factor']})")
         for name, ref in finest.items():

@@ -19,6 +19,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from sim import Geometry, homogeneous_design, simulate
+from sim.provenance import json_text
 
 TABLE2 = {
     "silicone_gls40": {"disp_at_1N_mm": 0.45, "disp_at_4N_mm": 1.03, "hysteresis_Nmm": 0.17},
@@ -59,7 +60,7 @@ def main() -> None:
                 return 10.0
             cache[key] = errs
             with log.open("a") as fh:
-                fh.write(json.dumps({"x": list(map(float, x)), "errors": errs}) + "\n")
+                fh.write(json_text({"x": list(map(float, x)), "errors": errs}) + "\n")
         errs = cache[key]
         worst = max(abs(e) for e in errs.values())
         print(np.round(x, 3), f"max {worst:.3f}", {k: round(v, 3) for k, v in errs.items()})
@@ -73,7 +74,7 @@ def main() -> None:
     )
     print("best", res.x, res.fun)
     (args.out / "best.json").write_text(
-        json.dumps({"x": list(map(float, res.x)), "max_error": float(res.fun)}, indent=1)
+        json_text({"x": list(map(float, res.x)), "max_error": float(res.fun)}, indent=1)
     )
 
 

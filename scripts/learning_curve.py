@@ -22,13 +22,13 @@ Writes a Markdown section, a JSON file and a PNG beside ``--out``.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from pathlib import Path
 
 import numpy as np
 
+from sim.provenance import json_text
 from surrogate._evaluate import parity_data, score
 from surrogate._io import read_sweep
 from surrogate._train import Split, TrainConfig, fit, split_indices
@@ -259,7 +259,7 @@ def main() -> None:
         ]
     )
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.with_suffix(".json").write_text(json.dumps(result, indent=1) + "\n")
+    args.out.with_suffix(".json").write_text(json_text(result, indent=1) + "\n")
     args.out.write_text(markdown(result, png, args.out, command))
     print(f"written {args.out}, {args.out.with_suffix('.json')} and {png}")
 

@@ -26,6 +26,8 @@ from explore._run_folder import (
     read_trials,
     screened_designs,
 )
+from sim.options import options_from_dict
+from sim.protocols import shown_hysteresis
 
 README = Path(__file__).resolve().parents[1] / "README.md"
 START, END = "<!-- answer:start -->", "<!-- answer:end -->"
@@ -90,9 +92,20 @@ def _scored(folder: Path, rounds: int) -> str:
     )
 
 
+def _none_credible(summary: dict) -> str:
+    """The sentence of a run that found no credible design ("" when it found one)."""
+    if summary["answers"].get("best") is not None:
+        return ""
+    return (
+        " No credible design was found: none of the FE-confirmed designs ran, settled, stayed "
+        "within the validity limits and recovered between taps."
+    )
+
+
 def render(folder: Path) -> str:
     """The README block for the run folder ``folder``."""
     summary = read_summary(folder)
+    options = options_from_dict((read_config(folder) or {}).get("sim_options") or {})
     confirmations = json.loads((folder / "confirmations.json").read_text())
     credible = sum(1 for c in confirmations if c.get("trusted"))
     t = summary.get("timings") or {}
@@ -101,7 +114,8 @@ def render(folder: Path) -> str:
         f"{summary['wall_time_s']:.0f} s (search {t.get('search_s', 0):.0f} s, FE "
         f"{t.get('fe_s', 0):.0f} s, retraining {t.get('retrain_s', 0):.0f} s); "
         f"{len(confirmations)} designs confirmed with full FE, {credible} of them trusted."
-        + _scored(folder, len(summary["rounds"])),
+        + _scored(folder, len(summary["rounds"]))
+        + _none_credible(summary),
         "",
         "| answer | design | 1 N / 4 N from touch (mm) | from the top (mm) | sag (mm) | "
         "hysteresis (N mm) | errors |",
@@ -115,11 +129,13 @@ def render(folder: Path) -> str:
         r = a["readings"]
         touch, top = r["from_first_touch"], r["from_undeformed_top"]
         errors = ", ".join(_percent(e) for e in a["errors_vs_targets"].values())
+        # 0 below what the FE's tolerances resolve: never a negative loop area
+        hysteresis = shown_hysteresis(a["fe_metrics"], a["design"], options)
         lines.append(
             f"| {label} | {describe(a['design'])} | {touch['disp_at_1N_mm']:.2f} / "
             f"{touch['disp_at_4N_mm']:.2f} | {top['disp_at_1N_mm']:.2f} / "
             f"{top['disp_at_4N_mm']:.2f} | {r['sag_mm']:.2f} | "
-            f"{a['fe_metrics']['hysteresis_Nmm']:.3g} | {errors} |"
+            f"{hysteresis:.3g} | {errors} |"
         )
     return "\n".join(lines) + "\n"
 

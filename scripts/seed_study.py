@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 from explore import OptimizeConfig, run
+from sim.provenance import json_text
 
 
 def main() -> None:
@@ -42,10 +43,14 @@ def main() -> None:
                 "seed": seed,
                 "wall_s": round(wall, 1),
                 "timings": {k: round(v, 1) for k, v in d["timings"].items()},
-                "round_best": [round(r["best_fe_score"], 3) for r in d["rounds"]],
+                # None: no credible design that round
+                "round_best": [
+                    None if r["best_fe_score"] is None else round(r["best_fe_score"], 3)
+                    for r in d["rounds"]
+                ],
                 "best_errors": best.get("errors_vs_targets"),
             }
-            print(json.dumps(line), flush=True)
+            print(json_text(line), flush=True)
 
 
 if __name__ == "__main__":

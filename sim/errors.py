@@ -30,6 +30,27 @@ class SimulationError(RuntimeError):
         self.reason = reason
 
 
+#: The largest seed of every command (``--seed``): seeds are integers in [0, 2**32 - 1]. The
+#: narrowest of the generators they seed decides: Optuna's TPE and NSGA-II samplers seed numpy's
+#: ``RandomState`` (Mersenne Twister), which takes [0, 2**32 - 1] and raises beyond ("Seed must
+#: be between 0 and 2**32 - 1"); ``numpy.random.SeedSequence`` (the training's split, weights
+#: and minibatches), scipy's Sobol / Latin-hypercube samplers and ``torch.Generator`` take any
+#: non-negative integer, none a negative one. One range for every command, so that a seed one
+#: command takes the others take too; 4 294 967 296 seeds are more than any study needs.
+SEED_MAX = 2**32 - 1
+
+
+def check_seed(seed: object, field: str = "--seed", uses: int = 1) -> int:
+    """``seed`` if it is an integer and the ``uses`` seeds ``seed``, ..., ``seed + uses - 1``
+    (a search's round r seeds its samplers with ``seed + r``) lie in [0, ``SEED_MAX``]; else a
+    ``DesignError`` naming ``field`` and the allowed range."""
+    high = SEED_MAX - (uses - 1)
+    why = "" if uses == 1 else f" (round r seeds its search with seed + r, {uses} rounds)"
+    if isinstance(seed, bool) or not isinstance(seed, int) or not 0 <= seed <= high:
+        raise DesignError(field, f"must be an integer in [0, {high}]{why}, got {seed!r}")
+    return seed
+
+
 def read_bytes(path, field: str, kind: str) -> bytes:
     """The bytes of a file; missing, a directory or unreadable is one ``DesignError`` naming
     ``field`` (``kind``: what the file should be, e.g. "TOML file", "CSV file")."""

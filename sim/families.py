@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .materials import LAWS, Material, Prony
+from .materials._validate import MU0_MAX_MPA, MU0_MIN_MPA
 
 __all__ = [
     "FAMILIES",
@@ -79,7 +80,7 @@ def _gel(v: Mapping[str, float], ratios: tuple[float, ...]) -> Material:
 class Family:
     """A continuous material family: the layer parameters it uses (``keys``), the relaxation
     times of its three Prony terms relative to ``tau_s`` (``time_ratios``) and the admissible
-    range of each key (``limits``: key -> (low, high, text); low exclusive for moduli, times and
+    range of each key (``limits``: key -> (low, high, text); low exclusive for times and
     alpha)."""
 
     name: str
@@ -95,12 +96,14 @@ class Family:
 
 
 #: what the laws admit (not what is realistic: the spaces' bounds, argued in
-#: docs/design_space.md, are that): moduli and times positive; alpha != 0 for an Ogden-type
-#: term, capped at 50 as the space parser did before this module (a guard against typos, far
-#: above any fitted value: the catalogue's largest is 15.5, silicone_gls40); g_total < 1 keeps
+#: docs/design_space.md, are that): a modulus in the physical range of a user's material
+#: (``sim.materials._validate.MU0_MIN_MPA`` / ``MU0_MAX_MPA``, argued there); times positive;
+#: alpha != 0 for an Ogden-type term, capped at 50 as the space parser did before this module
+#: (a guard against typos, far above any fitted value: the catalogue's largest is 15.5,
+#: silicone_gls40); g_total < 1 keeps
 #: a solid, and 0.95 keeps the instantaneous modulus within 20x the long-term one.
 _COMMON_LIMITS = {
-    "mu0_MPa": (0.0, float("inf"), "> 0"),
+    "mu0_MPa": (MU0_MIN_MPA, MU0_MAX_MPA, f"in [{MU0_MIN_MPA:g}, {MU0_MAX_MPA:g}] MPa"),
     "alpha": (0.0, 50.0, "in (0, 50]"),
     "g_total": (0.0, 0.95, "in [0, 0.95]"),
     "tau_s": (0.0, float("inf"), "> 0"),

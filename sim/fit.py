@@ -69,8 +69,10 @@ import numpy as np
 from ._special import exprel
 from .errors import DesignError, read_bytes
 from .materials import LAWS, MAX_PRONY_TERMS, Material, Prony
+from .materials._drucker import PROVENANCE_KEY, STABILITY_MODES, STABILITY_STRAIN_RANGE
 from .materials._law import MAX_TERMS
 from .materials._validate import poisson
+from .provenance import json_text
 
 __all__ = [
     "DEFAULT_NU",
@@ -94,10 +96,8 @@ __all__ = [
 
 MODES = ("uniaxial", "compression", "biaxial", "planar")
 FIT_MODELS = ("neo_hookean", "mooney_rivlin", "yeoh", "ogden", "hyperfoam")
-#: nominal strains of the Drucker stability check, as asked of Abaqus' evaluation here
-STABILITY_STRAIN_RANGE = (-0.8, 2.0)
-#: the deformations checked (uniaxial covers compression with its negative strains)
-STABILITY_MODES = ("uniaxial", "biaxial", "planar")
+# the Drucker stability check's nominal strains and deformations, and the provenance key of
+# each stable range: ``sim.materials._drucker``'s (a material carries its ranges to the FE)
 #: Poisson's ratio when none is given: the catalogue's convention for silicones (0.499 as the gel
 #: family's ``sim.families.GEL_NU``, an assumption recorded in the entry: a tensile test says
 #: nothing of the bulk modulus; the incompressible fits do not depend on it)
@@ -508,7 +508,7 @@ class MaterialFit:
         out["moduli_reason"] = self.moduli_reason
         out["nu_assumed"] = not self.nu_given
         for mode, (lo, hi) in self.stable_ranges.items():
-            out[f"drucker_stable_{mode}"] = [lo, hi]
+            out[PROVENANCE_KEY.format(mode)] = [lo, hi]
         return {k: v for k, v in out.items() if not (isinstance(v, float) and not math.isfinite(v))}
 
     def entry(self) -> dict[str, Any]:
@@ -1061,6 +1061,6 @@ def write_fit(fit: MaterialFit, out: str | Path) -> list[Path]:
     load_catalogue_text(text, out.name)  # raises if the loader would refuse it
     out.write_text(text)
     paths[1].write_text(_report_md(fit, out))
-    paths[2].write_text(json.dumps(fit.to_json(), indent=1, allow_nan=False) + "\n")
+    paths[2].write_text(json_text(fit.to_json(), indent=1) + "\n")
     _render(fit_plot_data(fit), paths[3])
     return paths

@@ -13,6 +13,14 @@ sweeps and confirmations, the references' FE beside the search, figures) is made
 A worker's records are written atomically (the references' and the screen's FE beside the
 search write their own), so ending it loses at most the designs it was running.
 
+Interrupted (Ctrl-C, or SIGTERM, which ``fingertip`` turns into the same ``KeyboardInterrupt``),
+a pool stops its workers at once instead of waiting for their work (:meth:`Pool.__exit__`), and
+the process then ends normally, so the locks and semaphores of its queues are released (a
+process that died of SIGTERM left them to the resource tracker: "There appear to be 5 leaked
+semaphore objects to clean up at shutdown"). The workers ignore Ctrl-C themselves: it reaches
+the whole process group, and their parent decides (a worker's own ``KeyboardInterrupt`` printed
+a traceback and failed its design). Only SIGKILL leaves no time for any of this.
+
 A pool made with ``nice`` > 0 runs at a lower priority: it takes the cores only when the rest of
 the job leaves them idle (the FE beside the search, ``explore._rounds.fe_alongside``).
 """
@@ -20,11 +28,13 @@ the job leaves them idle (the FE beside the search, ``explore._rounds.fe_alongsi
 from __future__ import annotations
 
 import os
+import signal
 import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
+from types import TracebackType
 
-__all__ = ["PARENT_POLL_S", "process_pool", "stop_workers", "worker_init"]
+__all__ = ["PARENT_POLL_S", "Pool", "process_pool", "stop_workers", "worker_init"]
 
 #: how often a worker looks for its parent (s): an orphan lives at most this long
 PARENT_POLL_S = 0.5
@@ -50,19 +60,45 @@ def worker_init(parent: int, nice: int = 0) -> None:
     """The initializer of every worker of ``process_pool`` (module level: picklable)."""
     _single_thread()
     _exit_with_parent(parent)
+    # Ctrl-C is the parent's to handle (it stops the pool); SIGTERM ends a worker as usual,
+    # whatever handler a forked worker inherited from its parent
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
     if nice > 0 and hasattr(os, "nice"):
         os.nice(nice)
 
 
-def process_pool(workers: int, nice: int = 0, *, spawn: bool = False) -> ProcessPoolExecutor:
-    """A ``ProcessPoolExecutor`` of ``workers`` single-threaded processes that end with their
-    parent, at ``nice`` (0: the parent's priority; up to 19, the lowest) (see the module
-    docstring). ``spawn``: fresh interpreters instead of forks of this process, for work that
-    uses torch when this process has used it (a fork inherits its thread pools' locks in
-    whatever state they were, and can wait on them for ever)."""
+class Pool(ProcessPoolExecutor):
+    """A ``ProcessPoolExecutor`` that, left by an interruption, stops its workers at once."""
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool:
+        """Leaving a ``with`` block: normally, wait for the work (as ``ProcessPoolExecutor``);
+        interrupted (``KeyboardInterrupt``, ``SystemExit``), :func:`stop_workers` at once; on
+        an error, cancel the work not started and wait for the running designs."""
+        if exc_type is None:
+            self.shutdown(wait=True)
+        elif issubclass(exc_type, KeyboardInterrupt | SystemExit):
+            stop_workers(self)
+        else:
+            self.shutdown(wait=True, cancel_futures=True)
+        return False
+
+
+def process_pool(workers: int, nice: int = 0, *, spawn: bool = False) -> Pool:
+    """A ``Pool`` (a ``ProcessPoolExecutor`` that stops its workers when interrupted) of
+    ``workers`` single-threaded processes that end with their parent, at ``nice`` (0: the
+    parent's priority; up to 19, the lowest) (see the module docstring). ``spawn``: fresh
+    interpreters instead of forks of this process, for work that uses torch when this process
+    has used it (a fork inherits its thread pools' locks in whatever state they were, and can
+    wait on them for ever)."""
     import multiprocessing
 
-    return ProcessPoolExecutor(
+    return Pool(
         max_workers=workers,
         initializer=worker_init,
         initargs=(os.getpid(), nice),

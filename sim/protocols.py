@@ -16,17 +16,21 @@ thickness times L, times 2 for the symmetric half model); displacements in mm, t
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from .contact import Plate, Wedge
 from .errors import SimulationError
-from .solver import Body, Control
+from .solver import FORCE_RTOL, Body, Control, youngs_moduli
 from .validity import DeformationTracker, ValidityStop, check
+
+if TYPE_CHECKING:
+    from .design import Design
+    from .options import SimOptions
 
 __all__ = [
     "REGISTRY",
@@ -35,9 +39,11 @@ __all__ = [
     "ProtocolResult",
     "TappingOptions",
     "WedgeOptions",
+    "hysteresis_resolution_Nmm",
     "run_plate",
     "run_tapping",
     "run_wedge",
+    "shown_hysteresis",
 ]
 
 
@@ -324,6 +330,63 @@ def _tap_metrics(t, delta, force, t_load, peak, omega):
     dF = peak * omega * np.cos(omega * tt)
     hyst = -float(np.trapezoid(d_of_t(tt) * dF, tt))
     return d1, d4, hyst
+
+
+def hysteresis_resolution_Nmm(
+    design: Design | None, metrics: Mapping[str, Any], options: SimOptions | None = None
+) -> float:
+    """The smallest loop area (N mm) the tapping's FE tells from 0, by Newton's tolerances.
+
+    The loop area is ``-closed integral of delta dF`` = ``closed integral of F d(delta)``. Newton
+    ends a step once the indenter force matches the applied one within ``FORCE_RTOL`` of it and
+    every other equation's residual is within ``Body.atol = rtol x E0 x size`` (N/mm of the
+    half model; E0 the largest Young's modulus, size the largest coordinate). Each force of the
+    loop is then known to ``dF = FORCE_RTOL x peak + 2 L x atol`` (N: L the out-of-plane length,
+    2 for the half model) at worst, and the integral, whose path is twice the travel from first
+    touch to the peak (``closed integral of |d delta|``), to ``2 x travel x dF``. A smaller
+    value is the tolerances' noise, not dissipation: an elastic design (0 by physics) gives a
+    few 1e-5 N mm of either sign. The travel: ``disp_at_4N_from_touch_mm`` of ``metrics``
+    scaled to the peak force (an upper bound: the contact stiffens), else the design's height.
+    ``design`` None (or an unknown one): the indenter term alone. ``options``: default ones."""
+    from .geometry import REFERENCE_GEOMETRY
+    from .options import SimOptions
+
+    options = options or SimOptions()
+    tapping, newton = options.tapping, options.newton
+    geometry = design.geometry if design is not None else REFERENCE_GEOMETRY
+    size = max(geometry.half_width_mm, geometry.height_mm)  # Body: the largest coordinate
+    d4 = metrics.get("disp_at_4N_from_touch_mm")
+    finite = isinstance(d4, int | float) and np.isfinite(d4)
+    travel = d4 * max(1.0, tapping.peak_force_N / 4.0) if finite else geometry.height_mm
+    e0 = max(youngs_moduli(design.materials)) if design is not None else 0.0
+    atol = newton.rtol * e0 * size
+    force = FORCE_RTOL * tapping.peak_force_N + 2.0 * tapping.length_mm * atol
+    return 2.0 * abs(travel) * force
+
+
+def shown_hysteresis(
+    metrics: Mapping[str, Any],
+    design: Design | Mapping[str, Any] | None = None,
+    options: SimOptions | None = None,
+) -> float | None:
+    """The FE ``hysteresis_Nmm`` of ``metrics`` as a reader is shown it: 0 when it is below
+    :func:`hysteresis_resolution_Nmm` (so a negative loop area, which no passive material
+    makes, is never shown), else its value; None when there is none. Only the display: the
+    records keep the computed value, so the stored metric and the sweeps made with it (keyed by
+    solver version) do not change. ``design``: a ``Design`` or its design-file dict (one this
+    catalogue cannot build: the indenter term of the resolution alone)."""
+    value = metrics.get("hysteresis_Nmm")
+    if value is None or not np.isfinite(value):
+        return None
+    if isinstance(design, Mapping):
+        from .design import design_from_dict
+        from .errors import DesignError
+
+        try:
+            design = design_from_dict(design)
+        except DesignError:  # a user catalogue's material
+            design = None
+    return 0.0 if value < hysteresis_resolution_Nmm(design, metrics, options) else float(value)
 
 
 def _rest_times(opts: TappingOptions, tau_min_s: float) -> np.ndarray:

@@ -4,8 +4,10 @@ way every run-folder file is written.
 Every file a command writes into a run folder goes through :func:`atomic_write` (a temporary
 file in the same folder, then ``os.replace``: a kill leaves the old file or the new one, never
 half of one); :func:`write_if_changed` leaves a file alone when it holds the text already (a
-re-run that changes nothing rewrites nothing). JSON is strict (``allow_nan=False``): values go
-through :func:`json_safe` (NaN and infinities -> None, numpy scalars -> Python numbers).
+re-run that changes nothing rewrites nothing). JSON is strict (``allow_nan=False``): every
+writer of JSON text (files, standard output) makes it with :func:`json_text`, which puts the
+values through :func:`json_safe` first (NaN and infinities -> None, numpy scalars -> Python
+numbers), so a non-finite value is written as null, never as a crash or as ``Infinity``.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ __all__ = [
     "folder_kind",
     "git_commit",
     "json_safe",
+    "json_text",
     "nan_if_none",
     "package_versions",
     "provenance",
@@ -282,8 +285,16 @@ def nan_if_none(x: Any) -> float:
     return math.nan if x is None else float(x)
 
 
+def json_text(data: Any, indent: int | None = None, **options: Any) -> str:
+    """``data`` as strict JSON text: the one way this project writes JSON. Values go through
+    :func:`json_safe` (a NaN or infinity becomes null), then ``json.dumps`` with
+    ``allow_nan=False``, so anything else that is not JSON raises instead of being written;
+    ``options``: more ``json.dumps`` arguments (``sort_keys``, ``ensure_ascii``...)."""
+    return json.dumps(json_safe(data), indent=indent, allow_nan=False, **options)
+
+
 def write_json(path: str | Path, data: Any, indent: int | None = 1) -> None:
-    """Write ``data`` as strict JSON (``allow_nan=False``: make it :func:`json_safe` first)
-    to ``path`` atomically; ``indent=None``: one line."""
-    text = json.dumps(data, indent=indent, allow_nan=False)
+    """Write ``data`` as strict JSON (:func:`json_text`) to ``path`` atomically;
+    ``indent=None``: one line."""
+    text = json_text(data, indent=indent)
     atomic_write(path, text + "\n" if indent is not None else text)

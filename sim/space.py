@@ -614,7 +614,7 @@ def _check_family_bounds(p: Parameter, key: str, family: Any) -> None:
     """The space's range of ``p`` must lie within what ``family`` admits for ``key``."""
     lo, hi = min(_values(p)), max(_values(p))
     a, b, text = family.limits[key]
-    strict_low = key in ("mu0_MPa", "alpha", "tau_s")
+    strict_low = key in ("alpha", "tau_s")  # > 0; a modulus's low end is a physical bound
     if (lo <= a if strict_low else lo < a) or hi > b:
         raise DesignError(p.name, f"must be {text} for the {family.name} family, got [{lo}, {hi}]")
 

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import DesignError, SimulationError
+from .errors import DesignError, SimulationError, check_seed
 from .materials import Material, UserCatalogue, catalogue_from_tables, material_tables
 from .metrics import SOLVER_VERSION
 from .options import SimOptions, apply_overrides, options_from_dict
@@ -260,6 +260,7 @@ def run_sweep(
         raise DesignError("--n", f"must be >= 1, got {n}")
     if workers < 1:
         raise DesignError("--workers", f"must be >= 1, got {workers}")
+    check_seed(seed)
     if not 0 <= start < n:
         raise DesignError("--start", f"must be in [0, --n - 1] = [0, {n - 1}], got {start}")
     if start and sampler != "sobol":

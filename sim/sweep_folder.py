@@ -35,7 +35,7 @@ from typing import IO, Any
 
 from .metrics import METRICS, diagnostic_names
 from .protocols import profile_summary
-from .provenance import json_safe, replacing, sha256_file, write_json
+from .provenance import json_safe, json_text, replacing, sha256_file, write_json
 
 __all__ = [
     "CONFIG",
@@ -204,7 +204,7 @@ class SweepStore:
                 )
                 if rec["status"] == "ok":
                     fc.write(
-                        json.dumps({"index": i, "key": key, "curves": rec.get("curves", {})}) + "\n"
+                        json_text({"index": i, "key": key, "curves": rec.get("curves", {})}) + "\n"
                     )
 
 

@@ -23,7 +23,13 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["TRUST_OUTPUTS", "trust_censoring", "trust_flags", "trust_values"]
+__all__ = [
+    "PROBABILITY_OUTPUTS",
+    "TRUST_OUTPUTS",
+    "trust_censoring",
+    "trust_flags",
+    "trust_values",
+]
 
 #: output name -> the protocol whose net learns it ("any": the plate/wedge net)
 TRUST_OUTPUTS: dict[str, str] = {
@@ -39,6 +45,9 @@ TRUST_OUTPUTS: dict[str, str] = {
     "tapping_max_estimated_error": "tapping",
 }
 _PROTOCOLS = ("tapping", "plate", "wedge")
+#: the 0/1 outputs: a prediction of one (an ensemble's mean of 0/1 values) reads as a
+#: probability, so it and its interval lie in [0, 1] (``surrogate.Surrogate.predict``)
+PROBABILITY_OUTPUTS = ("reached_base", "folded", "failed")
 
 
 def _float(v: Any) -> float:
@@ -61,7 +70,7 @@ def trust_values(diagnostics: Mapping[str, Any]) -> dict[str, float]:
     out = {
         name: _float(diagnostics.get(name))
         for name in TRUST_OUTPUTS
-        if name not in ("reached_base", "folded", "failed")
+        if name not in PROBABILITY_OUTPUTS
     }
     status = diagnostics.get("status")  # a table row's: "ok" or "failed"
     out["failed"] = np.nan if status in (None, "") else float(status != "ok")
@@ -70,7 +79,7 @@ def trust_values(diagnostics: Mapping[str, Any]) -> dict[str, float]:
         seen = [v for v in seen if np.isfinite(v)]
         out[flag] = float(max(seen)) if seen else np.nan
     if _stopped(diagnostics):  # a protocol stopped early: a flag still 0, or "not failed",
-        for flag in ("reached_base", "folded", "failed"):  # might have turned 1 later
+        for flag in PROBABILITY_OUTPUTS:  # might have turned 1 later
             if out[flag] == 0.0:
                 out[flag] = np.nan
     return {name: out[name] for name in TRUST_OUTPUTS}

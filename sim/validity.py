@@ -13,7 +13,9 @@ committed step a protocol records, the extremes that say how far the model was t
 - whether the outer surface folded (``surface_folded``);
 
 and, once at the protocol's peak load, the width of the contact with the indenter. ``check``
-compares a summary with the thresholds of ``ValidityOptions``; ``assess`` words the violations.
+compares a summary with the thresholds of ``ValidityOptions`` and with each layer's
+Drucker-stable strain when its material's fit has one (``Material.drucker_limit_log_strain``);
+``assess`` words the violations.
 """
 
 from __future__ import annotations
@@ -251,6 +253,8 @@ class DeformationTracker:
         self._qp_xy = np.array(disc.basis.global_coordinates())  # (2, n_el, n_q), reference, mm
         self._strain_at_mm: list[float] | None = None
         n_layers = len(disc.slices)
+        # each layer's Drucker-stable strain (a user material fitted unstable beyond it)
+        self._stable_strain = [m.drucker_limit_log_strain for m in disc.materials]
         self._layer_strain = np.zeros(n_layers)
         self._layer_J = np.ones(n_layers)
         self._base_nodes = 0
@@ -304,9 +308,12 @@ class DeformationTracker:
         - ``max_base_contact_nodes``: most surface nodes on the base at once;
         - ``max_compressive_log_strain_at_mm``: reference (x, y) of the quadrature point with the
           largest strain (None if nothing was compressed);
-        - ``max_compressive_log_strain_by_layer``, ``min_J_by_layer``: per layer, outermost first.
+        - ``max_compressive_log_strain_by_layer``, ``min_J_by_layer``: per layer, outermost first;
+        - ``drucker_stable_log_strain_by_layer``: per layer, the compressive log strain within
+          which its material's fit is Drucker-stable (None: no limit), only when a layer has
+          one (``Material.drucker_limit_log_strain``; a result without one is unchanged).
         """
-        return {
+        out = {
             "max_compressive_log_strain": float(self._layer_strain.max()),
             "min_J": float(self._layer_J.min()),
             "contact_width_at_peak_mm": self._width_mm,
@@ -319,6 +326,9 @@ class DeformationTracker:
             "max_compressive_log_strain_by_layer": self._layer_strain.tolist(),
             "min_J_by_layer": self._layer_J.tolist(),
         }
+        if any(limit is not None for limit in self._stable_strain):
+            out["drucker_stable_log_strain_by_layer"] = list(self._stable_strain)
+        return out
 
 
 # ---------------------------------------------------------------------------- verdict
@@ -326,7 +336,7 @@ class DeformationTracker:
 class Violation:
     """One violated limit: the option that sets it, the quantity, its value and the limit."""
 
-    option: str  # the ValidityOptions field (--set validity.<option>=...)
+    option: str  # the ValidityOptions field (--set validity.<option>=...); "": a material's own
     quantity: str
     value: float | None = None  # None for the yes/no limits
     limit: float | None = None
@@ -346,7 +356,14 @@ class Violation:
         return f"{self.quantity} {v} {self.relation} {lim}"
 
     def warning(self) -> str:
-        """The sentence of the command line's warning, with the option that moves the limit."""
+        """The sentence of the command line's warning, with the option that moves the limit
+        (``option`` "": a material's own limit, which no option moves)."""
+        if not self.option:
+            v, lim = self._numbers()
+            return (
+                f"{self.quantity} {v} beyond {lim}: fingertip fit-material found the fitted "
+                "law Drucker-unstable there, so the results are an extrapolation"
+            )
         if self.value is None:
             return (
                 f"{self.quantity}, outside the validity range (--set validity.{self.option}=true)"
@@ -375,6 +392,8 @@ def check(
                 options.max_compressive_log_strain,
             )
         )
+    if limited:
+        out += _drucker_violations(summary)
     if J < options.min_J:
         out.append(Violation("min_J", "volume ratio J", J, options.min_J, "<"))
     if summary["reached_base"] and not options.allow_base_contact:
@@ -382,6 +401,22 @@ def check(
     if summary["folded"] and not options.allow_folding:
         out.append(Violation("allow_folding", "surface folded"))
     return out
+
+
+def _drucker_violations(summary: dict[str, Any]) -> list[Violation]:
+    """The layers strained beyond the Drucker-stable strain of their material's fit
+    (``drucker_stable_log_strain_by_layer``, when the summary has it). Held against the same
+    protocols as the strain limit (``strain_limit_protocols``), for the same reason: under the
+    wedge's tip the strain is a near-singularity over a few hundredths of a mm^2."""
+    limits = summary.get("drucker_stable_log_strain_by_layer")
+    if not limits:  # no layer has one (every result before this limit): nothing is read
+        return []
+    strains = summary["max_compressive_log_strain_by_layer"]
+    return [
+        Violation("", f"layer {k} compressive log strain (Drucker-stable fit)", strain, limit)
+        for k, (strain, limit) in enumerate(zip(strains, limits, strict=False))
+        if limit is not None and strain > limit
+    ]
 
 
 def assess(

@@ -18,7 +18,11 @@ from __future__ import annotations
 from importlib import import_module
 from typing import TYPE_CHECKING
 
+from ._arithmetic import pin_arithmetic
 from ._errors import CheckpointError
+
+# before this package first uses torch: the same bits on every x86-64 CPU with AVX2
+pin_arithmetic()
 
 if TYPE_CHECKING:
     from ._checkpoint import load_checkpoint, save_checkpoint

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from sim.metrics import METRICS, SOLVER_VERSION, same_metrics
-from sim.provenance import json_safe, replacing
+from sim.provenance import json_safe, json_text, replacing
 from sim.space import space_from_dict
 
 from ._encoding import (
@@ -35,7 +35,17 @@ from ._errors import CheckpointError
 from ._normalise import OutputNormaliser
 from ._surrogate import ZERO_IF_ELASTIC
 
-__all__ = ["FORMAT", "SCHEMA_VERSION", "load_checkpoint", "save_checkpoint"]
+__all__ = [
+    "CHECKPOINT_NAME",
+    "FORMAT",
+    "SCHEMA_VERSION",
+    "checkpoint_file",
+    "load_checkpoint",
+    "save_checkpoint",
+]
+
+#: the checkpoint file of a training run folder (``fingertip train``)
+CHECKPOINT_NAME = "model.safetensors"
 
 FORMAT = "fingertip-surrogate"
 SCHEMA_VERSION = 3  # 2: output.offset (shifted-log metrics); 3: material descriptors, groups
@@ -135,10 +145,10 @@ def write_checkpoint(path: str | Path, tensors: dict[str, np.ndarray], header: d
     from safetensors.numpy import save_file
 
     path = Path(path)
-    header = {k: v for k, v in header.items() if k != "sha256"}
+    header = json_safe({k: v for k, v in header.items() if k != "sha256"})  # hashed as stored
     header["sha256"] = _digest(tensors, header)
     with replacing(path) as tmp:
-        save_file(tensors, str(tmp), metadata={META_KEY: json.dumps(header, allow_nan=False)})
+        save_file(tensors, str(tmp), metadata={META_KEY: json_text(header)})
     return path
 
 
@@ -148,13 +158,34 @@ def save_checkpoint(surrogate, path: str | Path) -> Path:
     return write_checkpoint(path, _tensors(surrogate), header)
 
 
+def checkpoint_file(path: str | Path) -> Path:
+    """The checkpoint file ``path`` names: the file itself, or a folder's ``CHECKPOINT_NAME``
+    (a training run folder, the shipped ``surrogate/pretrained/default``); a folder without
+    one, or nothing at all, is one error line saying which file is expected."""
+    path = Path(path)
+    if path.is_dir():
+        if (path / CHECKPOINT_NAME).is_file():
+            return path / CHECKPOINT_NAME
+        raise CheckpointError(
+            path,
+            f"a folder without {CHECKPOINT_NAME}: give a checkpoint file (.safetensors) or a "
+            f"training run folder (fingertip train) that holds {CHECKPOINT_NAME}",
+        )
+    if not path.is_file():
+        raise CheckpointError(
+            path,
+            "no such checkpoint file (a .safetensors checkpoint, or a training run folder "
+            f"that holds {CHECKPOINT_NAME})",
+        )
+    return path
+
+
 def read_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """Tensors and header of a checkpoint file, after the format, schema and hash checks."""
+    """Tensors and header of a checkpoint (a file, or a folder holding ``CHECKPOINT_NAME``:
+    :func:`checkpoint_file`), after the format, schema and hash checks."""
     from safetensors import safe_open
 
-    path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(path, "no such checkpoint file")
+    path = checkpoint_file(path)
     try:
         with safe_open(str(path), framework="numpy") as fh:
             meta = fh.metadata() or {}

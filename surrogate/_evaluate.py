@@ -6,7 +6,6 @@ report.json are exactly those in the figures.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import platform
@@ -19,7 +18,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from sim.provenance import json_safe
+from sim.provenance import json_safe, json_text
 
 from ._surrogate import Surrogate
 from ._train import r2_score
@@ -365,7 +364,7 @@ def write_report(report: Report, folder: Path, info: dict[str, Any]) -> None:
     for p in report.parity:
         render_parity(p, figures / f"parity_{p.metric}.png")
     data = {**json_safe(info), **report.to_dict()}
-    (folder / "report.json").write_text(json.dumps(data, indent=1, allow_nan=False) + "\n")
+    (folder / "report.json").write_text(json_text(data, indent=1) + "\n")
     s = report.speed
     lines = [
         "# Surrogate evaluation",

@@ -12,17 +12,15 @@ import dataclasses
 import json
 from pathlib import Path
 
-from sim.errors import DesignError
+from sim.errors import DesignError, check_seed
 from sim.provenance import check_new_folder, provenance, run_folder, write_json
 
-from ._checkpoint import save_checkpoint
+from ._checkpoint import CHECKPOINT_NAME, save_checkpoint
 from ._evaluate import evaluate, write_report
 from ._io import read_sweep
 from ._train import TrainConfig, fit
 
 __all__ = ["CHECKPOINT_NAME", "default_out", "train_surrogate"]
-
-CHECKPOINT_NAME = "model.safetensors"
 
 
 def default_out(sweep_dir: str | Path) -> Path:
@@ -58,6 +56,7 @@ def train_surrogate(
     unknown = sorted(set(hyper) - names)
     if unknown:
         raise TypeError(f"unknown training option {unknown[0]!r}; known: {sorted(names)}")
+    check_seed(seed)
     if members < 1:
         raise DesignError("--members", f"must be >= 1, got {members}")
     if max_epochs is not None:
@@ -77,6 +76,8 @@ def train_surrogate(
         "solver_version": data.solver_version,
         "include_untrusted": include_untrusted,
         "train": config.to_dict(),
+        # torch's intra-op threads of the training (``surrogate._threads``)
+        "torch_threads": result.surrogate.header["training"]["torch_threads"],
     }
     split = result.split
     with run_folder(out) as tmp:

@@ -12,18 +12,30 @@ import torch
 from sim.metrics import METRICS
 from sim.provenance import finite_or_none
 from sim.space import DesignSpace
+from sim.trust import PROBABILITY_OUTPUTS
 
 from ._encoding import ELASTIC_FEATURE, Encoder
 from ._model import EnsembleMLP, FrozenEnsemble
 from ._normalise import PHYSICAL, OutputNormaliser
 
-__all__ = ["ZERO_IF_ELASTIC", "Prediction", "Surrogate", "rule_mask"]
+__all__ = ["ZERO_IF_ELASTIC", "Prediction", "Surrogate", "clip_probabilities", "rule_mask"]
 
 #: metrics that vanish identically for an elastic design: without relaxation a closed load
 #: cycle dissipates nothing (contact is frictionless). The FE gives |h| < 1e-3 N mm there, the
 #: error of its time steps. The surrogate predicts exactly 0 for those designs (std 0) and never
 #: trains on them, so the log scale of the metric serves the designs that do dissipate.
 ZERO_IF_ELASTIC = frozenset({"hysteresis_Nmm"})
+
+
+def clip_probabilities(out: Mapping[str, np.ndarray], metric_names: Sequence[str]) -> None:
+    """Keep the predictions of the 0/1 outputs (``sim.trust.PROBABILITY_OUTPUTS``, read as
+    probabilities) in [0, 1], in place: their point predictions and 90 % interval (a Gaussian
+    fitted to 0/1 values reaches below 0 and above 1: "-0.12 to 0.31" is "0 to 0.31"); their
+    std is left as it is."""
+    columns = [j for j, m in enumerate(metric_names) if m in PROBABILITY_OUTPUTS]
+    if columns:
+        for key in ("mean", "median", "lower_90", "upper_90"):
+            out[key][:, columns] = np.clip(out[key][:, columns], 0.0, 1.0)
 
 
 def rule_mask(encoder: Encoder, features: np.ndarray, metric_names: Sequence[str]) -> np.ndarray:
@@ -159,11 +171,13 @@ class Surrogate:
     def predict_features(self, features: np.ndarray) -> dict[str, np.ndarray]:
         """Predict already encoded designs (n, n_features): ``mean``, ``median``, ``std``,
         ``lower_90``, ``upper_90`` in metric units, each (n, n_metrics), and ``by_rule`` (the
-        entries set by ``ZERO_IF_ELASTIC``: exactly 0 with std 0)."""
+        entries set by ``ZERO_IF_ELASTIC``: exactly 0 with std 0); a probability within
+        [0, 1] (``clip_probabilities``)."""
         n, m = len(features), len(self.metric_names)
         out: dict[str, np.ndarray] = {key: np.empty((n, m)) for key in PHYSICAL}
         for rows, mean_z, std_z in self._batches(features):  # each batch's arrays stay in cache
             self.normaliser.to_physical(mean_z, std_z, {k: a[rows] for k, a in out.items()})
+        clip_probabilities(out, self.metric_names)
         rule = rule_mask(self.encoder, np.asarray(features), self.metric_names)
         for key in PHYSICAL:
             np.copyto(out[key], 0.0, where=rule)

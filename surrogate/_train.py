@@ -3,8 +3,9 @@ a Gaussian NLL and per-member early stopping on the validation loss; then calibr
 metric's 90 % interval on the validation designs (``calibration_factors``).
 
 Reproducible from the seed: the split, the initial weights and every member's minibatch order
-come from ``numpy.random.SeedSequence(seed)``; torch runs with deterministic algorithms (the
-thread count is left as it is; results are bit-identical for a given thread count).
+come from ``numpy.random.SeedSequence(seed)``; torch runs with deterministic algorithms, on
+``surrogate._threads.torch_threads()`` intra-op threads (1: a reduction's sum depends on the
+thread count, see ``MAX_TRAINING_THREADS``), recorded in the header (``training.torch_threads``).
 """
 
 from __future__ import annotations
@@ -29,6 +30,7 @@ from ._io import SweepData
 from ._model import EnsembleMLP, gaussian_nll
 from ._normalise import Z90, OutputNormaliser
 from ._surrogate import Surrogate, rule_mask
+from ._threads import threads_set, torch_threads
 
 __all__ = [
     "GROUPINGS",
@@ -185,6 +187,7 @@ def fit(
     progress: bool | Callable[[int], None] = True,
     split: Split | None = None,
     init: Surrogate | None = None,
+    threads: int | None = None,
 ) -> FitResult:
     """Train an ensemble on ``data`` (a sweep) and return a ``FitResult``.
 
@@ -195,7 +198,8 @@ def fit(
     and ``config.fractions``). ``init``: warm start from a trained surrogate with the same
     encoding, metrics and architecture: its weights are the starting point and its output
     normaliser is kept (so the start is exactly the trained model); the input domain is refitted
-    on the new training rows.
+    on the new training rows. ``threads``: torch's intra-op threads while it trains (default
+    ``torch_threads()``: no FE beside it); the caller's count is set again afterwards.
     """
     if config.members < 1:
         raise ValueError(f"members must be >= 1, got {config.members}")
@@ -252,7 +256,8 @@ def fit(
             raise ValueError("warm start: the surrogate's encoding or metrics differ")
         model.load_state_dict(init.model.state_dict(), strict=True)
     train, val = tensors(split.train), tensors(split.val)
-    best, history, epochs = _train(model, config, train, val, progress, new=split.new)
+    with threads_set(torch_threads() if threads is None else threads) as threads:
+        best, history, epochs = _train(model, config, train, val, progress, new=split.new)
     best.restore(model)
     header = {
         "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
@@ -263,6 +268,7 @@ def fit(
             "log_tangents": log_tangents,
             "epochs": epochs,
             "best_epoch": [int(e) for e in best.epoch],
+            "torch_threads": threads,
         },
         "training_data": {
             "sweep": str(Path(data.folder).resolve()),
@@ -301,6 +307,7 @@ def fine_tune(
     batch_size: int | None = None,
     replay: int = 0,
     progress: bool | Callable[[int], None] = False,
+    threads: int | None = None,
 ) -> Surrogate:
     """``surrogate`` trained further (warm-started, ``fit``'s ``init``) on its training sweep
     ``data`` and new designs: ``points`` with their ``targets`` (one row per point, the columns
@@ -312,7 +319,7 @@ def fine_tune(
     given, ``batch_size``, and ``replay``: 0, every epoch passes over the whole training sweep
     and the new designs; k > 0, a rehearsal: every epoch passes over the new designs and k
     designs of the sweep drawn afresh (an epoch's cost no longer grows with the sweep).
-    ``progress`` as ``fit``'s."""
+    ``progress`` and ``threads`` as ``fit``'s."""
     if weight < 1:
         raise ValueError(f"weight must be >= 1, got {weight}")
     extra = [p for p in points for _ in range(weight)]
@@ -337,7 +344,8 @@ def fine_tune(
     changed["replay"] = replay
     config = TrainConfig(**{**old, **changed})
     split = Split(train, val, test, new=len(extra))
-    return fit(aug, config, progress=progress, split=split, init=surrogate).surrogate
+    fitted = fit(aug, config, progress=progress, split=split, init=surrogate, threads=threads)
+    return fitted.surrogate
 
 
 #: features, targets, their mask, their censoring (+1 lower bound, -1 upper, 0 exact)

@@ -170,10 +170,25 @@ INVALID_FILES: dict[str, tuple[str, str]] = {
         TWO_LAYER_TOML.replace("thickness_mm = 1.0", "thickness_mm = 0.01"),
         "layers[0].thickness_mm",
     ),
+    # physical moduli only (issue 31: mu_MPa = 1e12 ran, a plate force of 9.97e13 N)
+    "mu_far_too_stiff": (
+        NU_TOO_HIGH.replace("0.5", "0.3").replace("0.1", "1e12"),
+        "layers[0].material.mu_MPa",
+    ),
+    "mu_far_too_soft": (
+        NU_TOO_HIGH.replace("0.5", "0.3").replace("0.1", "1e-12"),
+        "layers[0].material.mu_MPa",
+    ),
 }
 
 # A representative subset that also runs as a real subprocess.
-SUBPROCESS_CASES = ["nu_half", "malformed_toml", "unknown_material", "four_layers"]
+SUBPROCESS_CASES = [
+    "nu_half",
+    "malformed_toml",
+    "unknown_material",
+    "four_layers",
+    "mu_far_too_stiff",
+]
 
 
 @pytest.mark.parametrize("case", list(INVALID_FILES))
@@ -327,6 +342,35 @@ def test_out_is_checked_before_any_computing(
 
 
 # --- real simulations ----------------------------------------------------------------------------
+def test_an_elastic_design_s_hysteresis_is_shown_as_0_never_negative(capsys) -> None:
+    """Issue 31, item 6a: an elastic design dissipates nothing; its FE loop area is the noise
+    of the solver's tolerances, of either sign (-2.8e-05 N mm was printed). Below the
+    resolution those tolerances give (``sim.protocols.hysteresis_resolution_Nmm``) it is shown
+    as 0, in `fingertip simulate` and in the report; a larger value is shown as it is."""
+    from explore._report import _answer_rows
+    from sim.options import SimOptions
+    from sim.protocols import hysteresis_resolution_Nmm, shown_hysteresis
+    from sim.targets import load_targets
+
+    design = homogeneous_design("dragon_skin_30_marechal")  # no relaxation: elastic
+    metrics = {"hysteresis_Nmm": -2.8e-05, "disp_at_4N_from_touch_mm": 0.69}
+    resolution = hysteresis_resolution_Nmm(design, metrics)
+    assert 2.8e-05 < resolution < 1e-3
+    assert shown_hysteresis(metrics, design) == 0.0
+    assert shown_hysteresis(metrics, design.to_dict()) == 0.0  # the design-file form
+    assert shown_hysteresis({**metrics, "hysteresis_Nmm": -0.01}, design) == 0.0  # never < 0
+    assert shown_hysteresis({**metrics, "hysteresis_Nmm": 2 * resolution}, design) == 2 * resolution
+    assert shown_hysteresis({**metrics, "hysteresis_Nmm": None}, design) is None
+    answer = {"design": design.to_dict(), "fe_metrics": metrics}
+    (row,) = [r for r in _answer_rows(answer, load_targets(), 0.05, SimOptions())
+              if r.startswith("| `hysteresis_Nmm`")]  # fmt: skip
+    assert row.split(" | ")[2] == "0"
+    assert main(["simulate", "--material", "dragon_skin_30_marechal", "--protocol", "tapping"]) == 0
+    out = capsys.readouterr().out
+    (line,) = [x for x in out.splitlines() if x.startswith("hysteresis_Nmm")]
+    assert line.split()[1:] == ["0.0000", "N", "mm"]  # was -0.0000 (FE: -4.5e-06 N mm)
+
+
 @pytest.fixture(scope="module")
 def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return tmp_path_factory.mktemp("cli")
@@ -850,3 +894,101 @@ def test_run_from_scratch_sweeps_as_many_designs_as_the_shipped_table():
     shipped = Path(__file__).resolve().parents[1] / "surrogate/pretrained/default/config.json"
     args = build_parser("run").parse_args(["run", "--from-scratch"])
     assert args.n == json.loads(shipped.read_text())["n"]
+
+
+# --- issue 31, item 5: bad inputs are one line, exit 2, before any work, no folder made --------
+def _argv_with_out(command: str, tmp_path: Path) -> list[str]:
+    out = str(tmp_path / "out")
+    return {
+        "sweep": ["sweep", "--n", "2", "--out", out],
+        "train": ["train", str(tmp_path / "sweep"), "--out", out],
+        "optimize": ["optimize", "--out", out, "--no-progress"],
+        "run": ["run", "--out", out, "--no-progress"],
+    }[command]
+
+
+@pytest.mark.parametrize("seed", ["-1", "4294967296"])
+@pytest.mark.parametrize("command", ["sweep", "train", "optimize", "run"])
+def test_a_seed_out_of_range_is_one_line_before_any_work(
+    command: str, seed: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Every subcommand's --seed is an integer in [0, 2**32 - 1] (sim.errors.SEED_MAX): a
+    negative one no longer reaches numpy, nor leaves a folder that refuses the corrected
+    command."""
+    assert main([*_argv_with_out(command, tmp_path), "--seed", seed]) == 2
+    line = assert_one_line_error(capsys.readouterr().err, "--seed")
+    assert "[0, 4294967295]" in line and f"got {seed}" in line, line
+    assert sorted(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("command", ["optimize", "run"])
+def test_a_search_seed_whose_last_round_is_out_of_range_is_refused(
+    command: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Round r searches with seed + r: with 3 rounds the largest seed is 2**32 - 3."""
+    argv = [*_argv_with_out(command, tmp_path), "--seed", "4294967295", "--rounds", "3"]
+    assert main(argv) == 2
+    line = assert_one_line_error(capsys.readouterr().err, "--seed")
+    assert "[0, 4294967293]" in line and "3 rounds" in line, line
+    assert sorted(tmp_path.iterdir()) == []
+
+
+def test_a_negative_seed_is_one_line_in_a_subprocess(tmp_path: Path) -> None:
+    res = run_cli("sweep", "--n", "2", "--out", "out", "--seed", "-1", cwd=tmp_path)
+    assert res.returncode == 2 and res.stdout == ""
+    assert_one_line_error(res.stderr, "--seed")
+    assert sorted(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("kind", "words"),
+    [
+        ("missing", "does not exist"),
+        ("empty", "is not a sweep folder: it has no config.json"),
+        ("no_table", "is not a sweep folder: it has no table.csv"),
+    ],
+)
+def test_a_dataset_that_is_no_sweep_is_named_not_replaced(
+    kind: str, words: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """--dataset given is used or refused: never silently replaced by the shipped table."""
+    dataset = tmp_path / "sweep"
+    if kind != "missing":
+        dataset.mkdir()
+    if kind == "no_table":
+        (dataset / "config.json").write_text("{}")
+    out = tmp_path / "run"
+    for command in ("optimize", "run"):
+        argv = [command, "--dataset", str(dataset), "--out", str(out), "--no-progress"]
+        assert main(argv) == 2
+        line = assert_one_line_error(capsys.readouterr().err, "--dataset")
+        assert f"{dataset} {words}" in line, line
+    assert not out.exists()
+
+
+def test_run_n_without_from_scratch_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``run --n 5`` alone would be ignored: it is one line naming --n, before any work; with
+    --from-scratch it is the sweep's size (test_optimize_and_run_call_the_pipeline_once...)."""
+    out = tmp_path / "main"
+    assert main(["run", "--n", "5", "--out", str(out), "--no-progress"]) == 2
+    line = assert_one_line_error(capsys.readouterr().err, "--n")
+    assert "--from-scratch" in line
+    assert sorted(tmp_path.iterdir()) == []
+
+
+def test_a_user_catalogue_with_an_unphysical_modulus_is_one_line(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    cat = write(
+        tmp_path,
+        '[stiff]\nsource = "a typo"\nmodel = "neo_hookean"\nmu_MPa = 1e12\nnu = 0.3\n',
+        "cat.toml",
+    )
+    out = tmp_path / "sim"
+    argv = ["simulate", "--material", "stiff", "--catalogue", str(cat), "--out", str(out)]
+    assert main(argv) == 2
+    line = assert_one_line_error(capsys.readouterr().err, "stiff.mu_MPa")
+    assert "[0.0001, 1000] MPa" in line
+    assert not out.exists()

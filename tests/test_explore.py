@@ -249,6 +249,41 @@ def test_an_untrusted_fe_result_is_never_an_answer():
     assert "1 went beyond the validity limits, 1 did not reach" in none.notes[0]
 
 
+def test_a_round_without_a_credible_design_finishes_and_says_so(tmp_path):
+    """Issue 31, item 1: the round's one FE-confirmed design went beyond the validity limits
+    (its tapping stopped: no tapping metrics, an infinite FE score). The round logs
+    ``best_fe_score`` None, summary.json is written (strict JSON, null for it) and the report
+    says in words that no credible design was found."""
+    from explore._report import write_report
+    from explore._rounds import _round_info
+    from explore._run_folder import read_summary, write_confirmations, write_summary
+    from explore._summary import summarise
+
+    targets, space = load_targets(), load_space()
+    point = space.point(np.full(len(space.sampled), 0.5))
+    cand = Candidate(point, "best", 0, 7, "continuous", 0.1, {}, True, 0.01)
+    record = {
+        "status": "ok",
+        "metrics": {m: None for m in METRICS} | {"wedge_peak_force_N": 0.25},
+        "diagnostics": {"valid": False, "stopped": "tapping", "settled": None},
+    }
+    beyond = compare(cand, "k", record, targets)
+    assert beyond.status == "ok" and beyond.fe_score == math.inf and not beyond.trusted
+    info = _round_info(0, [beyond], targets, 0.05)
+    assert info["best_fe_score"] is None  # no credible design this round (was inf)
+    summary = summarise([beyond], targets, 0.05, [info], [], space)
+    assert summary.answers["best"] is None
+    write_confirmations(tmp_path, [beyond], final=True)
+    write_summary(tmp_path, summary, 1.0, {"fe_s": 0.5}, False)
+    text = (tmp_path / "summary.json").read_text()
+    assert "Infinity" not in text and "NaN" not in text
+    assert read_summary(tmp_path)["rounds"][0]["best_fe_score"] is None
+    report = write_report(tmp_path).read_text()
+    assert "No credible design was found in round(s) 0" in report
+    assert "| no credible design |" in report and "| None |" not in report
+    assert "did not finish" not in report
+
+
 def test_confirm_reuses_existing_fe_records(tmp_path, monkeypatch):
     """A resumed run never recomputes an FE design it already has."""
     import explore._confirm as mod
@@ -287,6 +322,37 @@ def test_study_sampler_is_seeded():
     a, b, c = points(0), points(0), points(1)
     assert all(_same(x, y) for x, y in zip(a, b, strict=True))
     assert not all(_same(x, y) for x, y in zip(a, c, strict=True))
+
+
+def test_the_search_bar_ends_at_the_trials_the_study_holds(monkeypatch, tmp_path):
+    """Issue 31, item 6f: a study's bar counts the screen's seeds as well as the sampled trials
+    (it stopped at 128/192: the 64 seeds were never counted) and ends at the work done when it
+    differs from the plan (a screen of 32 designs keeps 32 seeds, not 64)."""
+    from types import SimpleNamespace
+
+    import tqdm as tqdm_module
+
+    from explore._config import DEFAULT_CHECKPOINT, OptimizeConfig
+    from explore._rounds import Search, _study
+    from surrogate import load_checkpoint
+
+    closed: list[tuple[int, int]] = []
+
+    class Bar(tqdm_module.tqdm):
+        def close(self) -> None:
+            closed.append((self.n, self.total))
+            super().close()
+
+    monkeypatch.setattr(tqdm_module, "tqdm", Bar)
+    surrogate = load_checkpoint(DEFAULT_CHECKPOINT, allow_solver_mismatch=True)
+    storage = open_storage(str(tmp_path / "study.log"))
+    run = Search(OptimizeConfig(), tmp_path, SimpleNamespace(targets=load_targets()), storage, None)
+    for screen, seeds in ((256, 64), (32, 32)):
+        settings = SearchSettings(trials=16, screen=screen, seed=0)
+        _study(run, surrogate, 0, f"s{screen}", surrogate.space, settings)
+        study = optuna.load_study(study_name=f"fingertip-r0-s{screen}", storage=storage)
+        assert len(study.trials) == seeds + 16
+        assert closed[-1] == (seeds + 16, seeds + 16)
 
 
 # ----------------------------------------------------------------------------- pipeline
@@ -403,6 +469,30 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     assert _snapshot(out) == before and not (tmp_path / "model").exists()
 
 
+def test_the_issue_31_run_without_a_credible_design_finishes(tmp_path):
+    """Issue 31, item 1, its command on the shipped surrogate (~15 s): the one confirmed design
+    goes beyond the validity limits (log strain 0.602 > 0.600). The run finishes (exit 0) with
+    summary.json (its round's ``best_fe_score`` null) and a report saying no credible design
+    was found (before, it crashed writing summary.json, at every re-run too)."""
+    out = tmp_path / "x"
+    args = [
+        "optimize", "--out", str(out), "--trials", "16", "--family-trials", "0",
+        "--buildable-trials", "0", "--screen", "256", "--confirm", "1", "--uncertain", "0",
+        "--rounds", "1", "--buildable-fe", "0", "--no-progress",
+    ]  # fmt: skip
+    proc = _run(args)
+    assert proc.returncode == 0, proc.stderr
+    assert "best design: none credible confirmed by FE" in proc.stdout
+    (confirmation,) = json.loads((out / "confirmations.json").read_text())
+    assert confirmation["diagnostics"]["valid"] is False and confirmation["fe_score"] is None
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["answers"]["best"] is None and summary["rounds"][0]["best_fe_score"] is None
+    assert "went beyond the validity limits" in summary["notes"][0]
+    report = (out / "report.md").read_text()
+    assert "No credible design was found in round(s) 0" in report
+    assert "did not finish" not in report
+
+
 def _snapshot(folder: Path) -> dict[Path, tuple[bytes, int]]:
     """Every file of ``folder``: its bytes and modification time."""
     return {
@@ -488,7 +578,8 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     files = sorted(str(p.relative_to(ref)) for p in ref.rglob("*") if p.is_file())
     assert files == sorted(str(p.relative_to(out)) for p in out.rglob("*") if p.is_file())
     # byte for byte: everything but the files that record when or how long (checked below)
-    timed = ("meta.json", "summary.json", "study.log", "surrogates/", "fe/", "config.json")
+    timed = ("meta.json", "summary.json", "study.log", "surrogates/", "fe/", "config.json",
+             "time.json")  # fmt: skip
     for name in files:
         if not name.startswith(timed):
             same_bytes(name)
@@ -502,6 +593,10 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     timing = ("wall_time_s", "timings", "resumed")
     a, b = (json.loads((d / "summary.json").read_text()) for d in (ref, out))
     assert _without(a, *timing) == _without(b, *timing) and b["resumed"] and not a["resumed"]
+    # the resumed run's time is the killed invocation's and its own (issue 31, item 6c)
+    parts = json.loads((out / "time.json").read_text())
+    assert len(parts) == 2 and parts[0]["timings"]["search_s"] > 0
+    assert b["wall_time_s"] == pytest.approx(sum(p["wall_time_s"] for p in parts))
     assert len(a["rounds"]) == 2
     # FE records: the same results (only the time each took differs)
     rec_a, rec_b = (sorted((d / "fe").rglob("*.json")) for d in (ref, out))

@@ -184,6 +184,11 @@ def test_an_unstable_mooney_rivlin_fit_is_caught() -> None:
     assert all(r == (-0.8, 2.0) for r in good.values())
     entry = fit.entry()
     assert entry["provenance"]["drucker_stable_uniaxial"] == [lo, hi]
+    # the material carries its limit to the FE (sim.validity flags a layer strained past it):
+    # equibiaxial tension to e has a smallest stretch of (1 + e) ** -2
+    b_hi = fit.stable_ranges["biaxial"][1]
+    limit = fit.material.drucker_limit_log_strain
+    assert limit is not None and 0 < limit <= 2 * math.log1p(b_hi) + 1e-12
 
 
 def test_drucker_boundary_is_where_the_energy_stops_being_convex() -> None:

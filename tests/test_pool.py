@@ -87,3 +87,54 @@ def test_stop_workers_ends_a_busy_worker_at_once():
     assert time.perf_counter() - t0 < 5
     assert workers and not any(_alive(w) for w in workers)
     pool.shutdown(wait=True)
+
+
+INTERRUPTED = """
+import sys, time
+from explore.cli import _terminate_as_interrupt
+from sim.pool import process_pool
+restore = _terminate_as_interrupt()  # what `fingertip` does
+try:
+    with process_pool(2, spawn=True) as pool:  # spawned: its queues' semaphores are tracked
+        futures = [pool.submit(time.sleep, 60) for _ in range(4)]
+        time.sleep(3)  # the workers have started and sleep
+        print(" ".join(map(str, pool._processes)), flush=True)
+        futures[0].result()
+except KeyboardInterrupt as exc:
+    print(type(exc).__name__, file=sys.stderr)
+    sys.exit(1)
+finally:
+    restore()
+"""
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads /proc")
+@pytest.mark.parametrize("how", ["SIGTERM", "Ctrl-C"])
+def test_an_interrupted_pool_stops_its_workers_and_leaks_nothing(how):
+    """Issue 31, item 6d: SIGTERM (a `kill`) or Ctrl-C (SIGINT to the whole process group)
+    during a pool's work: the parent stops its workers at once instead of waiting for the
+    queued work, ends normally, and the resource tracker finds no "leaked semaphore objects"
+    (SIGTERM killed the parent outright, Ctrl-C left it waiting for the queue)."""
+    parent = subprocess.Popen(
+        [sys.executable, "-c", INTERRUPTED], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        text=True, start_new_session=True,
+    )  # fmt: skip
+    workers: list[int] = []
+    try:
+        workers = [int(p) for p in parent.stdout.readline().split()]
+        assert len(workers) == 2 and all(_alive(p) for p in workers)
+        if how == "SIGTERM":
+            os.kill(parent.pid, signal.SIGTERM)
+        else:
+            os.killpg(parent.pid, signal.SIGINT)
+        _, err = parent.communicate(timeout=30)  # its work would take 60 s and more
+        assert parent.returncode == 1, err
+        assert err.splitlines()[0] == ("_Terminated" if how == "SIGTERM" else "KeyboardInterrupt")
+        assert "leaked" not in err and "Traceback" not in err, err
+        assert not any(_alive(p) for p in workers)
+    finally:
+        if parent.poll() is None:
+            parent.kill()
+        for pid in workers:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)

@@ -14,6 +14,7 @@ from sim import SOLVER_VERSION
 from sim.metrics import SAME_METRICS_AS
 from sim.space import load_space
 from sim.sweep_folder import table_sha256
+from sim.trust import PROBABILITY_OUTPUTS
 from surrogate import load_checkpoint, read_sweep
 from surrogate._evaluate import parity_data, score
 
@@ -71,11 +72,19 @@ def test_shipped_report_is_reproduced_on_the_held_out_designs(model):
     for p in parity_data(model, [data.points[i] for i in test], scored[test]):
         s, m = score(p), p.metric
         want = report["metrics"][m]
-        if want["r2"] is not None:
-            assert s.r2 == pytest.approx(want["r2"], rel=1e-6)
-            assert s.median_rel_error == pytest.approx(want["median_rel_error"], rel=1e-6)
-            # the intervals too (calibrated on the validation designs since session 12)
-            assert s.coverage_90 == pytest.approx(want["coverage_90"], abs=1e-12)
+        if want["r2"] is None:
+            continue
+        # the intervals too (calibrated on the validation designs)
+        assert s.coverage_90 == pytest.approx(want["coverage_90"], abs=1e-12)
+        if m in PROBABILITY_OUTPUTS:
+            # predictions of a probability are now clipped to [0, 1] (the report was written
+            # before): clipping moves a prediction toward every target in [0, 1], so each
+            # error can only shrink, and an interval clipped to [0, 1] holds the same targets
+            assert s.r2 >= want["r2"] - 1e-12
+            assert s.median_rel_error <= want["median_rel_error"] + 1e-12
+            continue
+        assert s.r2 == pytest.approx(want["r2"], rel=1e-6)
+        assert s.median_rel_error == pytest.approx(want["median_rel_error"], rel=1e-6)
 
 
 def test_readme_python_example_runs(model, monkeypatch):

@@ -232,3 +232,211 @@ def test_newton_abandons_a_stalled_step_but_never_a_converging_one():
     assert not any(_stalled(creeping[: k + 1], opts) for k in range(7))
     assert _stalled(creeping, opts)
     assert not any(_stalled(slow_but_steady[: k + 1], opts) for k in range(20))
+
+
+# ----------------------------------------------------------------------------- issue 31, item 4
+def test_torch_threads_are_the_cores_left_by_the_fe_workers(monkeypatch):
+    """torch's threads for a training: the cores of the process's affinity less the FE workers
+    running beside it, at least 1, at most the cap (1 by default: the same bits whatever the
+    machine)."""
+    import os
+
+    from surrogate import _threads
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 2, 5, 7}, raising=False)
+    assert _threads.torch_threads(0, most=8) == 4
+    assert _threads.torch_threads(1, most=8) == 3
+    assert _threads.torch_threads(3, most=8) == 1
+    assert _threads.torch_threads(9, most=8) == 1  # never fewer than one
+    assert _threads.torch_threads(0, most=2) == 2
+    assert _threads.torch_threads(0, cores=16, most=8) == 8
+    assert _threads.MAX_TRAINING_THREADS == 1 and _threads.torch_threads(0) == 1
+
+
+def test_retraining_runs_on_the_decided_threads_and_gives_the_callers_back(monkeypatch):
+    """``explore._retrain.retrain`` trains on ``torch_threads(fe_workers)`` threads (measured
+    inside the training), records them in the checkpoint's header and sets the caller's count
+    again afterwards."""
+    import os
+
+    import torch
+
+    import surrogate._threads
+    import surrogate._train
+    from explore._retrain import retrain
+    from surrogate import load_checkpoint
+
+    seen = []
+    real = surrogate._train._train
+
+    def spy(*args, **kwargs):
+        seen.append(torch.get_num_threads())
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(surrogate._train, "_train", spy)
+    shipped = load_checkpoint(SHIPPED / "model.safetensors", allow_solver_mismatch=True)
+    before = torch.get_num_threads()
+    try:
+        torch.set_num_threads(2)
+        model = retrain(shipped, SHIPPED, [], epochs=1, seed=0, replay=8, fe_workers=1)
+        assert seen == [1] and model.header["training"]["torch_threads"] == 1
+        assert torch.get_num_threads() == 2
+        # a higher cap: the cores of the affinity (6) less the one FE worker beside it
+        monkeypatch.setattr(surrogate._threads, "MAX_TRAINING_THREADS", 8)
+        monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(6)), raising=False)
+        model = retrain(shipped, SHIPPED, [], epochs=1, seed=0, replay=8, fe_workers=1)
+        assert seen == [1, 5] and model.header["training"]["torch_threads"] == 5
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)
+
+
+# ----------------------------------------------------------------------------- issue 31, item 5
+def test_the_seed_range_is_the_samplers_and_one_line_outside_it():
+    """[0, 2**32 - 1]: Optuna's samplers take no more (numpy's RandomState), nothing takes a
+    negative seed; a search's last round (seed + rounds - 1) must be inside too."""
+    import optuna
+
+    from sim.errors import SEED_MAX, check_seed
+
+    assert SEED_MAX == 2**32 - 1
+    optuna.samplers.TPESampler(seed=SEED_MAX)  # the largest seed is usable
+    with pytest.raises(ValueError):
+        optuna.samplers.TPESampler(seed=SEED_MAX + 1)
+    assert check_seed(0) == 0 and check_seed(SEED_MAX) == SEED_MAX
+    for bad in (-1, SEED_MAX + 1, 1.5, True, "3"):
+        with pytest.raises(DesignError) as exc:
+            check_seed(bad)
+        assert exc.value.field == "--seed" and "[0, 4294967295]" in exc.value.message
+    assert check_seed(SEED_MAX - 2, uses=3) == SEED_MAX - 2
+    with pytest.raises(DesignError, match=r"\[0, 4294967293\]"):
+        check_seed(SEED_MAX - 1, uses=3)
+
+
+def test_every_catalogue_entry_and_space_bound_is_inside_the_moduli_range():
+    """The physical moduli range (``MU0_MIN_MPA``-``MU0_MAX_MPA``) refuses none of the shipped
+    materials (each read again through the validation of a user's table) nor any shipped
+    design space (its families' mu0 bounds), and the families' limit is that range."""
+    import tomllib
+
+    from sim.families import FAMILIES
+    from sim.materials import CATALOGUE, CATALOGUE_PATH
+    from sim.materials._validate import MU0_MAX_MPA, MU0_MIN_MPA
+    from sim.space import load_space
+
+    tables = tomllib.loads(CATALOGUE_PATH.read_text())
+    assert set(tables) == set(CATALOGUE) and len(CATALOGUE) >= 20
+    for name, table in tables.items():
+        mat = material_from_spec(table, f"materials.{name}")
+        assert MU0_MIN_MPA <= mat.law.initial_shear_modulus_MPa <= MU0_MAX_MPA, name
+        assert mat.drucker_limit_log_strain is None, name  # every shipped fit is stable
+    spaces = sorted((Path(__file__).resolve().parents[1] / "sim" / "data").glob("*_space.toml"))
+    assert len(spaces) >= 2
+    for path in spaces:
+        space = load_space(path)
+        for p in space.parameters:
+            if p.name.endswith(".mu0_MPa") and p.kind == "float":
+                assert MU0_MIN_MPA <= p.low <= p.high <= MU0_MAX_MPA, (path.name, p.name)
+    for fam in FAMILIES.values():
+        assert fam.limits["mu0_MPa"][:2] == (MU0_MIN_MPA, MU0_MAX_MPA)
+
+
+@pytest.mark.parametrize(
+    ("table", "field", "words"),
+    [
+        ({"model": "neo_hookean", "mu_MPa": 1e12, "nu": 0.3}, "mu_MPa", "[0.0001, 1000] MPa"),
+        ({"model": "neo_hookean", "mu_MPa": 1e-12, "nu": 0.3}, "mu_MPa", "[0.0001, 1000] MPa"),
+        ({"model": "yeoh", "c10_MPa": 1e4, "nu": 0.4}, "c10_MPa", "[0.0001, 1000] MPa"),
+        (  # the sum is soft, one term is not
+            {"model": "ogden", "mu_MPa": [2000.0, -1999.9], "alpha": [2.0, -2.0], "nu": 0.4},
+            "mu_MPa",
+            "mu_MPa[0] = 2000 MPa is beyond +-1000 MPa",
+        ),
+        (
+            {"model": "hyperfoam", "mu_MPa": [5e-5], "alpha": [2.0], "nu": 0.3},
+            "mu_MPa",
+            "initial shear modulus 5e-05 MPa is outside",
+        ),
+    ],
+)
+def test_moduli_outside_the_physical_range_name_the_field(table, field, words):
+    with pytest.raises(DesignError) as exc:
+        material_from_spec(table, "layers[0].material")
+    assert exc.value.field == f"layers[0].material.{field}"
+    assert words in exc.value.message
+
+
+def _fitted(planar: list[float], uniaxial: tuple[float, float] = (-0.8, 2.0)) -> dict:
+    """A gel as ``fingertip fit-material`` writes it, Drucker-stable in the given ranges."""
+    return {
+        "model": "ogden", "mu_MPa": [0.05], "alpha": [3.0], "nu": 0.499, "name": "my_gel",
+        "provenance": {
+            "method": "fingertip fit-material",
+            "drucker_stable_uniaxial": list(uniaxial),
+            "drucker_stable_biaxial": [-0.8, 2.0],
+            "drucker_stable_planar": planar,
+        },
+    }  # fmt: skip
+
+
+def test_a_fitted_materials_drucker_limit_is_the_first_unstable_strain():
+    """The compressive log strain at the first end of a stable range cut short by an
+    instability (the smallest principal stretch of that test); none when nothing was cut."""
+    import math
+
+    assert material_from_spec(_fitted([-0.8, 2.0])).drucker_limit_log_strain is None
+    cut = material_from_spec(_fitted([-0.1, 2.0]))
+    assert cut.drucker_limit_log_strain == pytest.approx(-math.log(0.9))
+    # uniaxial tension to 100 %: lateral stretch 2 ** -0.5 (incompressible), the smaller limit
+    both = material_from_spec(_fitted([-0.5, 2.0], uniaxial=(-0.8, 1.0)))
+    assert both.drucker_limit_log_strain == pytest.approx(0.5 * math.log(2.0))
+    # the entry's table is unchanged: a design's record key does not move
+    table = _fitted([-0.1, 2.0])
+    assert cut.to_dict() == {**table, "moduli": "long_term"}
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [
+        ("drucker_stable_planar", [0.1, 2.0]),
+        ("drucker_stable_planar", [-1.0, 2.0]),
+        ("drucker_stable_planar", "everywhere"),
+        ("drucker_stable_shear", [-0.8, 2.0]),
+    ],
+)
+def test_a_malformed_drucker_range_is_refused_naming_it(key, value):
+    table = _fitted([-0.8, 2.0])
+    table["provenance"] = {**table["provenance"], key: value}
+    with pytest.raises(DesignError) as exc:
+        material_from_spec(table, "layers[0].material")
+    assert exc.value.field == f"layers[0].material.provenance.{key}"
+
+
+def test_a_layer_strained_past_its_drucker_limit_is_flagged(tmp_path, capsys):
+    """The FE result of a design whose material's fit is unstable beyond 0.105 (planar
+    compression to -10 %) carries a validity violation naming the layer, the plate stops
+    there, and ``fingertip simulate`` warns; the same material stable everywhere runs as
+    before, without the new summary key."""
+    import explore.cli
+
+    design = Design((Layer(material_from_spec(_fitted([-0.1, 2.0]))),))
+    res = simulate(design, ["plate"])
+    validity = res.validity
+    assert not validity["valid"] and "plate" in res.stopped
+    (violation,) = validity["violations"]
+    assert violation.startswith("layer 0 compressive log strain (Drucker-stable fit) 0.1")
+    summary = validity["protocols"]["plate"]
+    assert summary["drucker_stable_log_strain_by_layer"] == [pytest.approx(0.10536, abs=1e-5)]
+    ok = simulate(Design((Layer(material_from_spec(_fitted([-0.8, 2.0]))),)), ["plate"])
+    assert ok.validity["valid"] and ok.metrics["plate_force_at_1mm_N"] is not None
+    assert "drucker_stable_log_strain_by_layer" not in ok.validity["protocols"]["plate"]
+    # the command line: a warning naming the layer and the fit, exit code 0 (a result)
+    path = tmp_path / "design.toml"
+    path.write_text(
+        '[[layers]]\n[layers.material]\nmodel = "ogden"\nmu_MPa = [0.05]\nalpha = [3.0]\n'
+        "nu = 0.499\n[layers.material.provenance]\ndrucker_stable_planar = [-0.1, 2.0]\n"
+    )
+    assert explore.cli.main(["simulate", str(path), "--protocol", "plate"]) == 0
+    warnings = [w for w in capsys.readouterr().err.splitlines() if "Drucker" in w]
+    assert len(warnings) == 1 and warnings[0].startswith("warning: plate: layer 0 ")
+    assert "fingertip fit-material found the fitted law Drucker-unstable there" in warnings[0]

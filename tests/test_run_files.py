@@ -19,6 +19,8 @@ from explore._run_folder import (
     read_studies,
     read_summary,
     read_trials,
+    run_time,
+    time_parts,
     trials_header,
     write_config,
     write_summary,
@@ -28,7 +30,7 @@ from explore._search import TrialRow
 from explore._types import Summary
 from sim.errors import DesignError
 from sim.families import family_uses
-from sim.provenance import atomic_write, json_safe, write_if_changed, write_json
+from sim.provenance import atomic_write, json_safe, json_text, write_if_changed, write_json
 from sim.space import DEFAULT_SPACE_PATH, LAYER_ROLES, PARAM_MATERIAL_KEYS, active_roles, load_space
 
 SPACES = {"default": DEFAULT_SPACE_PATH, "wide": DEFAULT_SPACE_PATH.parent / "wide_space.toml"}
@@ -66,6 +68,26 @@ def test_json_safe_is_strict_json():
 def test_write_json_is_one_line_without_indent(tmp_path):
     write_json(tmp_path / "r.json", {"k": 1}, indent=None)
     assert (tmp_path / "r.json").read_text() == '{"k": 1}'
+
+
+def test_every_json_writer_writes_a_non_finite_value_as_null(tmp_path):
+    """Issue 31, item 1: one conversion for every JSON writer (``json_text``): NaN and
+    infinities become null (a round's best FE score of inf crashed summary.json before), and
+    anything else strict JSON cannot hold still raises (``allow_nan=False`` behind it)."""
+    text = json_text({"a": math.inf, "b": [np.float64("nan"), 1.5]})
+    assert text == '{"a": null, "b": [null, 1.5]}'
+    with pytest.raises(TypeError):
+        json_text({"a": object()})
+    write_json(tmp_path / "r.json", {"x": -math.inf}, indent=None)
+    assert (tmp_path / "r.json").read_text() == '{"x": null}'
+    rounds = [{"round": 0, "best_fe_score": math.inf, "max_rel_error": math.nan}]
+    summary = Summary({"best": None}, {"disp_at_1N_mm": 1.83}, 0.05, rounds, [])
+    write_summary(tmp_path, summary, math.inf, {"fe_s": math.nan}, False)
+    stored = read_summary(tmp_path)
+    assert stored["rounds"] == [{"round": 0, "best_fe_score": None, "max_rel_error": None}]
+    assert stored["wall_time_s"] is None and stored["timings"] == {"fe_s": None}
+    # the same answer re-written: recognised as the one the file holds
+    assert write_summary(tmp_path, summary, 2.0, {}, True)["wall_time_s"] is None
 
 
 # ---------------------------------------------------------------------------- trials.csv
@@ -176,6 +198,36 @@ def test_write_summary_returns_the_timing_the_file_keeps(tmp_path):
     other = Summary({"best": None}, {"disp_at_1N_mm": 1.83}, 0.05, [], ["another note"])
     assert write_summary(tmp_path, other, 1.0, {}, True)["wall_time_s"] == 1.0
     assert read_summary(tmp_path)["notes"] == ["another note"]
+
+
+def test_a_resumed_run_counts_the_time_of_its_earlier_parts(tmp_path):
+    """Issue 31, item 6c: each invocation records its time in time.json as each stage ends,
+    an interrupted stage too; the run's time (what summary.json holds and `fingertip optimize`
+    prints) sums every part, the killed ones included."""
+    from explore._config import OptimizeConfig
+    from explore._rounds import Search
+    from explore.cli import _time_line
+
+    killed = Search(OptimizeConfig(), tmp_path, None, None, None, time_part=time_parts(tmp_path))
+    with killed.timed("search_s"):
+        killed.started -= 100.0  # it had run 100 s before this stage ended
+    with pytest.raises(KeyboardInterrupt), killed.timed("fe_s"):
+        raise KeyboardInterrupt  # a kill in the middle of its FE: the stage still counts
+    resumed = Search(OptimizeConfig(), tmp_path, None, None, None, time_part=time_parts(tmp_path))
+    assert resumed.time_part == 1
+    with resumed.timed("fe_s"):
+        resumed.started -= 7.0
+    wall, timings = run_time(tmp_path)
+    assert wall == pytest.approx(107.0, abs=1.0)  # both parts, not the last one's 7 s
+    assert set(timings) == {"search_s", "fe_s", "retrain_s"}
+    assert len(json.loads((tmp_path / "time.json").read_text())) == 2
+    line = _time_line({"wall_time_s": wall, "timings": timings, "resumed": True})
+    assert line.startswith("time: search 0 s, FE 0 s, retraining 0 s; 107 s in all")
+    assert "earlier parts included" in line
+    # run --from-scratch: its sweep and training are stages of the run too
+    assert "sweep 3600 s, training 60 s, search" in _time_line(
+        {"wall_time_s": 4000.0, "timings": {"sweep_s": 3600.0, "train_s": 60.0}}
+    )
 
 
 # ---------------------------------------------------------------------------- the one rule

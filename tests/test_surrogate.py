@@ -715,6 +715,10 @@ def test_report_has_accuracy_calibration_parity_plots_and_speed(ckpt):
         assert json.loads((run / name).read_text())
     meta = json.loads((run / "meta.json").read_text())
     assert meta["solver_version"] == SOLVER_VERSION and "torch" in meta["packages"]
+    # torch's threads of the training (surrogate._threads: 1), in config.json and the header
+    config = json.loads((run / "config.json").read_text())
+    assert config["torch_threads"] == 1
+    assert load_checkpoint(ckpt).header["training"]["torch_threads"] == 1
 
 
 # ----------------------------------------------------------------------------- CLI
@@ -756,6 +760,60 @@ def test_cli_refuses_a_corrupt_checkpoint_with_one_line(ckpt, tmp_path):
     res = run_cli("predict", bad, design, cwd=tmp_path)
     assert res.returncode == 2
     assert "not a surrogate checkpoint" in assert_one_line_error(res.stderr)
+
+
+def test_a_predicted_probability_and_its_interval_lie_in_0_1():
+    """Issue 31, item 6b: the 0/1 trust outputs (``sim.trust.PROBABILITY_OUTPUTS``) are
+    predicted as probabilities: the shipped surrogate's Gaussian puts their 90 % intervals as
+    low as -3 and as high as 3; every prediction of one is now within [0, 1], and only those
+    are clipped (the other outputs keep their bits)."""
+    from explore._config import DEFAULT_CHECKPOINT
+    from sim.trust import PROBABILITY_OUTPUTS
+
+    model = load_checkpoint(DEFAULT_CHECKPOINT, allow_solver_mismatch=True)
+    space = model.space
+    points = space.points(np.random.default_rng(0).random((2000, len(space.sampled))))
+    features = model.encoder.encode(points).features
+    raw = model.normaliser.to_physical(*model.predict_normalised(features))
+    pred = model.predict_features(features)
+    prob = np.array([m in PROBABILITY_OUTPUTS for m in model.metric_names])
+    assert prob.sum() == 3 and (raw["lower_90"][:, prob] < 0).any()  # what was shown before
+    assert (raw["upper_90"][:, prob] > 1).any()
+    for key in ("mean", "median", "lower_90", "upper_90"):
+        assert ((pred[key][:, prob] >= 0) & (pred[key][:, prob] <= 1)).all(), key
+        learnt = ~prob & ~pred["by_rule"].any(axis=0)
+        np.testing.assert_array_equal(pred[key][:, learnt], raw[key][:, learnt])
+    np.testing.assert_array_equal(pred["std"][:, prob], raw["std"][:, prob])
+
+
+def test_cli_predict_takes_a_training_folder_and_names_the_file_it_expects(tmp_path, capsys):
+    """Issue 31, item 6e: `fingertip predict FOLDER` reads the folder's model.safetensors (a
+    training run folder, the shipped one); a folder without it is one error line saying which
+    file is expected (it said "no such checkpoint file")."""
+    from explore._config import PRETRAINED
+
+    space = load_space()
+    point = space.point(np.full(len(space.sampled), 0.5))
+    design = tmp_path / "point.toml"
+    design.write_text(
+        "".join(
+            f"{k} = {json.dumps(v)}\n"
+            for k, v in point.items()
+            if v != "" and not (isinstance(v, float) and math.isnan(v))
+        )
+    )
+    assert explore.cli.main(["predict", str(PRETRAINED), str(design), "--json"]) == 0
+    by_folder = json.loads(capsys.readouterr().out)
+    assert explore.cli.main(["predict", str(PRETRAINED / "model.safetensors"), str(design),
+                             "--json"]) == 0  # fmt: skip
+    assert json.loads(capsys.readouterr().out)["designs"] == by_folder["designs"]
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert explore.cli.main(["predict", str(empty), str(design)]) == 2
+    line = assert_one_line_error(capsys.readouterr().err)
+    assert str(empty) in line and "without model.safetensors" in line
+    assert explore.cli.main(["predict", str(tmp_path / "nothing"), str(design)]) == 2
+    assert "model.safetensors" in assert_one_line_error(capsys.readouterr().err)
 
 
 @pytest.mark.parametrize(

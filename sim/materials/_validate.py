@@ -42,6 +42,52 @@ def positive(value: float, field: str) -> float:
     return value
 
 
+#: The initial (small-strain) shear modulus a material may have, MPa: [1e-4, 1e3], from a gel
+#: that still holds the shape of a fingertip to far beyond any elastomer. Not what is realistic
+#: for a skin (the design spaces' 2.5 kPa-0.35 MPa are, docs/design_space.md), what is physical:
+#:
+#: - Low, 1e-4 MPa = 0.1 kPa: 29 times below the softest material in the catalogue (Dragon
+#:   Skin FX-Pro + Slacker, 2.89 kPa, fitted to Marechal et al., Soft Robotics 8(3) (2021)
+#:   284-297) and below the softest soft tissue, brain (shear moduli of about 1 kPa, Budday et
+#:   al., Acta Biomaterialia 48 (2017) 319-340). Below it a fingertip cannot hold its own shape:
+#:   its own weight strains a 6 mm tall pad by rho g h / E = 1000 kg/m^3 x 9.81 m/s^2 x 6 mm /
+#:   (3 x 100 Pa) = 20 % at 0.1 kPa (E = 3 mu, nearly incompressible), before any touch.
+#: - High, 1e3 MPa = 1 GPa: the shear modulus of a glassy polymer (Young's moduli of 1-3 GPa
+#:   below the glass transition, e.g. Ward & Sweeney, Mechanical Properties of Solid Polymers,
+#:   3rd ed. (2013), ch. 2), not of a rubber: an elastomer's entropic modulus, G = rho R T /
+#:   M_c, stays within a few MPa, and the stiffest polyurethane elastomers reach tens of MPa;
+#:   the catalogue's stiffest is 0.31 MPa (RTV615). A hyperelastic law beyond it describes no
+#:   material it was made for (issue 31: mu_MPa = 1e12 gave a plate force of 9.97e13 N).
+MU0_MIN_MPA = 1e-4
+MU0_MAX_MPA = 1e3
+
+
+def moduli_in_range(mu0: float, terms: Mapping[str, float | tuple[float, ...]], field: str) -> None:
+    """A law's moduli against the physical range (``MU0_MIN_MPA``, ``MU0_MAX_MPA``): its initial
+    shear modulus ``mu0`` within it (the error names the first of ``terms``), and every term of
+    its moduli ``terms`` (field -> value or values, MPa; a term may be small, or negative where
+    the law allows it) no larger than ``MU0_MAX_MPA`` in magnitude: a term stiffer than any
+    elastomer is no elastomer either (or a fit whose terms cancel, which the data cannot pin
+    down)."""
+    allowed = f"[{MU0_MIN_MPA:g}, {MU0_MAX_MPA:g}] MPa (a gel that holds its shape to a stiff "
+    allowed += "elastomer)"
+    first = next(iter(terms))
+    if not MU0_MIN_MPA <= mu0 <= MU0_MAX_MPA:
+        raise DesignError(
+            f"{field}.{first}", f"initial shear modulus {mu0:g} MPa is outside {allowed}"
+        )
+    for name, value in terms.items():
+        values = value if isinstance(value, tuple) else (value,)
+        for i, x in enumerate(values):
+            if abs(x) > MU0_MAX_MPA:
+                which = f"{name}[{i}]" if isinstance(value, tuple) else name
+                raise DesignError(
+                    f"{field}.{name}",
+                    f"{which} = {x:g} MPa is beyond +-{MU0_MAX_MPA:g} MPa (stiffer than any "
+                    "elastomer)",
+                )
+
+
 def poisson(value: float, field: str) -> float:
     """Check Poisson's ratio: compressible only, ``-1 < nu < 0.5``."""
     if not NU_MIN < value < NU_MAX:
