@@ -19,6 +19,8 @@ Systems:
 
 - ``2d``: the FE's own free-dof tangent (P2 plane strain, the reference design of one layer
   of ``silicone_gls40`` at rest; ``2d-x2``: the mesh refined twice).
+- ``pad``: the 3D model's own tangent (``sim.fe3d``: the reference pad, the default 3D mesh,
+  one layer of ``silicone_gls40`` at rest).
 - ``3d-N``: a nearly incompressible 3D elastic block (nu = 0.499, fixed base) of
   ``N x N x N`` triquadratic (27-node) hexahedra, assembled by scikit-fem: the pattern and
   conditioning of a 3D Q2 tangent of that size.
@@ -48,7 +50,9 @@ from collections.abc import Callable  # noqa: E402
 import numpy as np  # noqa: E402
 
 SOLVERS = ("qdldl", "superlu", "pardiso", "cholmod")
-SYSTEMS = ("2d", "2d-x2", "3d-6", "3d-9", "3d-12", "3d-15")
+#: the solvers without supernodes: beyond ``--slow-max-dofs`` they take minutes a system
+SLOW = ("qdldl", "superlu")
+SYSTEMS = ("2d", "2d-x2", "3d-6", "3d-9", "3d-12", "3d-15", "pad")
 
 
 def system(name: str):
@@ -67,6 +71,16 @@ def system(name: str):
             build_mesh(design.geometry, design.thicknesses_mm, mesh_opts), design.materials
         )
         ev = disc.evaluate(np.zeros((disc.n_nodes, 2)), disc.initial_states(), 0.01)
+        return sp.csc_matrix(disc.pattern_matrix(ev.tangent()))
+    if name == "pad":
+        from sim import homogeneous_design
+        from sim.fe3d import Discretization3D
+        from sim.geometry3d import PadGeometry
+        from sim.mesh3d import build_pad_mesh
+
+        mat = homogeneous_design("silicone_gls40").materials[0]
+        disc = Discretization3D(build_pad_mesh(PadGeometry()), [mat])
+        ev = disc.evaluate(np.zeros((disc.n_nodes, 3)), disc.initial_states(), 0.01)
         return sp.csc_matrix(disc.pattern_matrix(ev.tangent()))
     from skfem import Basis, ElementHex2, ElementVector, MeshHex, asm, condense
     from skfem.models.elasticity import lame_parameters, linear_elasticity
@@ -204,6 +218,12 @@ def main() -> None:
     ap.add_argument("--solvers", nargs="+", default=list(SOLVERS), choices=SOLVERS)
     ap.add_argument("--systems", nargs="+", default=list(SYSTEMS), choices=SYSTEMS)
     ap.add_argument("--json", help="also write the figures to this JSON file")
+    ap.add_argument(
+        "--slow-max-dofs",
+        type=int,
+        default=20000,
+        help="skip qdldl and SuperLU on larger systems (default 20000)",
+    )
     ap.add_argument("--one", nargs=3, help=argparse.SUPPRESS)  # SOLVER SYSTEM PATH
     args = ap.parse_args()
     if args.one:
@@ -222,8 +242,12 @@ def main() -> None:
     rows = []
     for name in args.systems:
         path = os.path.join(tmp.name, f"{name}.npz")  # built once; each child only loads it
-        sp.save_npz(path, system(name))
+        A = system(name)
+        sp.save_npz(path, A)
         for solver in args.solvers:
+            if solver in SLOW and A.shape[0] > args.slow_max_dofs:
+                print(f"{name:7s} {A.shape[0]:7d} {solver:8s} skipped (> --slow-max-dofs)")
+                continue
             cmd = [sys.executable, __file__, "--one", solver, name, path]
             cmd += ["--repeats", str(args.repeats)]
             proc = subprocess.run(cmd, capture_output=True, text=True)

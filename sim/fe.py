@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ._constitutive import LayerState, initial_states, layer_stresses
 from ._p2 import P2Basis, TriMesh
 from .mesh import FingertipMesh
 
@@ -36,18 +37,6 @@ if TYPE_CHECKING:
 __all__ = ["Discretization", "LayerState"]
 
 INTORDER = 2  # 3-point rule: exact for the P2 stiffness in small strain, no spurious modes
-
-
-@dataclass
-class LayerState:
-    """History of one layer at the quadrature points: the instantaneous stress ``S0`` and the
-    Prony internal stresses ``H`` (MPa), shapes (3, n_el, n_q) and (N_G, 3, n_el, n_q); for a
-    material whose shear and bulk relax apart (``Material.split_relaxation``) the isochoric and
-    volumetric parts are kept apart on an axis of length 2: (2, 3, ...) and (N_G, 2, 3, ...).
-    The Prony term axis of ``H`` is always first (and matches ``mat.prony.tau_s``)."""
-
-    S0: np.ndarray
-    H: np.ndarray
 
 
 @dataclass
@@ -79,6 +68,8 @@ class Discretization:
 
     Elements are reordered so that each layer is a contiguous slice.
     """
+
+    dim = 2
 
     def __init__(
         self,
@@ -180,6 +171,13 @@ class Discretization:
         return Basis(MeshTri(self.mesh.p, self.mesh.t), ElementTriP2(), intorder=intorder)
 
     # ------------------------------------------------------------------ helpers
+    def surface_weights(self) -> np.ndarray:
+        """Each surface node's share of the outer surface's length (mm; per unit thickness),
+        in the order of ``surface_nodes``: the contact penalty's weights."""
+        from .contact import surface_weights
+
+        return surface_weights(self.X[self.surface_nodes])
+
     def _boundary_nodes(self, vertices: np.ndarray) -> np.ndarray:
         """P2 nodes on the boundary chain through ``vertices`` (vertices + midside nodes)."""
         mesh = self.mesh
@@ -228,10 +226,7 @@ class Discretization:
         )
 
     def initial_states(self) -> list[LayerState]:
-        states = []
-        for mat, sl in zip(self.materials, self.slices, strict=True):
-            states.append(LayerState(*mat.initial_state((sl.stop - sl.start, self.n_q))))
-        return states
+        return initial_states(self.materials, self.slices, self.n_q, 3)
 
     # ------------------------------------------------------------------ kinematics
     def deformation_gradient(self, u: np.ndarray) -> np.ndarray:
@@ -269,26 +264,9 @@ class Discretization:
         C[0] = F[0, 0] ** 2 + F[1, 0] ** 2
         C[1] = F[0, 1] ** 2 + F[1, 1] ** 2
         C[2] = F[0, 0] * F[0, 1] + F[1, 0] * F[1, 1]
-        S = np.empty_like(C)
-        D = np.empty((3, 3, self.n_el, self.n_q)) if tangent else None
-        new_states = []
-        with np.errstate(all="ignore"):  # extreme trial states are rejected, not warned about
-            for mat, sl, st in zip(self.materials, self.slices, states, strict=True):
-                # S0/D0 of the instantaneous law, split [iso, vol] when shear and bulk relax
-                # apart (Material.split_relaxation); otherwise exactly the whole-stress path
-                if tangent:
-                    S0, D0 = mat.instantaneous_stress_tangent(C[:, sl])
-                else:
-                    S0 = mat.instantaneous_stress(C[:, sl])
-                if frozen_history:
-                    Hk = st.H
-                    Sk, factor = mat.history_stress(S0, Hk)
-                else:
-                    Sk, Hk, factor = mat.relax(S0, st.S0, st.H, dt_s)
-                S[:, sl] = Sk
-                if tangent:
-                    D[:, :, sl] = mat.tangent(D0, factor)
-                new_states.append(LayerState(S0, Hk))
+        S, D, new_states = layer_stresses(
+            self.materials, self.slices, C, states, dt_s, tangent, frozen_history
+        )
         if not np.all(np.isfinite(S)) or (tangent and not np.all(np.isfinite(D))):
             return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
         w = self.w

@@ -9,8 +9,9 @@ and the contact obstacles. ``Body.advance`` takes one time step to ``t_new`` und
   complement) Newton system that reuses the one factorisation for both right-hand sides;
 - ``Control.free()``: no indenter (lifted off), the body relaxes.
 
-The LDL^T factorisation (qdldl) keeps its symbolic analysis across all iterations and steps
-because the sparsity pattern never changes. Failed steps are cut by the caller
+The LDL^T factorisation (``sim._linear``: qdldl for the 2D systems, PARDISO for the large 3D
+ones) keeps its symbolic analysis across all iterations and steps because the sparsity pattern
+never changes. Failed steps are cut by the caller
 (``sim.protocols``), never here.
 """
 
@@ -18,17 +19,21 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .contact import Base, surface_weights
+from .contact import Base
 from .fe import Discretization, LayerState
+
+if TYPE_CHECKING:
+    from .materials import Material
 
 _log = logging.getLogger(__name__)
 TIMED = ("residual+material", "tangent assembly", "LDL^T factorisation", "triangular solves")
-__all__ = ["Body", "Control", "NewtonOptions", "StepResult"]
+__all__ = ["FORCE_RTOL", "Body", "Control", "NewtonOptions", "StepResult", "youngs_moduli"]
 
 
 @dataclass(frozen=True)
@@ -51,6 +56,20 @@ class Control:
         return Control("free")
 
 
+#: a force-controlled step matches its applied force to this fraction of it (or to the round-off
+#: floor of the contact force, ``Body.force_floor``, if larger)
+FORCE_RTOL = 1e-6
+
+
+def youngs_moduli(materials: Sequence[Material]) -> list[float]:
+    """Each material's instantaneous small-strain Young's modulus 2 mu0 (1 + nu) (MPa); the
+    largest sets the scale of Newton's residual tolerance (``Body.atol``)."""
+    return [
+        2.0 * m.instantaneous.initial_shear_modulus_MPa * (1.0 + m.instantaneous.nu)
+        for m in materials
+    ]
+
+
 @dataclass(frozen=True)
 class NewtonOptions:
     max_iterations: int = 20
@@ -70,6 +89,13 @@ class NewtonOptions:
     # plate and base penalty per unit area: kappa = penalty_per_mm * E0_max (N/mm^3), so the
     # penetration is the contact pressure / kappa, about 1e-4 of a strain-level pressure in mm
     penalty_per_mm: float = 3000.0
+    # Modified Newton: keep the last factorisation (within a step and into the next) while
+    # the residual falls at least by `reuse_ratio` per iteration, and factorise afresh where it
+    # does not or where a step with the kept one fails its line search. Off by default: the 2D
+    # systems factorise in milliseconds, and the 2D records were made with full Newton. On for
+    # 3D, where a factorisation costs as much as a few residual evaluations.
+    reuse_factorization: bool = False
+    reuse_ratio: float = 0.25
 
 
 @dataclass(frozen=True)
@@ -103,10 +129,7 @@ class Body:
         self.indenter = indenter
         self.options = options
         self.base = Base()
-        moduli = [
-            2.0 * m.instantaneous.initial_shear_modulus_MPa * (1.0 + m.instantaneous.nu)
-            for m in disc.materials
-        ]
+        moduli = youngs_moduli(disc.materials)
         e0 = max(moduli)
         self.E0_MPa = e0
         # the penalty follows the outermost layer, the one in contact: a soft skin on a stiff
@@ -115,24 +138,31 @@ class Body:
         size = float(np.max(disc.X))
         self.atol = options.rtol * e0 * size
         s = disc.surface_nodes
-        self.kappa_nodes = self.kappa * surface_weights(disc.X[s])
+        self.kappa_nodes = self.kappa * disc.surface_weights()
         factor = indenter_penalty_per_mm or options.penalty_per_mm
         self.kappa_indenter = self.kappa_nodes * (factor / options.penalty_per_mm)
         # round-off floor of the indenter force (N/mm): penetrations are differences of
         # coordinates of size ~size, each good to ~eps size, times the summed penalty
         self.force_floor = 64.0 * np.finfo(float).eps * float(np.sum(self.kappa_indenter)) * size
-        dof_x = disc.gmap[2 * s]
-        dof_y = disc.gmap[2 * s + 1]
-        self._sdof = (dof_x, dof_y)
+        dim = disc.dim
+        self._sdof = tuple(disc.gmap[dim * s + i] for i in range(dim))  # dofs of each component
         pos = disc.pattern_position
-        self._kpos = (pos(dof_x, dof_x), pos(dof_x, dof_y), pos(dof_y, dof_x), pos(dof_y, dof_y))
+        self._kpos = {
+            (i, j): pos(self._sdof[i], self._sdof[j]) for i in range(dim) for j in range(dim)
+        }
+        # the curvature of a rounded obstacle (the wedge's tip) lies in the x-y plane: every
+        # obstacle is a cylinder along z (in 3D its edge runs along the finger)
+        self._inplane = np.array([1.0, 1.0, 0.0][:dim])
         # committed state
-        self.u = np.zeros((disc.n_nodes, 2))
+        self.u = np.zeros((disc.n_nodes, dim))
         self.states: list[LayerState] = disc.initial_states()
         self.t = 0.0
         self.indenter_position = np.inf
-        self._solver = None
-        self._upper = None  # the upper-triangle matrix handed to qdldl, refilled in place
+        self._solver = None  # a sim._linear.LinearSolver, made at the first factorisation
+        self._stale = False  # the kept factorisation failed a line search: factorise afresh
+        self._factored_active: np.ndarray | None = None  # the indenter's contact at that time
+        #: the sparse direct solver by name (``sim._linear.SOLVERS``); None: by the size
+        self.linear_solver: str | None = None
         self.timings: dict[str, float] = dict.fromkeys(TIMED, 0.0)
         self._last = None  # (kind, previous value, value, du, dd) of the last committed step
         self._last_control: Control | None = None
@@ -150,28 +180,36 @@ class Body:
         """(penetration, normal, curvature, is_indenter) per obstacle at the surface nodes."""
         disc = self.disc
         s = disc.surface_nodes
-        xy = disc.X[s] + u[s]
+        xy = disc.X[s, :2] + u[s, :2]  # every obstacle is a cylinder along z: (x, y) decide
         p_b, n_b = self.base.penetration(xy)
-        parts = [(p_b, n_b, None, False)]
+        parts = [(p_b, self._full_normal(n_b), None, False)]
         if control.kind != "free" and self.indenter is not None:
             if hasattr(self.indenter, "penetration_curvature"):
                 p_i, n_i, k_i = self.indenter.penetration_curvature(xy, d)
             else:
                 (p_i, n_i), k_i = self.indenter.penetration(xy, d), None
-            parts.append((p_i, n_i, k_i, True))
+            parts.append((p_i, self._full_normal(n_i), k_i, True))
         return parts
+
+    def _full_normal(self, n: np.ndarray) -> np.ndarray:
+        """An obstacle's in-plane normal (m, 2) with zero z component in 3D."""
+        if self.disc.dim == 2:
+            return n
+        return np.column_stack([n, np.zeros(len(n))])
 
     def base_contact_nodes(self) -> int:
         """Number of surface nodes resting on the rigid base beside the bone (committed state)."""
         s = self.disc.surface_nodes
-        return int(np.sum(self.base.penetration(self.disc.X[s] + self.u[s])[0] > 0))
+        xy = self.disc.X[s, :2] + self.u[s, :2]
+        return int(np.sum(self.base.penetration(xy)[0] > 0))
 
     def max_penetration(self) -> float:
         """Deepest penetration of the indenter into the committed surface (mm); 0 if none."""
         if not np.isfinite(self.indenter_position) or self.indenter is None:
             return 0.0
         s = self.disc.surface_nodes
-        p = self.indenter.penetration(self.disc.X[s] + self.u[s], self.indenter_position)[0]
+        xy = self.disc.X[s, :2] + self.u[s, :2]
+        p = self.indenter.penetration(xy, self.indenter_position)[0]
         return float(max(0.0, p.max()))
 
     def _add_contact(
@@ -182,7 +220,8 @@ class Body:
         The force on node i is f = kappa_i p n; its derivative is
         kappa_i (n n^T - p * curvature * (I - n n^T)), curvature = 1/rho on a rounded surface.
         """
-        dof_x, dof_y = self._sdof
+        sdof = self._sdof
+        dim = len(sdof)
         force = 0.0
         coupling = np.zeros(len(self.kappa_nodes))
         for p, n, curv, is_indenter in parts:
@@ -191,19 +230,17 @@ class Body:
             if not np.any(act):
                 continue
             f = np.where(act, k * p, 0.0)  # pushes the node along n
-            fx, fy = f * n[:, 0], f * n[:, 1]
-            ok_x, ok_y = dof_x >= 0, dof_y >= 0
             # every surface node has its own dofs and matrix entries: plain indexed updates
-            r[dof_x[ok_x]] -= fx[ok_x]
-            r[dof_y[ok_y]] -= fy[ok_y]
+            for i in range(dim):
+                ok = sdof[i] >= 0
+                r[sdof[i][ok]] -= (f * n[:, i])[ok]
             if data is not None:
                 ka = np.where(act, k, 0.0)
                 c = 0.0 if curv is None else np.where(act, p * curv, 0.0)
-                nxx, nxy, nyy = n[:, 0] ** 2, n[:, 0] * n[:, 1], n[:, 1] ** 2
-                kxx = ka * (nxx - c * (1.0 - nxx))
-                kxy = ka * (nxy + c * nxy)
-                kyy = ka * (nyy - c * (1.0 - nyy))
-                for pos, val in zip(self._kpos, (kxx, kxy, kxy, kyy), strict=True):
+                for (i, j), pos in self._kpos.items():
+                    nn = n[:, i] * n[:, j]
+                    # kappa (n n^T - c (P - n n^T)), P the projector on the curvature's plane
+                    val = ka * (nn - c * (self._inplane[i] * (i == j) - nn))
                     ok = pos >= 0
                     data[pos[ok]] += val[ok]
             if is_indenter:
@@ -240,16 +277,33 @@ class Body:
     def _norm(self, r, rd):
         return max(float(np.max(np.abs(r))) if r.size else 0.0, abs(rd))
 
+    def _may_reuse(self, norms: list[float], active: np.ndarray) -> bool:
+        """Modified Newton (``NewtonOptions.reuse_factorization``): the factorisation made
+        earlier in this step may serve this iteration if the last iteration cut the residual
+        by ``reuse_ratio`` and the indenter touches the same nodes (``active``) as when it was
+        made. A step's first iteration always factorises: the predictor moves the state, and
+        a factorisation from before a change of the contact set misleads Newton."""
+        opts = self.options
+        if not opts.reuse_factorization or self._stale or len(norms) < 2:
+            self._stale = False
+            return False
+        same_contact = self._factored_active is not None and np.array_equal(
+            active, self._factored_active
+        )
+        return same_contact and norms[-1] <= opts.reuse_ratio * norms[-2]
+
     def _factor(self, data):
+        """Factorise the tangent ``data``: the first time with the symbolic analysis, then
+        numerically only (the pattern never changes); returns the solver (``.solve(b)``)."""
         t0 = time.perf_counter()
         if self._solver is None:
-            import qdldl  # here: `import sim` stays light
+            from ._linear import default_solver, make_solver  # `import sim` stays light
 
-            self._upper = self.disc.upper_matrix(data)
-            self._solver = qdldl.Solver(self._upper, upper=True)
-        else:  # same pattern: refill the matrix qdldl reads, keep the symbolic analysis
-            np.take(data, self.disc.upper_data, out=self._upper.data)
-            self._solver.update(self._upper, upper=True)
+            name = self.linear_solver or default_solver(self.disc.n_free)
+            self._solver = make_solver(name)
+            self._solver.factor(self.disc.upper_matrix(data))
+        else:  # same pattern: new values, the symbolic analysis kept
+            self._solver.refactor(np.take(data, self.disc.upper_data))
         self.factorizations += 1
         self.timings["LDL^T factorisation"] += time.perf_counter() - t0
         return self._solver
@@ -305,7 +359,7 @@ class Body:
             if _log.isEnabledFor(logging.DEBUG):
                 _log.debug("it %d |r| %.3e rd %.3e d %.5f", it, float(np.abs(r).max()), rd, d)
             force_ok = control.kind != "force" or abs(rd) <= max(
-                1e-6 * abs(control.value), self.force_floor
+                FORCE_RTOL * abs(control.value), self.force_floor
             )
             if norm0 <= self.atol and force_ok:  # the load is matched relative to itself too
                 self._commit(u, states, t_new, d, control, force)
@@ -315,7 +369,13 @@ class Body:
             if _stalled(norms, opts):
                 self.newton_iterations += it - 1
                 return StepResult(False, it - 1, "stalled")
-            solver = self._factor(data())
+            active = coupling > 0
+            fresh = not self._may_reuse(norms, active)
+            if fresh:
+                solver = self._factor(data())
+                self._factored_active = active
+            else:
+                solver = self._solver
             t0 = time.perf_counter()
             with np.errstate(all="ignore"):  # a singular tangent is caught below
                 du = solver.solve(-r)
@@ -339,6 +399,10 @@ class Body:
                 self.newton_iterations += it
                 return StepResult(False, it, "singular tangent")
             accepted = self._line_search(u, d, du, dd, g0, control, dt, frozen_history)
+            if accepted is None and not fresh:  # the kept factorisation misled: a fresh one
+                self._stale = True
+                norms.pop()
+                continue
             if accepted is None:
                 self.newton_iterations += it
                 return StepResult(False, it, "line search failed")

@@ -17,6 +17,15 @@ Ogden, :mod:`sim.materials._ogden`).  The invariant laws and the Ogden law are
 decoupled (``law.decoupled``): ``law.evaluate_split(C)`` etc. give the isochoric and volumetric
 parts apart (a leading axis of length 2, ``[iso, vol]``).
 
+3D (for the 3D fingertip; :mod:`sim.materials._law3`): every law also has ``evaluate3(C)`` with
+``C`` shape ``(6, *batch)`` = ``[C11, C22, C33, C12, C23, C13]``, ``S`` in the same order and
+``D`` shape ``(6, 6, *batch)`` (engineering shear, ``dE = [dE11, dE22, dE33, 2 dE12, 2 dE23,
+2 dE13]``), ``stress3``, ``stress_tangent3`` and, for the decoupled laws, ``evaluate3_split``,
+``stress3_split``, ``stress_tangent3_split``.  The same parameters and energies: with ``C33 = 1``,
+``C23 = C13 = 0`` they reduce to the plane-strain methods.  The Ogden-type laws (``ogden``,
+``hyperfoam``) use the spectral tangent with closed-form divided differences, exact and
+continuous at equal eigenvalues.
+
 A ``Material`` couples a law with a ``Prony`` series: shear coefficients ``prony_g``, relaxation
 times ``prony_tau_s`` and optional bulk coefficients ``prony_k`` (Abaqus' ``g_i``, ``k_i``,
 sharing ``tau_i``).  Without ``prony_k`` an invariant law relaxes its shear only (``k_i = 0``:

@@ -18,6 +18,9 @@ derivatives are written with ``exprel(x) = (e^x - 1)/x`` so nothing cancels for 
 ``(f(c1) - f(c2))/(c1 - c2)``, taken from a Taylor series about the mean when
 ``|c1 - c2| <= 5e-3 mean`` (equal eigenvalues: the undeformed state).  ``G`` depends on
 ``d = det C`` only and goes through the shared ``W(t, d)`` chain rule.
+
+3D (``evaluate3`` etc.): the same split with the three eigenvalues of ``C`` and ``G(det C)``,
+the spectral tangent of :mod:`sim.materials._law3` (:meth:`Hyperfoam.evaluate3`).
 """
 
 from __future__ import annotations
@@ -38,6 +41,18 @@ from sim.materials._law import (
     list_field,
     td_stress,
     td_tangent,
+)
+from sim.materials._law3 import (
+    eigh3,
+    flat3,
+    inv_stress,
+    inv_tangent,
+    invariants3,
+    mirror,
+    pair_values,
+    spectral_bases,
+    spectral_stress,
+    spectral_tangent,
 )
 
 # Relative eigenvalue split below which the divided difference uses its Taylor series.
@@ -237,3 +252,57 @@ class Hyperfoam(Law):
         d = C11 * C22 - C12 * C12
         _, dG, _ = self._volumetric(d, second=False)
         return 2.0 * dG * d
+
+    # -- 3D (sim.materials._law3 conventions) -----------------------------------------------
+    def _parts3(self, C: Array, energy: bool, tangent: bool) -> tuple[Any, Array, Any]:
+        """``(W, S, D)`` for ``C`` of shape ``(6, n)`` (``W``/``D`` ``None`` unless asked)."""
+        c, N = eigh3(C)
+        s = np.log(c)
+        I1, _, I3, cof = invariants3(C)
+        f, df = self._f(c, s, slope=tangent)
+        lnJ, dG, ddG = self._volumetric(I3, second=tangent)
+        m, w = spectral_bases(N)
+        S = spectral_stress(f, m) + inv_stress(C, cof, I1, None, None, dG)
+        D = None
+        if tangent:
+            c_a, c_b = pair_values(c)
+            f_a, f_b = pair_values(f)
+            theta = self._divided_difference(c_a, c_b, f_a, f_b)
+            D = np.zeros((6, 6, C.shape[1]))
+            spectral_tangent(df, theta, m, w, out=D)
+            mirror(inv_tangent(C, cof, I1, None, dG, {(3, 3): ddG}, out=D))
+        W = None
+        if energy:
+            W = np.zeros_like(I3)
+            beta = self.beta
+            for mu, alpha in zip(self.mu_MPa, self.alpha, strict=True):
+                W += 0.5 * mu * (s * s * _psi(0.5 * alpha * s)).sum(axis=0)
+                W += 2.0 * mu * beta * lnJ * lnJ * _psi(-alpha * beta * lnJ)
+        return W, S, D
+
+    def evaluate3(self, C: Any) -> tuple[Array, Array, Array]:
+        """3D ``(W, S, D)`` (MPa) at ``C = [C11, C22, C33, C12, C23, C13]``; shapes ``batch``,
+        ``(6, *batch)``, ``(6, 6, *batch)``.
+
+        ``U = sum_a F(c_a) + G(I3)`` as in the plane-strain law (the linear terms cancel because
+        ``s_1 + s_2 + s_3 = ln I3 = 2 ln J``), ``c_a`` the three eigenvalues of ``C``:
+        ``S = 2 sum_a f(c_a) M_a + 2 G'(I3) cof C`` and the spectral tangent of
+        :mod:`sim.materials._law3` with ``Phi_ab = delta_ab f'(c_a)`` and
+        ``theta_ab = (f(c_a) - f(c_b)) / (c_a - c_b)`` from :meth:`_divided_difference` (its
+        Taylor series about the mean for relative splits below ``5e-3``, so the tangent is
+        continuous at equal eigenvalues), plus ``4 G'' cof (x) cof + 4 G' dcof/dC``.
+        """
+        Cf, batch = flat3(C)
+        W, S, D = self._parts3(Cf, energy=True, tangent=True)
+        return W.reshape(batch), S.reshape(6, *batch), D.reshape(6, 6, *batch)
+
+    def stress3(self, C: Any) -> Array:
+        """3D 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(6, *batch)``; no tangent."""
+        Cf, batch = flat3(C)
+        return self._parts3(Cf, energy=False, tangent=False)[1].reshape(6, *batch)
+
+    def stress_tangent3(self, C: Any) -> tuple[Array, Array]:
+        """3D ``(S, D)`` (MPa) without the energy."""
+        Cf, batch = flat3(C)
+        _, S, D = self._parts3(Cf, energy=False, tangent=True)
+        return S.reshape(6, *batch), D.reshape(6, 6, *batch)

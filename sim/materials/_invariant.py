@@ -5,6 +5,10 @@ the 3D invariants of ``C`` with ``C33 = 1``: ``I1 = t + 1``, ``I2 = d + t``, ``J
 (``t``, ``d`` = trace, determinant of the in-plane block).  ``K = 2 mu0 (1 + nu)/(3 (1 - 2 nu))``.
 Each law supplies only ``U_iso`` and its first and second derivatives; the chain rule to
 ``W(t, d)`` and then to ``S`` and ``D`` is shared (:mod:`sim.materials._law`).
+
+3D (``evaluate3`` etc., :mod:`sim.materials._law3`): the same ``U`` through the 3D invariants,
+``W(I1, I2, I3)`` with ``I1b = I3^(-1/3) I1``, ``I2b = I3^(-2/3) I2``, ``J = I3^(1/2)``; with
+``C33 = 1``, ``C13 = C23 = 0`` it is the plane-strain law (``I3 = d``, ``I2 = d + t``).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ import numpy as np
 from sim.errors import DesignError
 from sim.materials import _validate as v
 from sim.materials._law import Array, Law, as_C, td_stress, td_tangent
+from sim.materials._law3 import as_C3, inv_stress, inv_tangent, invariants3, mirror
 
 _Derivs = tuple[Any, Any]  # (U_a, U_b); None = identically zero
 _Derivs2 = tuple[Any, Any, Any]  # (U_aa, U_ab, U_bb); None = identically zero
@@ -202,6 +207,149 @@ class InvariantLaw(Law):
         if U_b is not None:
             S33 = S33 + U_b * (t * b_t - (2.0 / 3.0) * b)
         return 2.0 * S33
+
+    # -- 3D (sim.materials._law3 conventions) -------------------------------------------------
+    def _first3(self, C: Array) -> dict[str, Any]:
+        """Invariants and first derivatives of ``W(I1, I2, I3)``, isochoric and volumetric.
+
+        ``a = I1b = I3^(-1/3) I1``, ``b = I2b = I3^(-2/3) I2``, ``J = I3^(1/2)``:
+        ``a_1 = I3^(-1/3)``, ``a_3 = -a / (3 I3)``, ``b_2 = I3^(-2/3)``, ``b_3 = -2 b / (3 I3)``,
+        ``J_3 = J / (2 I3)``.
+        """
+        I1, I2, I3, cof = invariants3(C)
+        inv3 = 1.0 / I3
+        J = np.sqrt(I3)
+        a_1 = 1.0 / np.cbrt(I3)
+        b_2 = a_1 * a_1
+        a = I1 * a_1
+        b = I2 * b_2
+        U_a, U_b = self._iso_d1(a, b)
+        a_3 = -a * inv3 / 3.0
+        W1 = U_a * a_1
+        W3_iso = U_a * a_3
+        W2 = b_3 = None
+        if U_b is not None:
+            b_3 = -(2.0 / 3.0) * b * inv3
+            W2 = U_b * b_2
+            W3_iso = W3_iso + U_b * b_3
+        U_J = self.bulk_modulus_MPa * (J - 1.0)
+        J_3 = 0.5 * J * inv3
+        return dict(
+            I1=I1, I3=I3, cof=cof, inv3=inv3, J=J, a=a, b=b, a_1=a_1, b_2=b_2, a_3=a_3,
+            b_3=b_3, U_a=U_a, U_b=U_b, U_J=U_J, J_3=J_3, W1=W1, W2=W2, W3_iso=W3_iso,
+            W3_vol=U_J * J_3,
+        )  # fmt: skip
+
+    def _iso_second3(self, f: dict[str, Any]) -> dict[tuple[int, int], Any]:
+        """``d2 W_iso / dI_a dI_b`` (``a <= b``; missing or ``None`` = zero).
+
+        ``a_13 = -a_1 / (3 I3)``, ``a_33 = 4 a / (9 I3^2)``, ``b_23 = -2 b_2 / (3 I3)``,
+        ``b_33 = 10 b / (9 I3^2)`` (``a_11 = a_12 = b_22 = ... = 0``).
+        """
+        a, b, a_1, b_2, a_3, b_3 = f["a"], f["b"], f["a_1"], f["b_2"], f["a_3"], f["b_3"]
+        inv3, U_a, U_b = f["inv3"], f["U_a"], f["U_b"]
+        U_aa, U_ab, U_bb = self._iso_d2(a, b)
+        inv3_2 = inv3 * inv3
+        W13 = U_a * (-a_1 * inv3 / 3.0)
+        W33 = U_a * ((4.0 / 9.0) * a * inv3_2)
+        out: dict[tuple[int, int], Any] = {}
+        if U_aa is not None:
+            out[1, 1] = U_aa * a_1 * a_1
+            W13 = W13 + U_aa * a_1 * a_3
+            W33 = W33 + U_aa * a_3 * a_3
+        if U_b is not None:
+            W23 = U_b * (-(2.0 / 3.0) * b_2 * inv3)
+            W33 = W33 + U_b * ((10.0 / 9.0) * b * inv3_2)
+            if U_ab is not None:
+                out[1, 2] = U_ab * a_1 * b_2
+                W13 = W13 + U_ab * a_1 * b_3
+                W23 = W23 + U_ab * a_3 * b_2
+                W33 = W33 + 2.0 * U_ab * a_3 * b_3
+            if U_bb is not None:
+                out[2, 2] = U_bb * b_2 * b_2
+                W23 = W23 + U_bb * b_2 * b_3
+                W33 = W33 + U_bb * b_3 * b_3
+            out[2, 3] = W23
+        out[1, 3] = W13
+        out[3, 3] = W33
+        return out
+
+    def _vol_W33(self, f: dict[str, Any]) -> Array:
+        """``d2 W_vol / dI3^2`` of ``K/2 (J - 1)^2``: ``K J_3^2 + K (J - 1) J_33``,
+        ``J_33 = -J / (4 I3^2)``."""
+        inv3 = f["inv3"]
+        return self.bulk_modulus_MPa * f["J_3"] ** 2 + f["U_J"] * (-0.25 * f["J"] * inv3 * inv3)
+
+    def _stress3_parts(self, C: Array, f: dict[str, Any]) -> Array:
+        S = np.empty((2, *C.shape))
+        S[0] = inv_stress(C, f["cof"], f["I1"], f["W1"], f["W2"], f["W3_iso"])
+        S[1] = inv_stress(C, f["cof"], f["I1"], None, None, f["W3_vol"])
+        return S
+
+    def _tangent3_parts(self, C: Array, f: dict[str, Any]) -> Array:
+        D = np.zeros((2, 6, 6, *C.shape[1:]))
+        cof, I1 = f["cof"], f["I1"]
+        inv_tangent(C, cof, I1, f["W2"], f["W3_iso"], self._iso_second3(f), out=D[0])
+        inv_tangent(C, cof, I1, None, f["W3_vol"], {(3, 3): self._vol_W33(f)}, out=D[1])
+        mirror(D[0])
+        mirror(D[1])
+        return D
+
+    def _energy3_parts(self, f: dict[str, Any]) -> Array:
+        W = np.empty((2, *f["J"].shape))
+        W[0] = self._iso(f["a"], f["b"])
+        W[1] = 0.5 * self.bulk_modulus_MPa * (f["J"] - 1.0) ** 2
+        return W
+
+    def evaluate3_split(self, C: Any) -> tuple[Array, Array, Array]:
+        """3D ``(W, S, D)`` split as ``[iso, vol]`` (MPa): ``W_iso = U_iso(I1b, I2b)``,
+        ``W_vol = K/2 (J - 1)^2``; shapes ``(2, *batch)``, ``(2, 6, *batch)``,
+        ``(2, 6, 6, *batch)`` (:mod:`sim.materials._law3`)."""
+        C = as_C3(C)
+        f = self._first3(C)
+        return self._energy3_parts(f), self._stress3_parts(C, f), self._tangent3_parts(C, f)
+
+    def stress3_split(self, C: Any) -> Array:
+        """3D ``S`` split as ``[iso, vol]``, shape ``(2, 6, *batch)`` (MPa)."""
+        C = as_C3(C)
+        return self._stress3_parts(C, self._first3(C))
+
+    def stress_tangent3_split(self, C: Any) -> tuple[Array, Array]:
+        """3D ``(S, D)`` split as ``[iso, vol]`` (MPa)."""
+        C = as_C3(C)
+        f = self._first3(C)
+        return self._stress3_parts(C, f), self._tangent3_parts(C, f)
+
+    def _tangent3(self, C: Array, f: dict[str, Any]) -> Array:
+        second = self._iso_second3(f)
+        second[3, 3] = second[3, 3] + self._vol_W33(f)
+        W3 = f["W3_iso"] + f["W3_vol"]
+        D = np.zeros((6, 6, *C.shape[1:]))
+        inv_tangent(C, f["cof"], f["I1"], f["W2"], W3, second, out=D)
+        return mirror(D)
+
+    def _stress3(self, C: Array, f: dict[str, Any]) -> Array:
+        W3 = f["W3_iso"] + f["W3_vol"]
+        return inv_stress(C, f["cof"], f["I1"], f["W1"], f["W2"], W3)
+
+    def evaluate3(self, C: Any) -> tuple[Array, Array, Array]:
+        """3D ``(W, S, D)`` (MPa) at ``C = [C11, C22, C33, C12, C23, C13]``; shapes ``batch``,
+        ``(6, *batch)``, ``(6, 6, *batch)`` (:mod:`sim.materials._law3`)."""
+        C = as_C3(C)
+        f = self._first3(C)
+        W = self._iso(f["a"], f["b"]) + 0.5 * self.bulk_modulus_MPa * (f["J"] - 1.0) ** 2
+        return W, self._stress3(C, f), self._tangent3(C, f)
+
+    def stress3(self, C: Any) -> Array:
+        """3D 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(6, *batch)``; no tangent."""
+        C = as_C3(C)
+        return self._stress3(C, self._first3(C))
+
+    def stress_tangent3(self, C: Any) -> tuple[Array, Array]:
+        """3D ``(S, D)`` (MPa) without the energy."""
+        C = as_C3(C)
+        f = self._first3(C)
+        return self._stress3(C, f), self._tangent3(C, f)
 
 
 @dataclasses.dataclass(frozen=True)

@@ -162,7 +162,9 @@ class Law:
         """Build the law from a design-file table; errors name ``f"{field}.{key}"``.
 
         ``params`` holds the law's keys and optionally ``model`` (which must then be this
-        law's name).
+        law's name). Beyond what the law admits (``_check``), the moduli of a material given by
+        a user must be physical (``_validate.moduli_in_range``); a law made in code (a
+        family's, a scaled one) is not held to that range.
         """
         params = dict(params)
         model = params.pop("model", cls.model)
@@ -181,7 +183,10 @@ class Law:
             else:
                 values[f.name] = v.number(params[f.name], key)
         cls._check(values, field)
-        return cls(**values)
+        law = cls(**values)
+        moduli = {name: values[name] for name in cls.moduli_fields}
+        v.moduli_in_range(law.initial_shear_modulus_MPa, moduli, field)
+        return law
 
     def to_dict(self) -> dict[str, Any]:
         """The design-file form (``model`` plus the law's keys); round-trips via ``from_params``."""
@@ -276,4 +281,33 @@ class Law:
 
     def S33_split(self, C: Any) -> Array:
         """``S33`` split as ``[iso, vol]``, shape ``(2, *batch)`` (MPa)."""
+        raise self._not_decoupled()
+
+    # --- 3D (sim.materials._law3 conventions; overridden) -------------------------------------
+    def evaluate3(self, C: Any) -> tuple[Array, Array, Array]:
+        """3D ``(W, S, D)`` (MPa) at ``C = [C11, C22, C33, C12, C23, C13]`` (shape
+        ``(6, *batch)``); shapes ``batch``, ``(6, *batch)``, ``(6, 6, *batch)``, ``D`` in Voigt
+        form with engineering shear (:mod:`sim.materials._law3`)."""
+        raise NotImplementedError
+
+    def stress3(self, C: Any) -> Array:
+        """3D 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(6, *batch)``; no tangent."""
+        raise NotImplementedError
+
+    def stress_tangent3(self, C: Any) -> tuple[Array, Array]:
+        """3D ``(S, D)`` as in :meth:`evaluate3` (no energy)."""
+        _, S, D = self.evaluate3(C)
+        return S, D
+
+    def evaluate3_split(self, C: Any) -> tuple[Array, Array, Array]:
+        """3D ``(W, S, D)`` split as ``[iso, vol]``: shapes ``(2, *batch)``, ``(2, 6, *batch)``,
+        ``(2, 6, 6, *batch)`` (MPa)."""
+        raise self._not_decoupled()
+
+    def stress3_split(self, C: Any) -> Array:
+        """3D ``S`` split as ``[iso, vol]``, shape ``(2, 6, *batch)`` (MPa); no tangent."""
+        raise self._not_decoupled()
+
+    def stress_tangent3_split(self, C: Any) -> tuple[Array, Array]:
+        """3D ``(S, D)`` split as ``[iso, vol]``, as in :meth:`evaluate3_split` (no energy)."""
         raise self._not_decoupled()

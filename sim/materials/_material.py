@@ -11,6 +11,7 @@ import numpy as np
 
 from sim.errors import DesignError
 from sim.materials import _validate as v
+from sim.materials._drucker import stable_log_strain, stable_ranges
 from sim.materials._hyperfoam import Hyperfoam
 from sim.materials._invariant import MooneyRivlin, NeoHookean, Yeoh
 from sim.materials._law import Law
@@ -84,7 +85,8 @@ class Material:
     catalogue name; ``source``: citation of the numbers; ``provenance``: how the numbers were
     obtained (e.g. by ``fingertip fit-material``: tests, strain ranges, rate, fit errors), as
     ``(key, value)`` pairs in the order given (:attr:`provenance_dict`); it does not enter the
-    mechanics.
+    mechanics, but its Drucker-stable ranges bound the strains at which a result is trusted
+    (:attr:`drucker_limit_log_strain`).
 
     When ``k != g`` (:attr:`split_relaxation`) the isochoric and volumetric stresses relax
     apart and the state keeps them apart: ``S0`` has shape ``(2, 3, ...)`` (``[iso, vol]``) and
@@ -115,6 +117,15 @@ class Material:
     def provenance_dict(self) -> dict[str, Any]:
         """``provenance`` as the design-file table (lists for tuples)."""
         return {k: list(v) if isinstance(v, tuple) else v for k, v in self.provenance}
+
+    @cached_property
+    def drucker_limit_log_strain(self) -> float | None:
+        """The largest compressive log strain within which the law stays Drucker-stable, from
+        the stable ranges ``fingertip fit-material`` recorded in ``provenance``
+        (``sim.materials._drucker``); None when none was cut short by an instability. The one
+        part of ``provenance`` that the FE reads: its results flag a layer strained beyond it
+        (``sim.validity.check``)."""
+        return stable_log_strain(self.law, stable_ranges(dict(self.provenance), "provenance"))
 
     # --- relaxation coefficients ------------------------------------------------------------
     @cached_property
@@ -162,20 +173,32 @@ class Material:
         return self.law
 
     # --- the viscoelastic update (what the assembly calls) ------------------------------------
-    def initial_state(self, batch: tuple[int, ...]) -> tuple[Array, Array]:
+    def initial_state(self, batch: tuple[int, ...], n_voigt: int = 3) -> tuple[Array, Array]:
         """Zero ``(S0, H)`` (undeformed, at rest) for a batch of points; shapes in the class
-        docstring (MPa)."""
+        docstring (MPa), with ``n_voigt`` stress components: 3 in plane strain, 6 in 3D."""
         parts = (2,) if self.split_relaxation else ()
-        return np.zeros((*parts, 3, *batch)), np.zeros((self.prony.n_terms, *parts, 3, *batch))
+        shape = (*parts, n_voigt, *batch)
+        return np.zeros(shape), np.zeros((self.prony.n_terms, *shape))
 
     def instantaneous_stress(self, C: Any) -> Array:
-        """``S0`` of the instantaneous law at ``C`` (MPa), split when :attr:`split_relaxation`."""
+        """``S0`` of the instantaneous law at ``C`` (MPa), split when :attr:`split_relaxation`.
+
+        ``C`` of 3 components is plane strain (``[C11, C22, C12]``), of 6 components 3D
+        (``[C11, C22, C33, C12, C23, C13]``, :mod:`sim.materials._law3`); the stress has the
+        same components. The Prony update and the tangent below act on either alike."""
         law = self.instantaneous
+        if np.shape(C)[0] == 6:
+            return law.stress3_split(C) if self.split_relaxation else law.stress3(C)
         return law.stress_split(C) if self.split_relaxation else law.stress(C)
 
     def instantaneous_stress_tangent(self, C: Any) -> tuple[Array, Array]:
-        """``(S0, D0)`` of the instantaneous law (MPa), split when :attr:`split_relaxation`."""
+        """``(S0, D0)`` of the instantaneous law (MPa), split when :attr:`split_relaxation`;
+        plane strain or 3D by the components of ``C`` (:meth:`instantaneous_stress`)."""
         law = self.instantaneous
+        if np.shape(C)[0] == 6:
+            if self.split_relaxation:
+                return law.stress_tangent3_split(C)
+            return law.stress_tangent3(C)
         return law.stress_tangent_split(C) if self.split_relaxation else law.stress_tangent(C)
 
     def relax(
@@ -197,8 +220,8 @@ class Material:
         return prony_stress_split(S0, H, self.prony.g, self.prony_k)
 
     def tangent(self, D0: Array, factor: Any) -> Array:
-        """The viscoelastic tangent (MPa), shape ``(3, 3, ...)``, from the instantaneous ``D0``
-        and the ``factor`` of :meth:`relax` or :meth:`history_stress`."""
+        """The viscoelastic tangent (MPa), shape ``(3, 3, ...)`` (3D: ``(6, 6, ...)``), from the
+        instantaneous ``D0`` and the ``factor`` of :meth:`relax` or :meth:`history_stress`."""
         if not self.split_relaxation:
             return factor * D0
         return factor[0] * D0[0] + factor[1] * D0[1]
@@ -271,6 +294,7 @@ def material_from_table(table: Mapping[str, Any], field: str = "material") -> Ma
     provenance = (
         _provenance(table["provenance"], f"{field}.provenance") if "provenance" in table else ()
     )
+    stable_ranges(dict(provenance), f"{field}.provenance")  # the FE reads them: checked here
     return Material(
         law=law, prony=prony, moduli=moduli, name=name, source=source, provenance=provenance
     )

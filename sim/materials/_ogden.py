@@ -25,6 +25,10 @@ the spectral form with the cross term ``Phi_12`` and the divided difference
 so nothing cancels when the eigenvalues meet (the undeformed state): ``sinh(n d)/sinh(d) -> n``.
 The volumetric part depends on ``d = det C`` only and goes through the shared ``W(t, d)`` chain
 rule (:func:`sim.materials._law.td_tangent`).
+
+3D (``evaluate3`` etc.): the same energy in the three eigenvalues of ``C``, the spectral tangent
+of :mod:`sim.materials._law3` with the divided differences in closed form
+(:meth:`Ogden.evaluate3_split`).
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from sim.materials import _validate as v
+from sim.materials._hyperfoam import _psi
 from sim.materials._law import (
     Array,
     Law,
@@ -44,6 +49,18 @@ from sim.materials._law import (
     list_field,
     td_stress,
     td_tangent,
+)
+from sim.materials._law3 import (
+    eigh3,
+    flat3,
+    inv_stress,
+    inv_tangent,
+    invariants3,
+    mirror,
+    pair_values,
+    spectral_bases,
+    spectral_stress,
+    spectral_tangent,
 )
 
 
@@ -257,3 +274,136 @@ class Ogden(Law):
         """Out-of-plane 2nd Piola-Kirchhoff stress ``S33`` (MPa), shape ``batch``."""
         S = self.S33_split(C)
         return S[0] + S[1]
+
+    # -- 3D (sim.materials._law3 conventions) -----------------------------------------------
+    def _iso3(self, c: Array, s: Array, tangent: bool) -> tuple[Array, Any, Any]:
+        """``(Phi_a, Phi_ab, theta_ab)`` of the isochoric energy in the eigenvalues ``c``
+        (log-eigenvalues ``s``, shape ``(3, n)``); see :meth:`evaluate3_split`."""
+        s_mean = s.mean(axis=0)
+        e = s - s_mean
+        dW = np.zeros_like(c)  # dU/ds_a
+        d2W = np.zeros((3, 3, c.shape[1])) if tangent else None  # d2U/ds_a ds_b
+        theta = np.zeros_like(c) if tangent else None
+        if tangent:
+            s_a, s_b = pair_values(s)
+            sig = 0.5 * (s_a + s_b)
+            dl = 0.5 * (s_a - s_b)
+            zero = dl == 0.0
+            dl_safe = np.where(zero, 1.0, dl)
+            scale = np.exp(-2.0 * sig)
+        for k, a6 in self._terms():
+            b = 3.0 * a6  # alpha / 2
+            em = np.expm1(b * e)  # lb^alpha - 1
+            em_mean = em.mean(axis=0)
+            dW += (k * b) * (em - em_mean)
+            if tangent:
+                ex = 1.0 + em
+                kb2 = k * b * b
+                third = (1.0 + em_mean) / 3.0  # E / 9
+                for i in range(3):
+                    for j in range(3):
+                        d2W[i, j] += kb2 * (float(i == j) * ex[i] - (ex[i] + ex[j]) / 3.0 + third)
+                u = b * (sig - s_mean)
+                ratio = np.where(zero, b, np.sinh(b * dl_safe) / np.tanh(dl_safe))
+                r1 = ratio - 2.0 * np.sinh(0.5 * b * dl) ** 2  # sinh((b - 1) dl)/sinh(dl) + 1
+                theta += (k * b) * scale * (np.exp(u) * r1 - np.expm1(u) + em_mean)
+        phi = dW / c
+        if not tangent:
+            return phi, None, None
+        phi2 = d2W
+        for i in range(3):
+            phi2[i, i] -= dW[i]
+        phi2 /= c[:, None] * c[None, :]
+        return phi, phi2, theta
+
+    def _parts3(self, C: Array, energy: bool, tangent: bool) -> tuple[Any, Array, Any]:
+        """``(W, S, D)`` split as ``[iso, vol]`` for ``C`` of shape ``(6, n)`` (``W``/``D``
+        ``None`` unless asked for)."""
+        c, N = eigh3(C)
+        s = np.log(c)
+        I1, _, I3, cof = invariants3(C)
+        J, W_d, W_dd = self._vol(I3)
+        m, w = spectral_bases(N)
+        phi, phi2, theta = self._iso3(c, s, tangent)
+        S = np.stack((spectral_stress(phi, m), inv_stress(C, cof, I1, None, None, W_d)))
+        D = None
+        if tangent:
+            D = np.zeros((2, 6, 6, C.shape[1]))
+            mirror(spectral_tangent(phi2, theta, m, w, out=D[0]))
+            mirror(inv_tangent(C, cof, I1, None, W_d, {(3, 3): W_dd}, out=D[1]))
+        W = None
+        if energy:
+            W = np.zeros((2, C.shape[1]))
+            e = s - s.mean(axis=0)
+            for k, a6 in self._terms():
+                x = 3.0 * a6 * e  # sum_a x_a = 0: k sum (e^x - 1) = k sum (e^x - 1 - x)
+                W[0] += k * (x * x * _psi(x)).sum(axis=0)
+            W[1] = 0.5 * self.bulk_modulus_MPa * (J - 1.0) ** 2
+        return W, S, D
+
+    def evaluate3_split(self, C: Any) -> tuple[Array, Array, Array]:
+        r"""3D ``(W, S, D)`` split as ``[iso, vol]`` (MPa); shapes ``(2, *batch)``,
+        ``(2, 6, *batch)``, ``(2, 6, 6, *batch)`` (:mod:`sim.materials._law3`).
+
+        Isochoric part, spectral: with the eigenvalues ``c_a = e^(s_a)`` of ``C``,
+        ``s_mean = (s_1 + s_2 + s_3) / 3 = (2/3) ln J``, ``b = alpha / 2`` and
+        ``x_a = b (s_a - s_mean)`` (so ``lb_a^alpha = e^(x_a)``) one term is
+        ``U = k sum_a (e^(x_a) - 1)``, ``k = 2 mu / alpha^2``, and
+
+        .. math::
+
+            \frac{\partial U}{\partial s_a} = k b \left(e^{x_a} - \tfrac{E}{3}\right), \quad
+            \frac{\partial^2 U}{\partial s_a \partial s_b} = k b^2 \left(\delta_{ab} e^{x_a}
+            - \tfrac{e^{x_a} + e^{x_b}}{3} + \tfrac{E}{9}\right), \quad E = \sum_c e^{x_c},
+
+        ``Phi_a = U_{,s_a} / c_a``, ``Phi_ab = (U_{,s_a s_b} - delta_ab U_{,s_a}) / (c_a c_b)``.
+        The divided difference of the spectral tangent (:mod:`sim.materials._law3`), with
+        ``sigma = (s_a + s_b)/2``, ``delta = (s_a - s_b)/2``, ``u = b (sigma - s_mean)``, is
+
+        .. math::
+
+            \theta_{ab} = \frac{\Phi_a - \Phi_b}{c_a - c_b}
+            = k b\, e^{-2\sigma} \left[ e^{u} \left( \frac{\sinh(b\delta)}{\tanh\delta}
+              - 2 \sinh^2\frac{b\delta}{2} \right) - (e^{u} - 1) + \left(\tfrac{E}{3} - 1\right)
+              \right]
+
+        (``e^(-b s_mean) (c_a^(b-1) - c_b^(b-1)) / (c_a - c_b) = e^(-2 sigma) e^u
+        sinh((b - 1) delta) / sinh(delta)`` and ``sinh((b-1) delta) / sinh(delta) + 1`` is the
+        bracket in ``delta``): every term is ``O(b)``, no difference cancels for small ``alpha``
+        nor for ``c_a -> c_b``, where ``sinh(b delta) / tanh(delta) -> b`` and ``theta_ab``
+        tends to its limit ``Phi_aa - Phi_ab``: the tangent is exact and continuous at equal
+        eigenvalues (``C = I``, uniaxial and equibiaxial states).  ``E/3 - 1`` and ``e^u - 1``
+        are taken with ``expm1``, and the energy as ``k sum_a x_a^2 psi(x_a)``,
+        ``psi(x) = (e^x - 1 - x) / x^2`` (``sum_a x_a = 0``; no cancellation for small
+        ``alpha``).  Volumetric part ``K/2 (J - 1)^2`` through ``I3 = det C``
+        (:func:`sim.materials._law3.inv_tangent`).
+        """
+        Cf, batch = flat3(C)
+        W, S, D = self._parts3(Cf, energy=True, tangent=True)
+        return W.reshape(2, *batch), S.reshape(2, 6, *batch), D.reshape(2, 6, 6, *batch)
+
+    def stress3_split(self, C: Any) -> Array:
+        """3D ``S`` split as ``[iso, vol]``, shape ``(2, 6, *batch)`` (MPa)."""
+        Cf, batch = flat3(C)
+        return self._parts3(Cf, energy=False, tangent=False)[1].reshape(2, 6, *batch)
+
+    def stress_tangent3_split(self, C: Any) -> tuple[Array, Array]:
+        """3D ``(S, D)`` split as ``[iso, vol]`` (MPa)."""
+        Cf, batch = flat3(C)
+        _, S, D = self._parts3(Cf, energy=False, tangent=True)
+        return S.reshape(2, 6, *batch), D.reshape(2, 6, 6, *batch)
+
+    def evaluate3(self, C: Any) -> tuple[Array, Array, Array]:
+        """3D ``(W, S, D)`` (MPa); shapes ``batch``, ``(6, *batch)``, ``(6, 6, *batch)``."""
+        W, S, D = self.evaluate3_split(C)
+        return W[0] + W[1], S[0] + S[1], D[0] + D[1]
+
+    def stress3(self, C: Any) -> Array:
+        """3D 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(6, *batch)``; no tangent."""
+        S = self.stress3_split(C)
+        return S[0] + S[1]
+
+    def stress_tangent3(self, C: Any) -> tuple[Array, Array]:
+        """3D ``(S, D)`` (MPa) without the energy."""
+        S, D = self.stress_tangent3_split(C)
+        return S[0] + S[1], D[0] + D[1]

@@ -1,0 +1,149 @@
+"""Sparse direct solvers of the Newton systems, by name, behind one small interface.
+
+The tangent's sparsity pattern never changes during a simulation, so each solver does its
+symbolic analysis (ordering) once and then only numeric factorisations: ``factor(upper)``
+with the upper triangle (CSC, the pattern of ``Discretization.upper_matrix``) the first time,
+``refactor(values)`` with new values of the same entries after that, ``solve(b)``.
+
+* ``qdldl``: LDL^T with AMD ordering (OSQP's QDLDL, a dependency): the fastest on the 2D
+  systems (a few thousand dofs), where supernodes do not pay.
+* ``pardiso``: Intel MKL PARDISO, supernodal LDL^T of a real symmetric indefinite matrix
+  (``mtype = -2``), through pypardiso (``pip install pypardiso``, which brings MKL): 10-20
+  times faster than qdldl on 3D systems of 6 000 dofs and more
+  (``python benchmarks/bench_linear_solvers.py``, ``docs/fe_speed.md``).
+
+``default_solver(n)`` picks by the system's size. The FE runs every factorisation on one
+thread (the same design gives the same bits whatever the machine's load), so PARDISO is told
+to use one thread.
+"""
+
+from __future__ import annotations
+
+from typing import Any, ClassVar
+
+import numpy as np
+
+__all__ = ["SOLVERS", "LinearSolver", "default_solver", "make_solver"]
+
+#: Systems with more free dofs than this go to PARDISO when it is installed. The 2D tangents
+#: (1 700-3 000 dofs) factorise faster in qdldl (1-2 ms against PARDISO's ~5 ms, whose
+#: supernodes do not pay at that size); a 3D system of 6 000 dofs already takes qdldl ~0.7 s
+#: and PARDISO ~0.05 s (``benchmarks/bench_linear_solvers.py``).
+PARDISO_FROM_DOFS = 5000
+
+
+class LinearSolver:
+    """Factorise once per pattern, then refactorise and solve (see the module docstring)."""
+
+    name: ClassVar[str]
+
+    def factor(self, upper: Any) -> None:
+        raise NotImplementedError
+
+    def refactor(self, values: np.ndarray) -> None:
+        raise NotImplementedError
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+
+class Qdldl(LinearSolver):
+    name = "qdldl"
+
+    def __init__(self) -> None:
+        self._solver = None
+        self._upper = None
+
+    def factor(self, upper: Any) -> None:
+        import qdldl  # here: `import sim` stays light
+
+        self._upper = upper
+        self._solver = qdldl.Solver(upper, upper=True)
+
+    def refactor(self, values: np.ndarray) -> None:
+        np.copyto(self._upper.data, values)
+        self._solver.update(self._upper, upper=True)
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self._solver.solve(b)
+
+
+class Pardiso(LinearSolver):
+    """MKL PARDISO through pypardiso's ``PyPardisoSolver`` (phases 11, 22, 33)."""
+
+    name = "pardiso"
+
+    def __init__(self) -> None:
+        from pypardiso import PyPardisoSolver
+
+        self._ps = PyPardisoSolver(mtype=-2)  # real symmetric indefinite
+        self._ps.set_iparm(1, 2)  # nested dissection ordering (METIS), PARDISO's default
+        _one_thread(self._ps)
+        self._csr = None
+
+    def factor(self, upper: Any) -> None:
+        # the upper triangle as CSR is what PARDISO reads for a symmetric matrix: the CSC upper
+        # triangle's transpose, i.e. the lower triangle in CSC read as CSR
+        csr = upper.tocsr()
+        csr.sort_indices()
+        self._order = _csr_order(upper)  # CSC values -> CSR values
+        self._csr = csr
+        self._ps._check_A(csr)
+        self._call(12, np.zeros((csr.shape[0], 1)))
+
+    def refactor(self, values: np.ndarray) -> None:
+        self._csr.data[:] = values[self._order]
+        self._call(22, np.zeros((self._csr.shape[0], 1)))
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self._call(33, np.ascontiguousarray(b, dtype=float).reshape(-1, 1)).ravel()
+
+    def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
+        self._ps.set_phase(phase)
+        return self._ps._call_pardiso(self._csr, b)
+
+    def __del__(self) -> None:
+        ps = getattr(self, "_ps", None)
+        if ps is not None:
+            ps.free_memory(everything=True)
+
+
+def _csr_order(upper: Any) -> np.ndarray:
+    """Permutation taking the CSC values of ``upper`` to its CSR (sorted) values."""
+    n = upper.shape[0]
+    col = np.repeat(np.arange(n), np.diff(upper.indptr))
+    row = upper.indices
+    return np.lexsort((col, row))
+
+
+def _one_thread(ps: Any) -> None:
+    """PARDISO on one thread (MKL's own setting; the FE's BLAS is limited the same way)."""
+    lib = getattr(ps, "libmkl", None)
+    if lib is not None and hasattr(lib, "MKL_Set_Num_Threads"):
+        import ctypes
+
+        lib.MKL_Set_Num_Threads(ctypes.c_int(1))  # the C interface: the count by value
+
+
+SOLVERS: dict[str, type[LinearSolver]] = {cls.name: cls for cls in (Qdldl, Pardiso)}
+
+
+def pardiso_available() -> bool:
+    try:
+        import pypardiso  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def default_solver(n_free: int) -> str:
+    """The solver for a system of ``n_free`` dofs (see ``PARDISO_FROM_DOFS``)."""
+    if n_free > PARDISO_FROM_DOFS and pardiso_available():
+        return "pardiso"
+    return "qdldl"
+
+
+def make_solver(name: str) -> LinearSolver:
+    if name not in SOLVERS:
+        raise ValueError(f"unknown linear solver {name!r}; known: {', '.join(SOLVERS)}")
+    return SOLVERS[name]()

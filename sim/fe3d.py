@@ -1,0 +1,184 @@
+"""Total-Lagrangian 3D discretisation of the fingertip pad: 27-node hexahedra (Q2), the
+sibling of the plane-strain ``sim.fe.Discretization``.
+
+The mesh is ``sim.mesh3d.PadMesh`` (the quarter pad x >= 0, z >= 0; base y = 0 bonded,
+u_x = 0 on x = 0 and u_z = 0 on z = 0); the reference element and its 3 x 3 x 3 Gauss rule are
+``sim._q2``. The constitutive step is the one the 2D discretisation uses
+(``sim._constitutive.layer_stresses``: the same laws, Prony update and tangent, with 6-component
+``C``), and the residual and tangent are assembled by the compiled kernels ``sim._kernels``
+into the fixed pattern of ``sim._pattern``. The interface a ``sim.solver.Body`` relies on is
+the 2D one: ``n_nodes``, ``dim``, ``X``, ``fixed``, ``gmap``, ``n_free``, ``surface_nodes``,
+``surface_weights()``, ``evaluate()``, ``initial_states()``, ``pattern_position()``,
+``upper_matrix()``, ``upper_data``.
+
+Array conventions: nodal displacements ``u`` have shape (n_nodes, 3); the global dof of node
+``i`` and component ``c`` is ``3 i + c``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from . import _kernels, _q2
+from ._constitutive import LayerState, initial_states, layer_stresses
+from ._pattern import build_pattern
+from .fe import Evaluation
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+    from .materials import Material
+    from .mesh3d import PadMesh
+
+__all__ = ["Discretization3D"]
+
+VOIGT = _kernels.VOIGT[3]
+
+
+class Discretization3D:
+    """Q2 hexahedra on a ``PadMesh`` with one material per layer.
+
+    Elements are reordered so that each layer is a contiguous slice."""
+
+    dim = 3
+
+    def __init__(
+        self,
+        pmesh: PadMesh,
+        materials: list[Material],
+        fixed: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> None:
+        """``fixed(X) -> mask``: optional function of the node coordinates X (n_nodes, 3)
+        returning the (n_nodes, 3) mask of constrained dofs, replacing the default (base fully
+        fixed, u_x = 0 on x = 0, u_z = 0 on z = 0). Constrained dofs keep whatever value the
+        displacement array holds, so prescribed displacements are set there."""
+        n_layers = int(pmesh.layer.max()) + 1
+        if len(materials) != n_layers:
+            raise ValueError(f"{n_layers} layers in the mesh, {len(materials)} materials given")
+        order = np.argsort(pmesh.layer, kind="stable")
+        self.pmesh = pmesh
+        self.materials = materials
+        self.conn = np.ascontiguousarray(pmesh.hexes[order], dtype=np.int64)  # (E, 27)
+        self.layer = np.asarray(pmesh.layer)[order]
+        counts = np.bincount(self.layer, minlength=n_layers)
+        bounds = np.concatenate([[0], np.cumsum(counts)])
+        self.slices = [slice(int(bounds[k]), int(bounds[k + 1])) for k in range(n_layers)]
+        self.X = np.asarray(pmesh.nodes, dtype=float)  # (n_nodes, 3)
+        self.n_nodes = len(self.X)
+        self.dN, self.w = reference_gradients(self.X, self.conn)
+        self.n_el, self.n_q = self.w.shape
+
+        if fixed is None:
+            mask = np.zeros((self.n_nodes, 3), dtype=bool)
+            mask[pmesh.base, :] = True
+            mask[pmesh.sym_x, 0] = True
+            mask[pmesh.sym_z, 2] = True
+        else:
+            mask = np.asarray(fixed(self.X), dtype=bool)
+        self.fixed = mask
+        self.free = np.flatnonzero(~mask.ravel())
+        self.n_free = len(self.free)
+        gmap = -np.ones(3 * self.n_nodes, dtype=np.int64)
+        gmap[self.free] = np.arange(self.n_free)
+        self.gmap = gmap
+        self.surface_nodes = np.asarray(pmesh.surface_nodes)
+        s = self.surface_nodes
+        self.apex_node = int(s[np.argmax(self.X[s, 1])])
+        self.pattern = build_pattern(self.conn, gmap, 3, extra_nodes=s)
+        pat = self.pattern
+        self.nnz = pat.nnz
+        self.indptr, self.indices = pat.indptr, pat.indices
+        self.upper_data = pat.upper_data
+        self.upper_indices, self.upper_indptr = pat.upper_indices, pat.upper_indptr
+
+    # ------------------------------------------------------------------ helpers
+    def surface_weights(self) -> np.ndarray:
+        """Each surface node's share of the outer surface's area (mm^2), in the order of
+        ``surface_nodes``: the contact penalty's weights (``sim.mesh3d.surface_weights``)."""
+        from .mesh3d import surface_weights
+
+        w = surface_weights(self.X, np.asarray(self.pmesh.surface_faces))
+        return w[self.surface_nodes]
+
+    def pattern_position(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Where each free-dof pair sits in the tangent's data array (``Pattern.position``)."""
+        return self.pattern.position(rows, cols)
+
+    def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The free-dof tangent as a CSC matrix (the pattern is symmetric, so CSR = CSC^T)."""
+        import scipy.sparse as sp
+
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n_free, self.n_free))
+
+    def upper_matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The upper triangle of the tangent as a CSC matrix (for the LDL^T factorisation)."""
+        import scipy.sparse as sp
+
+        return sp.csc_matrix(
+            (data[self.upper_data], self.upper_indices, self.upper_indptr),
+            shape=(self.n_free, self.n_free),
+        )
+
+    def initial_states(self) -> list[LayerState]:
+        return initial_states(self.materials, self.slices, self.n_q, 6)
+
+    # ------------------------------------------------------------------ kinematics
+    def deformation_gradient(self, u: np.ndarray) -> np.ndarray:
+        """F with shape (3, 3, n_el, n_q) for nodal displacements u (n_nodes, 3)."""
+        return _kernels.deformation_gradient(np.ascontiguousarray(u), self.conn, self.dN)
+
+    # ------------------------------------------------------------------ assembly
+    def evaluate(
+        self,
+        u: np.ndarray,
+        states: list[LayerState],
+        dt_s: float,
+        tangent: bool = True,
+        frozen_history: bool = False,
+    ) -> Evaluation:
+        """Internal-force residual (free dofs), tangent data on demand and trial history at
+        ``u``, as ``sim.fe.Discretization.evaluate``."""
+        F = self.deformation_gradient(u)
+        with np.errstate(all="ignore"):
+            J = (
+                F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
+                - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
+                + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0])
+            )
+        min_J = float(J.min())
+        if not min_J > 1e-8:  # also catches NaN from an overflowing trial
+            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
+        C = _kernels.right_cauchy_green(F, VOIGT)
+        S, D, new_states = layer_stresses(
+            self.materials, self.slices, C, states, dt_s, tangent, frozen_history
+        )
+        if not np.all(np.isfinite(S)) or (tangent and not np.all(np.isfinite(D))):
+            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
+        pat = self.pattern
+        r = _kernels.internal_forces(F, S, self.dN, self.w, VOIGT, pat.scatter_r, pat.n_free + 1)
+        args = (F, S, D) if tangent else None
+        return Evaluation(r[:-1], args, new_states, ok=True, min_J=min_J, _assemble=self._tangent)
+
+    def _tangent(self, F: np.ndarray, S: np.ndarray, D: np.ndarray) -> np.ndarray:
+        pat = self.pattern
+        data = _kernels.stiffness(F, S, D, self.dN, self.w, VOIGT, pat.scatter_K, pat.nnz + 1)
+        return data[:-1]
+
+
+def reference_gradients(X: np.ndarray, conn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Shape-function gradients ``dN_a/dX_J`` (E, Q, 27, 3) and the weights ``w = det(dX/dxi)
+    w_q`` (E, Q) at the 3 x 3 x 3 Gauss points of each Q2 element of nodes ``X[conn]``.
+    Raises ``ValueError`` for an element whose Jacobian is not positive everywhere."""
+    points, weights = _q2.gauss_rule()
+    G = _q2.shape_gradients(points)  # (Q, 27, 3): dN_a/dxi_d
+    Xe = X[conn]  # (E, 27, 3)
+    jac = np.einsum("eaI,qad->eqId", Xe, G)  # dX_I/dxi_d
+    det = np.linalg.det(jac)
+    if not np.all(det > 0.0):
+        raise ValueError(f"{int(np.sum(~(det > 0)))} Gauss points with det(dX/dxi) <= 0")
+    inv = np.linalg.inv(jac)  # dxi_d/dX_J
+    dN = np.einsum("qad,eqdJ->eqaJ", G, inv)
+    return np.ascontiguousarray(dN), det * weights[None, :]

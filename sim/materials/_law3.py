@@ -1,0 +1,262 @@
+r"""3D machinery of the hyperelastic laws: Voigt conventions, invariants, spectral tangents.
+
+Conventions (every law's ``evaluate3``; total Lagrangian, units MPa):
+
+* ``C`` has shape ``(6, *batch)`` = ``[C11, C22, C33, C12, C23, C13]`` (tensor components).
+* ``W`` (MPa) has shape ``batch``.
+* ``S`` = ``2 dW/dC`` (MPa) has shape ``(6, *batch)``, the same order (tensor components).
+* ``D`` = ``4 d2W/dCdC`` (MPa) has shape ``(6, 6, *batch)``, Voigt form with engineering shear:
+  ``dS_i = D_ij dE_j`` with ``dE = [dE11, dE22, dE33, 2 dE12, 2 dE23, 2 dE13]``; symmetric.
+  Its entries are the tensor components ``4 d2W/dC_IJ dC_KL`` at the Voigt index pairs.
+* A decoupled law's ``*3_split`` methods stack ``[iso, vol]`` on a leading axis of length 2.
+
+With ``C33 = 1``, ``C23 = C13 = 0`` the rows and columns ``[0, 1, 3]`` are the plane-strain
+``evaluate`` (``C = [C11, C22, C12]``) and ``S[2]`` is ``S33``.
+
+**Invariant part** (:func:`inv_stress`, :func:`inv_tangent`).  For ``W(I1, I2, I3)`` with
+``I1 = tr C``, ``I2`` the sum of the principal 2x2 minors, ``I3 = det C`` and
+``G1 = dI1/dC = I``, ``G2 = dI2/dC = I1 I - C``, ``G3 = dI3/dC = cof C``:
+
+.. math::
+
+    S = 2 \sum_a W_a G_a, \qquad
+    D = 4 \sum_{a,b} W_{ab} G_a \otimes G_b + 4 W_2 (I \otimes I - \mathbb{I})
+        + 4 W_3 \frac{\partial\, \mathrm{cof}\, C}{\partial C}
+
+(``𝕀`` the symmetric fourth-order identity, Voigt ``diag(1, 1, 1, 1/2, 1/2, 1/2)``); the last
+term is polynomial in ``C`` (:func:`_add_dcof`), so nothing is divided by ``det C``.
+
+**Spectral part** (:func:`eigh3`, :func:`spectral_stress`, :func:`spectral_tangent`).  For a
+symmetric function ``Phi(c1, c2, c3)`` of the eigenvalues ``c_a`` of ``C`` (eigenvectors
+``N_a``, ``M_a = N_a (x) N_a``), the stress and the tangent are (Ogden, *Non-linear Elastic
+Deformations*, 1984; Simo and Taylor, Comput. Methods Appl. Mech. Engrg. 85 (1991) 273-310)
+
+.. math::
+
+    S = 2 \sum_a \Phi_a M_a, \qquad
+    D = 4 \sum_{a,b} \Phi_{ab} M_a \otimes M_b
+        + 2 \sum_{a<b} \theta_{ab}\, W_{ab} \otimes W_{ab}, \qquad
+    \theta_{ab} = \frac{\Phi_a - \Phi_b}{c_a - c_b},
+
+with ``Phi_a = dPhi/dc_a``, ``Phi_ab = d2Phi/dc_a dc_b`` and ``W_ab = N_a (x) N_b + N_b (x) N_a``
+(in the principal frame ``D_abab = 2 theta_ab`` with engineering shear).  The second term is the
+first-order perturbation of the eigenprojections, ``dM_a = sum_{b != a} (N_b . dC . N_a) /
+(c_a - c_b) (N_a (x) N_b + N_b (x) N_a)`` (the Daleckii-Krein divided difference of a matrix
+function).  The classic difficulty is ``c_a -> c_b`` (the undeformed state, uniaxial and
+equibiaxial states): there ``theta_ab -> Phi_aa - Phi_ab``, and the tangent is then
+independent of the (arbitrary) eigenvectors chosen in the degenerate eigenspace.  Here every law
+supplies ``theta_ab`` *analytically*, as a smooth function of ``(c_a, c_b)`` evaluated without
+cancellation for any split (the Ogden law with ``sinh`` ratios in log-eigenvalues, the hyperfoam
+with a Taylor series below a relative split of ``5e-3``), instead of a perturbation of the
+eigenvalues (Miehe, Commun. Numer. Methods Eng. 9 (1993) 889-896) or a tolerance-switched
+limit.  Hence the tangent is continuous across coinciding eigenvalues, and the errors of the
+eigenvectors of nearly equal eigenvalues (``O(eps / gap)``) multiply differences
+``Phi_a - Phi_b = O(gap)``: the result stays accurate to rounding.  The eigenvalues and
+eigenvectors come from LAPACK's symmetric solver, batched (``numpy.linalg.eigh``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+Array = np.ndarray
+
+#: Voigt order of the 3D symmetric tensors: tensor index pairs of the six components.
+VOIGT3 = ((0, 0), (1, 1), (2, 2), (0, 1), (1, 2), (0, 2))
+#: Eigenvalue pairs ``(a, b)`` of the spectral shear terms, in the order of ``theta``.
+PAIRS = ((0, 1), (1, 2), (0, 2))
+#: The in-plane components of a 3D Voigt vector: ``[11, 22, 12]``.
+PLANE = (0, 1, 3)
+
+_EYE = np.array([1.0, 1.0, 1.0, 0.0, 0.0, 0.0])  # I in Voigt form
+
+
+def as_C3(C: Any) -> Array:
+    """``C`` as a float array of shape ``(6, *batch)``."""
+    C = np.asarray(C, dtype=float)
+    if C.ndim < 1 or C.shape[0] != 6:
+        raise ValueError(
+            f"C must have shape (6, *batch) = [C11, C22, C33, C12, C23, C13], got {C.shape}"
+        )
+    return C
+
+
+def flat3(C: Any) -> tuple[Array, tuple[int, ...]]:
+    """``C`` as ``(6, n)`` and the batch shape to restore."""
+    C = as_C3(C)
+    return C.reshape(6, -1), C.shape[1:]
+
+
+def invariants3(C: Array) -> tuple[Array, Array, Array, Array]:
+    """``I1 = tr C``, ``I2`` (sum of the principal minors), ``I3 = det C`` and ``cof C``
+    (Voigt, shape ``(6, *batch)``), all polynomial in ``C``."""
+    C11, C22, C33, C12, C23, C13 = C
+    cof = np.stack(
+        (
+            C22 * C33 - C23 * C23,
+            C11 * C33 - C13 * C13,
+            C11 * C22 - C12 * C12,
+            C13 * C23 - C12 * C33,
+            C12 * C13 - C11 * C23,
+            C12 * C23 - C13 * C22,
+        )
+    )
+    I1 = C11 + C22 + C33
+    I2 = cof[0] + cof[1] + cof[2]
+    I3 = C11 * cof[0] + C12 * cof[3] + C13 * cof[5]
+    return I1, I2, I3, cof
+
+
+def _eye(C: Array) -> Array:
+    return _EYE.reshape((6,) + (1,) * (C.ndim - 1))
+
+
+def inv_stress(C: Array, cof: Array, I1: Array, W1: Any, W2: Any, W3: Any) -> Array:
+    """``S = 2 (W1 I + W2 (I1 I - C) + W3 cof C)``; ``W1``, ``W2`` may be ``None`` (zero)."""
+    S = 2.0 * W3 * cof
+    diag = None
+    if W1 is not None:
+        diag = W1
+    if W2 is not None:
+        S -= 2.0 * W2 * C
+        diag = W2 * I1 if diag is None else diag + W2 * I1
+    if diag is not None:
+        S[:3] += 2.0 * diag
+    return S
+
+
+def _add_dcof(C: Array, coef: Any, out: Array) -> None:
+    """Add ``coef * d(cof C)/dE`` (Voigt, engineering shear; ``dC = 2 dE``) to ``out``.
+
+    Rows are ``cof = [C22 C33 - C23^2, C11 C33 - C13^2, C11 C22 - C12^2, C13 C23 - C12 C33,
+    C12 C13 - C11 C23, C12 C23 - C13 C22]`` differentiated by ``[2 dC11, 2 dC22, 2 dC33, dC12,
+    dC23, dC13]``; the matrix is symmetric."""
+    C11, C22, C33, C12, C23, C13 = C
+    two = 2.0 * coef
+    for i, j, value in (
+        (0, 1, two * C33),
+        (0, 2, two * C22),
+        (1, 2, two * C11),
+        (0, 4, -two * C23),
+        (1, 5, -two * C13),
+        (2, 3, -two * C12),
+        (3, 4, coef * C13),
+        (3, 5, coef * C23),
+        (4, 5, coef * C12),
+    ):
+        out[i, j] += value
+        out[j, i] += value
+    out[3, 3] -= coef * C33
+    out[4, 4] -= coef * C11
+    out[5, 5] -= coef * C22
+
+
+def inv_tangent(
+    C: Array,
+    cof: Array,
+    I1: Array,
+    W2: Any,
+    W3: Any,
+    second: dict[tuple[int, int], Any],
+    out: Array,
+) -> Array:
+    """Add the Voigt tangent of ``W(I1, I2, I3)`` to ``out`` (shape ``(6, 6, *batch)``).
+
+    ``W2``, ``W3``: first derivatives (``None`` = zero); ``second``: ``{(a, b): W_ab}`` for
+    ``a <= b`` in ``1..3`` (missing = zero).  See the module docstring; ``out`` is returned
+    exactly symmetric only after :func:`mirror`.
+    """
+    G: dict[int, Array] = {3: cof}
+    if any(1 in key for key in second):
+        G[1] = _eye(C)
+    if any(2 in key for key in second):
+        G[2] = I1 * _eye(C) - C
+    V: dict[int, Any] = {}
+    for (a, b), Wab in second.items():
+        if Wab is None:
+            continue
+        # 4 W_ab (G_a (x) G_b + G_b (x) G_a) for a < b, 4 W_aa G_a (x) G_a: accumulate the
+        # vectors V_a = sum_b W_ab G_b and add 4 sum_a G_a (x) V_a
+        V[a] = Wab * G[b] if a not in V else V[a] + Wab * G[b]
+        if a != b:
+            V[b] = Wab * G[a] if b not in V else V[b] + Wab * G[a]
+    for a, Va in V.items():
+        out += 4.0 * G[a][:, None] * Va[None, :]
+    if W2 is not None:
+        # 4 W2 (I (x) I - Isym)
+        four = 4.0 * W2
+        for i in range(3):
+            for j in range(3):
+                if i != j:
+                    out[i, j] += four
+            out[i + 3, i + 3] -= 0.5 * four
+    if W3 is not None:
+        _add_dcof(C, 2.0 * W3, out)  # 4 W3 dcof/dC = 2 W3 dcof/dE
+    return out
+
+
+def mirror(D: Array) -> Array:
+    """Copy the upper triangle of ``D`` (``(m, m, *batch)``) onto the lower one: symmetric to
+    the bit."""
+    m = D.shape[0]
+    for i in range(m):
+        for j in range(i):
+            D[i, j] = D[j, i]
+    return D
+
+
+def eigh3(C: Array) -> tuple[Array, Array]:
+    """Eigenvalues ``c`` (shape ``(3, n)``, ascending) and eigenvectors ``N`` (shape
+    ``(3, 3, n)``, ``N[a]`` the unit eigenvector of ``c[a]``) of ``C`` (shape ``(6, n)``)."""
+    n = C.shape[1]
+    M = np.empty((n, 3, 3))
+    for k, (i, j) in enumerate(VOIGT3):
+        M[:, i, j] = C[k]
+        M[:, j, i] = C[k]
+    c, v = np.linalg.eigh(M)  # v[n, i, a]
+    return np.ascontiguousarray(c.T), np.ascontiguousarray(np.transpose(v, (2, 1, 0)))
+
+
+def spectral_bases(N: Array) -> tuple[Array, Array]:
+    """``m[a]`` = Voigt of ``N_a (x) N_a`` (shape ``(3, 6, n)``) and ``w[p]`` = Voigt of
+    ``N_a (x) N_b + N_b (x) N_a`` for the pairs :data:`PAIRS` (shape ``(3, 6, n)``)."""
+    m = np.empty((3, 6, N.shape[2]))
+    w = np.empty_like(m)
+    for k, (i, j) in enumerate(VOIGT3):
+        m[:, k] = N[:, i] * N[:, j]
+        for p, (a, b) in enumerate(PAIRS):
+            w[p, k] = N[a, i] * N[b, j] + N[b, i] * N[a, j]
+    return m, w
+
+
+def spectral_stress(phi: Array, m: Array) -> Array:
+    """``S = 2 sum_a Phi_a M_a`` (Voigt, shape ``(6, n)``) from ``phi`` (shape ``(3, n)``)."""
+    return 2.0 * (phi[0] * m[0] + phi[1] * m[1] + phi[2] * m[2])
+
+
+def spectral_tangent(phi2: Array, theta: Array, m: Array, w: Array, out: Array) -> Array:
+    """Add ``4 sum_ab Phi_ab M_a (x) M_b + 2 sum_p theta_p W_p (x) W_p`` to ``out``.
+
+    ``phi2``: ``Phi_ab``, shape ``(3, 3, n)``, or shape ``(3, n)`` for a diagonal one (a sum of
+    functions of one eigenvalue each); ``theta``: ``(Phi_a - Phi_b) / (c_a - c_b)`` (its limit
+    ``Phi_aa - Phi_ab`` for equal eigenvalues) for the pairs :data:`PAIRS`, shape ``(3, n)``.
+    ``out`` is exactly symmetric only after :func:`mirror`.
+    """
+    for a in range(3):
+        if phi2.ndim == 2:
+            V = phi2[a] * m[a]
+        else:
+            V = phi2[a, 0] * m[0] + phi2[a, 1] * m[1] + phi2[a, 2] * m[2]
+        out += 4.0 * m[a][:, None] * V[None, :]
+    for p in range(3):
+        out += 2.0 * theta[p] * w[p][:, None] * w[p][None, :]
+    return out
+
+
+def pair_values(x: Array) -> tuple[Array, Array]:
+    """``(x[a], x[b])`` for the pairs :data:`PAIRS`, each of shape ``(3, *rest)``."""
+    first = np.stack([x[a] for a, _ in PAIRS])
+    second = np.stack([x[b] for _, b in PAIRS])
+    return first, second

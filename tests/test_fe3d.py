@@ -1,0 +1,172 @@
+"""The 3D discretisation (``sim.fe3d``) on the pad's Q2 mesh: a patch test, the consistent
+viscoelastic tangent against finite differences of the residual (two layers, shear and bulk
+relaxing apart), the shared ``Body``'s contact in 3D (its tangent, and global equilibrium of a
+plate press: the base's reaction carries the plate's force), and the linear solvers agreeing.
+Against an independent code (FElupe): ``tests/test_fe3d_felupe.py``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.contact import Plate
+from sim.fe3d import Discretization3D
+from sim.geometry import Geometry
+from sim.geometry3d import PadGeometry
+from sim.materials._material import material_from_table
+from sim.mesh3d import MeshOptions3D, build_pad_mesh
+from sim.solver import Body, Control, NewtonOptions
+
+#: a coarse mesh: a few hundred elements, seconds per test
+COARSE = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
+PAD = PadGeometry(Geometry(5.84, 5.48, 1.5), half_length_mm=8.0, length_exponent=2.0)
+
+SKIN = {"model": "neo_hookean", "mu_MPa": 0.08, "nu": 0.49, "prony_g": [0.3, 0.2],
+        "prony_tau_s": [0.01, 0.5], "prony_k": [0.1, 0.0]}  # fmt: skip
+CORE = {"model": "ogden", "mu_MPa": [0.02], "alpha": [4.0], "nu": 0.495}
+
+
+@pytest.fixture(scope="module")
+def two_layers() -> Discretization3D:
+    pmesh = build_pad_mesh(PAD, (1.0,), COARSE)
+    return Discretization3D(pmesh, [material_from_table(SKIN), material_from_table(CORE)])
+
+
+def _smooth(X: np.ndarray) -> np.ndarray:
+    x, y, z = X.T
+    return np.column_stack(
+        [0.03 * x * y / 5, -0.1 * y**2 / 5 + 0.02 * np.cos(z / 4), 0.02 * y * z / 8]
+    )
+
+
+def test_homogeneous_deformation_passes_the_patch_test():
+    """Every boundary node prescribed by u = (F0 - I) X: the same stress everywhere, so the
+    interior nodes' internal forces vanish (one material: no interface tractions)."""
+    pmesh = build_pad_mesh(PAD, (), COARSE)
+    boundary = np.zeros(len(pmesh.nodes), dtype=bool)
+    for nodes in (pmesh.base, pmesh.sym_x, pmesh.sym_z, pmesh.surface_nodes):
+        boundary[nodes] = True
+    disc = Discretization3D(
+        pmesh,
+        [material_from_table(CORE)],
+        fixed=lambda X: np.repeat(boundary[:, None], 3, axis=1),
+    )
+    assert disc.n_free > 0
+    F0 = np.array([[1.08, 0.04, -0.02], [0.03, 0.9, 0.05], [-0.04, 0.02, 1.05]])
+    u = disc.X @ (F0 - np.eye(3)).T
+    ev = disc.evaluate(u, disc.initial_states(), 0.0)
+    F = ev._tangent_args[0]
+    np.testing.assert_allclose(F, np.broadcast_to(F0[:, :, None, None], F.shape), atol=1e-12)
+    # the scale: one node's share of a stress times an element face
+    S = ev._tangent_args[1]
+    scale = np.abs(S).max() * np.mean(disc.w) ** (2 / 3)
+    assert np.abs(ev.residual).max() < 1e-10 * scale
+
+
+def test_viscoelastic_tangent_is_the_residuals_derivative(two_layers):
+    disc = two_layers
+    rng = np.random.default_rng(2)
+    u = _smooth(disc.X)
+    u[disc.fixed] = 0.0
+    # a committed history from a first step, then a second step of dt
+    ev0 = disc.evaluate(0.5 * u, disc.initial_states(), 0.02)
+    states = ev0.states
+    ev = disc.evaluate(u, states, 0.01)
+    K = disc.pattern_matrix(ev.tangent())
+    assert abs(K - K.T).max() <= 1e-12 * abs(K).max()
+    for _ in range(2):
+        du = np.zeros_like(u)
+        du.ravel()[disc.free] = rng.standard_normal(disc.n_free)
+        du *= 1e-2
+        h = 1e-5
+        rp = disc.evaluate(u + h * du, states, 0.01, tangent=False).residual
+        rm = disc.evaluate(u - h * du, states, 0.01, tangent=False).residual
+        fd = (rp - rm) / (2 * h)
+        np.testing.assert_allclose(K @ du.ravel()[disc.free], fd, rtol=0, atol=2e-7 * abs(fd).max())
+
+
+def test_contact_tangent_is_the_residuals_derivative_in_3d(two_layers):
+    """The shared ``Body``'s penalty contact with 3D normals: its tangent (with the element
+    tangent) is the derivative of its residual, with nodes pressed by the plate."""
+    body = Body(two_layers, Plate(), NewtonOptions())
+    disc = two_layers
+    u = _smooth(disc.X)
+    u[disc.fixed] = 0.0
+    d = body.top_height(u) - 0.3  # the plate 0.3 mm below the deformed top
+    control = Control.position(d)
+    _, data, *_ = body._evaluate(u, control, d, 0.01, True)
+    K = disc.pattern_matrix(data())
+    rng = np.random.default_rng(3)
+    du = np.zeros_like(u)
+    du.ravel()[disc.free] = 1e-2 * rng.standard_normal(disc.n_free)
+    h = 1e-6
+    rp = body._evaluate(u + h * du, control, d, 0.01, False)[0]
+    rm = body._evaluate(u - h * du, control, d, 0.01, False)[0]
+    fd = (rp - rm) / (2 * h)
+    active = body._contact(u, control, d)[1][0] > 0
+    assert active.sum() >= 3
+    np.testing.assert_allclose(K @ du.ravel()[disc.free], fd, rtol=0, atol=1e-6 * abs(fd).max())
+
+
+@pytest.fixture(scope="module")
+def pressed():
+    """An elastic one-layer pad pressed 0.3 mm by the plate (quarter model)."""
+    pmesh = build_pad_mesh(PAD, (), COARSE)
+    mat = material_from_table({"model": "neo_hookean", "mu_MPa": 0.05, "nu": 0.49})
+    body = Body(Discretization3D(pmesh, [mat]), Plate(), NewtonOptions())
+    top = body.top_height()
+    for k, d in enumerate(np.linspace(0.05, 0.3, 6)):
+        assert body.advance(0.1 * (k + 1), Control.position(top - d)).converged
+    return body
+
+
+def test_the_base_carries_the_plates_force(pressed):
+    """Global equilibrium: the vertical internal forces of the bonded base (its reaction)
+    balance the plate's force; the symmetry planes carry no vertical force."""
+    body = pressed
+    disc = body.disc
+    free_all = Discretization3D(disc.pmesh, disc.materials, fixed=lambda X: np.zeros(X.shape, bool))
+    # internal forces at every dof for the committed state (no time passes: history held)
+    ev = free_all.evaluate(body.u, body.states, 0.0, tangent=False, frozen_history=True)
+    f = ev.residual.reshape(-1, 3)
+    base = disc.pmesh.base
+    assert body.force > 0
+    np.testing.assert_allclose(f[base, 1].sum(), body.force, rtol=1e-5)
+
+
+def test_pardiso_and_qdldl_give_the_same_step(pressed):
+    """One step of the same press solved by both factorisations: the same displacements to
+    the Newton tolerance's order."""
+    pytest.importorskip("pypardiso")
+    bodies = []
+    for name in ("pardiso", "qdldl"):
+        body = Body(pressed.disc, Plate(), NewtonOptions())
+        body.linear_solver = name
+        top = body.top_height()
+        assert body.advance(0.1, Control.position(top - 0.1)).converged
+        bodies.append(body)
+    scale = np.abs(bodies[0].u).max()
+    np.testing.assert_allclose(bodies[0].u, bodies[1].u, rtol=0, atol=1e-6 * scale)
+    assert bodies[0]._solver.name == "pardiso" and bodies[1]._solver.name == "qdldl"
+
+
+def test_modified_newton_saves_factorisations_for_the_same_answer():
+    """``NewtonOptions.reuse_factorization``: the press of ``pressed`` with the factorisation
+    kept while the residual falls fast: fewer factorisations, the same state to the order of
+    the Newton tolerance."""
+    pmesh = build_pad_mesh(PAD, (), COARSE)
+    mat = material_from_table({"model": "neo_hookean", "mu_MPa": 0.05, "nu": 0.49})
+    disc = Discretization3D(pmesh, [mat])
+    bodies = []
+    for reuse in (False, True):
+        body = Body(disc, Plate(), NewtonOptions(reuse_factorization=reuse))
+        top = body.top_height()
+        for k, d in enumerate(np.linspace(0.05, 0.3, 6)):
+            assert body.advance(0.1 * (k + 1), Control.position(top - d)).converged
+        bodies.append(body)
+    full, modified = bodies
+    print(f"factorisations: full Newton {full.factorizations}, modified {modified.factorizations}")
+    assert modified.factorizations < full.factorizations
+    scale = np.abs(full.u).max()
+    np.testing.assert_allclose(modified.u, full.u, rtol=0, atol=1e-5 * scale)
+    np.testing.assert_allclose(modified.force, full.force, rtol=1e-5)
