@@ -221,8 +221,8 @@ def main() -> None:
     ap.add_argument(
         "--slow-max-dofs",
         type=int,
-        default=20000,
-        help="skip qdldl and SuperLU on larger systems (default 20000)",
+        default=10000,
+        help="skip qdldl and SuperLU on larger systems (default 10000: minutes beyond)",
     )
     ap.add_argument("--one", nargs=3, help=argparse.SUPPRESS)  # SOLVER SYSTEM PATH
     args = ap.parse_args()
