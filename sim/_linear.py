@@ -103,9 +103,12 @@ class Pardiso(LinearSolver):
         return self._ps._call_pardiso(self._csr, b)
 
     def __del__(self) -> None:
+        import sys
+
         ps = getattr(self, "_ps", None)
-        if ps is not None:
-            ps.free_memory(everything=True)
+        if ps is None or sys.meta_path is None:  # at interpreter exit MKL frees it anyway
+            return
+        ps.free_memory(everything=True)
 
 
 def _csr_order(upper: Any) -> np.ndarray:
