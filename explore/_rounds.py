@@ -109,7 +109,7 @@ def fe_alongside(run: Search) -> Iterator[None]:
     The searches and retrainings run on one core and leave the other idle; at the lowest
     priority (``BACKGROUND_NICE``), it takes that core and leaves the rounds' FE alone (at the
     same priority it slowed the first round's FE, the path the rounds wait on, by as much as it
-    saved: 199 s in all, runs/main_v29). When the block ends it has usually finished; if not
+    saved: 199 s in all). When the block ends it has usually finished; if not
     (other work on the machine starved it), it is stopped, the references it did not make are
     run in the foreground (counted as FE time) and the screen makes its own stacks. With one
     worker, or when the records are there already (a resumed run), the references run before

@@ -8,7 +8,7 @@
 The segments must share the space, seed, sampler, options, solver version and catalogues, and
 not overlap (``sim.sweep.merge_sweeps``). The merged folder holds config.json (the segments
 listed), meta.json and table.csv only: segments are resumed in their own folders, then merged
-again. A segment's table.csv is small enough to keep between sessions (about 0.7 MB per
+again. A segment's table.csv is small enough to keep in the repository (about 0.7 MB per
 thousand designs) where its records (about 10 kB per design, with the curves) are not.
 """
 

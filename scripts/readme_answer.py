@@ -1,7 +1,7 @@
 """Regenerate the README's answer table from a run folder of the main job.
 
-    python scripts/readme_answer.py runs/main_v22            # print the block
-    python scripts/readme_answer.py runs/main_v22 --write    # and replace it in README.md
+    python scripts/readme_answer.py runs/main            # print the block
+    python scripts/readme_answer.py runs/main --write    # and replace it in README.md
 
 The block between ``<!-- answer:start -->`` and ``<!-- answer:end -->`` in README.md is the
 output of :func:`render` on the run folder's ``summary.json`` and ``confirmations.json``: the

@@ -1,7 +1,7 @@
 """How many epochs the main job's retraining needs: fine-tune on one round, score the next ones.
 
-    python scripts/retrain_study.py runs/main_v24 --dataset runs/sweep_v22 --epochs 0 25 50 100 150
-    python scripts/retrain_study.py runs/main_v28 --epochs 150 --replay 0 256 512
+    python scripts/retrain_study.py runs/main --dataset runs/sweep --epochs 0 25 50 100 150
+    python scripts/retrain_study.py runs/main --epochs 150 --replay 0 256 512
 
 A run of ``fingertip run`` retrains its surrogate after each round on the training sweep plus
 the designs FE-confirmed so far (``explore._retrain.retrain``, ``--retrain-epochs``, every epoch

@@ -5,7 +5,7 @@
 
 A seed draws the train / validation / test split, the initial weights and the minibatch order
 (``fingertip train --seed``), so each training is scored on other held-out designs. A target met
-by one seed only is met by the luck of its split (session 16: the hysteresis 95th percentile of
+by one seed only is met by the luck of its split (the hysteresis 95th percentile of
 the 8960-design sweep was 8.8 % with seed 0, 11.0 and 12.1 % with seeds 1 and 2). Each training
 is ``fingertip train SWEEP --out OUT/seedS --seed S`` in its own process, ``--jobs`` at once at
 one torch thread each; a seed whose ``report.json`` exists is not trained again (re-run the same

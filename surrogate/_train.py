@@ -69,7 +69,7 @@ class TrainConfig:
     # epochs after a net's last improvement of its validation NLL it restarts from its best
     # weights at ``lr_decay`` times its rate, at most ``lr_decays`` times; training stops when
     # every net is ``patience`` epochs past its last improvement or decay with none left
-    # (``lr_decay = 1``: a constant rate, the rule before session 13). On the 4096-design sweep
+    # (``lr_decay = 1``: a constant rate, the earlier rule). On the 4096-design sweep
     # (``docs/surrogate_accuracy.md``, 3482 designs, fixed test split, 3 seeds) the two
     # together took the hysteresis median from 2.20 to 2.06 % and its 95th percentile from 20
     # to 18 %, the displacement medians from 0.34-0.38 to 0.27-0.31 %, in half the epochs.

@@ -21,7 +21,7 @@ def _report(p95: float, median: float = 0.01, coverage: float = 0.9) -> dict:
 
 
 def test_a_target_met_by_one_seed_is_not_met_on_the_mean():
-    """Session 16's three trainings of the 8960-design sweep: 8.8, 11.0 and 12.1 %."""
+    """Three trainings of the 8960-design sweep: 8.8, 11.0 and 12.1 %."""
     lines = table({0: _report(0.088), 1: _report(0.110), 2: _report(0.121, coverage=0.97)})
     text = "\n".join(lines)
     assert "| 0 | 600 | 1.00-1.00 % | 1.00 % | 8.8 % | 90-90 % | 95.8 % / 3.1 % |" in text
@@ -35,7 +35,7 @@ def test_a_target_met_by_one_seed_is_not_met_on_the_mean():
 
 
 def test_the_mean_over_the_seeds_is_taken_metric_by_metric():
-    """Session 17's 11 008-design sweep: one seed's coverage of 84.9 % misses 85-95 %, the mean
+    """The 11 008-design sweep: one seed's coverage of 84.9 % misses 85-95 %, the mean
     of the three (88.4 %) does not; a median over 2 % on average is not met."""
     low = _report(0.071, coverage=0.90)
     low["metrics"]["disp_at_4N_mm"]["coverage_90"] = 0.849
