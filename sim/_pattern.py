@@ -10,8 +10,12 @@ reads. Plain numpy, built once per mesh.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
 
 __all__ = ["Pattern", "build_pattern"]
 
@@ -51,6 +55,23 @@ class Pattern:
         keys = np.maximum(rows, 0) * self.n_free + np.maximum(cols, 0)
         pos = np.searchsorted(self.keys, keys)
         return np.where((rows >= 0) & (cols >= 0), pos, -1)
+
+    def matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The free-dof tangent of values ``data`` as a CSC matrix (the pattern is symmetric,
+        so its CSR structure is its CSC structure)."""
+        import scipy.sparse as sp
+
+        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n_free, self.n_free))
+
+    def upper(self, data: np.ndarray) -> sp.csc_matrix:
+        """The upper triangle of the tangent of values ``data`` as a CSC matrix (what an LDL^T
+        factorisation reads)."""
+        import scipy.sparse as sp
+
+        return sp.csc_matrix(
+            (data[self.upper_data], self.upper_indices, self.upper_indptr),
+            shape=(self.n_free, self.n_free),
+        )
 
 
 def _sorted_unique(keys: np.ndarray) -> np.ndarray:

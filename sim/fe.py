@@ -26,6 +26,7 @@ import numpy as np
 
 from ._constitutive import LayerState, initial_states, layer_stresses
 from ._p2 import P2Basis, TriMesh
+from ._pattern import build_pattern
 from .mesh import FingertipMesh
 
 if TYPE_CHECKING:
@@ -131,37 +132,14 @@ class Discretization:
         gmap[self.free] = np.arange(self.n_free)
         self.gmap = gmap
 
-        # element dofs (n_el, 12) in free numbering (-1 for fixed), local order a*2+i
-        edofs = (2 * self.edofs_scalar[:, :, None] + np.arange(2)[None, None, :]).reshape(
-            self.n_el, 12
-        )
-        fe = gmap[edofs]
-        self.edofs_free = fe
-        rows = np.broadcast_to(fe[:, :, None], (self.n_el, 12, 12)).ravel()
-        cols = np.broadcast_to(fe[:, None, :], (self.n_el, 12, 12)).ravel()
-        keep = (rows >= 0) & (cols >= 0)
-        keys = rows[keep] * self.n_free + cols[keep]
-        ukeys = np.unique(keys)
-        # contact penalties couple the two dofs of a surface node: make sure they are in the pattern
-        self.pattern_rows = ukeys // self.n_free
-        self.pattern_cols = ukeys % self.n_free
-        self.nnz = len(ukeys)
-        self.scatter_K = np.full(rows.shape, self.nnz, dtype=np.int64)
-        self.scatter_K[keep] = np.searchsorted(ukeys, keys)
-        self._ukeys = ukeys
-        indptr = np.searchsorted(self.pattern_rows, np.arange(self.n_free + 1))
-        self.indptr = indptr.astype(np.int32)
-        self.indices = self.pattern_cols.astype(np.int32)
-        self.scatter_r = np.where(fe >= 0, fe, self.n_free).ravel()
-        self.diag_pos = np.searchsorted(ukeys, np.arange(self.n_free) * (self.n_free + 1))
-        # upper triangle in CSC order: for a symmetric pattern, the CSR lower triangle read as
-        # CSC is the upper triangle; qdldl factorises from it without any conversion per call
-        lower = self.pattern_cols <= self.pattern_rows
-        self.upper_data = np.flatnonzero(lower)
-        self.upper_indices = self.pattern_cols[lower].astype(np.int32)
-        self.upper_indptr = np.searchsorted(
-            self.pattern_rows[lower], np.arange(self.n_free + 1)
-        ).astype(np.int32)
+        # the tangent's pattern and the scatter maps (local dof a*2+i), shared with the 3D model
+        pat = build_pattern(self.edofs_scalar, gmap, 2)
+        self.pattern = pat
+        self.nnz = pat.nnz
+        self.indptr, self.indices = pat.indptr, pat.indices
+        self.scatter_r, self.scatter_K = pat.scatter_r, pat.scatter_K
+        self.upper_data = pat.upper_data
+        self.upper_indices, self.upper_indptr = pat.upper_indices, pat.upper_indptr
 
     def skfem_basis(self, intorder: int = INTORDER) -> Basis:
         """scikit-fem's own P2 basis on this mesh (imports scikit-fem: for verification, and
@@ -203,27 +181,16 @@ class Discretization:
         return np.array([n for _, n in nodes], dtype=np.int64)
 
     def pattern_position(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Where each free-dof pair (``rows[i]``, ``cols[i]``) sits in the tangent's data array
-        (the sparsity pattern); -1 where either is a fixed dof (numbered -1 in ``gmap``). The
-        pairs must be in the pattern (contact couples the two dofs of a surface node: they are)."""
-        rows, cols = np.asarray(rows), np.asarray(cols)
-        keys = np.maximum(rows, 0) * self.n_free + np.maximum(cols, 0)
-        return np.where((rows >= 0) & (cols >= 0), np.searchsorted(self._ukeys, keys), -1)
+        """Where each free-dof pair sits in the tangent's data array (``Pattern.position``)."""
+        return self.pattern.position(rows, cols)
 
     def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        """The free-dof tangent as a CSC matrix (the pattern is symmetric, so CSR = CSC^T)."""
-        import scipy.sparse as sp
-
-        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n_free, self.n_free))
+        """The free-dof tangent as a CSC matrix (``Pattern.matrix``)."""
+        return self.pattern.matrix(data)
 
     def upper_matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        """The upper triangle of the tangent as a CSC matrix (for the LDL^T factorisation)."""
-        import scipy.sparse as sp
-
-        return sp.csc_matrix(
-            (data[self.upper_data], self.upper_indices, self.upper_indptr),
-            shape=(self.n_free, self.n_free),
-        )
+        """The upper triangle of the tangent as a CSC matrix, for the LDL^T factorisation."""
+        return self.pattern.upper(data)
 
     def initial_states(self) -> list[LayerState]:
         return initial_states(self.materials, self.slices, self.n_q, 3)

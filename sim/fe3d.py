@@ -108,19 +108,12 @@ class Discretization3D:
         return self.pattern.position(rows, cols)
 
     def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        """The free-dof tangent as a CSC matrix (the pattern is symmetric, so CSR = CSC^T)."""
-        import scipy.sparse as sp
-
-        return sp.csc_matrix((data, self.indices, self.indptr), shape=(self.n_free, self.n_free))
+        """The free-dof tangent as a CSC matrix (``Pattern.matrix``)."""
+        return self.pattern.matrix(data)
 
     def upper_matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        """The upper triangle of the tangent as a CSC matrix (for the LDL^T factorisation)."""
-        import scipy.sparse as sp
-
-        return sp.csc_matrix(
-            (data[self.upper_data], self.upper_indices, self.upper_indptr),
-            shape=(self.n_free, self.n_free),
-        )
+        """The upper triangle of the tangent as a CSC matrix, for the LDL^T factorisation."""
+        return self.pattern.upper(data)
 
     def initial_states(self) -> list[LayerState]:
         return initial_states(self.materials, self.slices, self.n_q, 6)

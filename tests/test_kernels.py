@@ -41,14 +41,35 @@ def _smooth(X: np.ndarray) -> np.ndarray:
     return np.column_stack([0.04 * x * y / 5 + 0.01 * y, -0.12 * y**2 / 6 + 0.02 * np.sin(x)])
 
 
-def test_the_pattern_is_the_2d_discretizations(disc2d):
-    pat = build_pattern(disc2d.edofs_scalar, disc2d.gmap, 2)
-    assert pat.n_free == disc2d.n_free and pat.nnz == disc2d.nnz
-    for name in ("indptr", "indices", "scatter_r", "scatter_K", "upper_data", "upper_indices"):
-        assert np.array_equal(getattr(pat, name), getattr(disc2d, name)), name
-    assert np.array_equal(pat.upper_indptr, disc2d.upper_indptr)
-    rows, cols = disc2d.pattern_rows[::7], disc2d.pattern_cols[::7]
-    assert np.array_equal(pat.position(rows, cols), disc2d.pattern_position(rows, cols))
+def test_the_pattern_is_scipys_assembly_of_the_element_matrices(disc2d):
+    """The pattern and its scatter maps against scipy's own summation of the element entries
+    (COO -> CSR): the same structure, and the same sums of any element values."""
+    import scipy.sparse as sp
+
+    pat = disc2d.pattern
+    d = 2
+    conn = disc2d.edofs_scalar
+    edofs = (d * conn[:, :, None] + np.arange(d)).reshape(len(conn), -1)
+    fe = disc2d.gmap[edofs]
+    n = fe.shape[1]
+    rows = np.broadcast_to(fe[:, :, None], (len(fe), n, n)).ravel()
+    cols = np.broadcast_to(fe[:, None, :], (len(fe), n, n)).ravel()
+    vals = np.random.default_rng(0).standard_normal(rows.size)
+    keep = (rows >= 0) & (cols >= 0)
+    ref = sp.coo_matrix(
+        (vals[keep], (rows[keep], cols[keep])), shape=(pat.n_free, pat.n_free)
+    ).tocsr()
+    ref.sum_duplicates()
+    ref.sort_indices()
+    assert np.array_equal(pat.indptr, ref.indptr) and np.array_equal(pat.indices, ref.indices)
+    data = np.bincount(pat.scatter_K, weights=vals, minlength=pat.nnz + 1)[:-1]
+    np.testing.assert_allclose(data, ref.data, rtol=0, atol=1e-12 * np.abs(vals).max())
+    upper = sp.triu(ref, format="csc")
+    assert np.array_equal(pat.upper_indptr, upper.indptr)
+    assert np.array_equal(pat.upper_indices, upper.indices)
+    r, c = rows[keep][::97], cols[keep][::97]
+    pos = pat.position(r, c)
+    assert np.array_equal(pat.keys[pos], r * pat.n_free + c)
 
 
 def test_2d_kernels_reproduce_the_verified_numpy_assembly(disc2d):
