@@ -95,10 +95,10 @@ class NewtonOptions:
     # systems factorise in milliseconds, and the 2D records were made with full Newton. On for
     # 3D, where a factorisation costs as much as a few residual evaluations.
     reuse_factorization: bool = False
-    # 0.25: keep the factorisation only while Newton still contracts fast (full Newton here cuts
-    # the residual by 10-1000 an iteration; the stall rule above gives up below a halving over
-    # six), so a kept one never drags a step toward the stall rule; on the press of
-    # tests/test_fe3d.py it made 7 factorisations of full Newton's 12, to the same state
+    # 0.25: keep the factorisation only while Newton still contracts fast (on the press of
+    # tests/test_fe3d.py full Newton cut the residual 5 to 10 000 times an iteration; the stall rule above gives up below a halving over
+    # six), so a kept one never drags a step toward the stall rule; there it made 7
+    # factorisations of full Newton's 12, to the same state
     reuse_ratio: float = 0.25
 
 
