@@ -96,9 +96,9 @@ class NewtonOptions:
     # 3D, where a factorisation costs as much as a few residual evaluations.
     reuse_factorization: bool = False
     # 0.25: keep the factorisation only while Newton still contracts fast (on the press of
-    # tests/test_fe3d.py full Newton cut the residual 5 to 10 000 times an iteration; the stall rule above gives up below a halving over
-    # six), so a kept one never drags a step toward the stall rule; there it made 7
-    # factorisations of full Newton's 12, to the same state
+    # tests/test_fe3d.py full Newton cut the residual 5 to 10 000 times an iteration; the stall
+    # rule above gives up below a halving over six), so a kept one never drags a step toward
+    # the stall rule; there it made 7 factorisations of full Newton's 12, to the same state
     reuse_ratio: float = 0.25
 
 
