@@ -151,7 +151,7 @@ def config_record(
     and the ``--catalogue`` files ``user`` by content (only when given: older runs had none)."""
     record = {
         **dataclasses.asdict(config),
-        "sim_options": dataclasses.asdict(options),
+        "sim_options": options.as_dict(),
         "storage": _storage_url(config, out),
         "targets": dict(targets.values),
         "displacement_reading": targets.reading,

@@ -9,7 +9,6 @@ geometry) go to ``fe/references/<name>.json`` for the plots.
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 from collections.abc import Mapping, Sequence
@@ -75,7 +74,7 @@ def run_fe(
             out[path] = json.loads(path.read_text())
         else:
             todo.append((path, _full_point(point)))
-    options_dict = dataclasses.asdict(options)
+    options_dict = options.as_dict()
     bar = tqdm(total=len(todo), desc=desc, unit="design", disable=not progress or not todo)
     try:
         if workers <= 1 or len(todo) <= 1:

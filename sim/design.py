@@ -6,6 +6,8 @@ A design file::
     half_width_mm = 5.84
     height_mm = 5.48
     exponent = 1.5
+    half_length_mm = 11.0         # optional, the 3D pad only (sim.geometry3d): c
+    length_exponent = 2.0         # optional, the 3D pad only: m
     [[layers]]                    # outermost first; the last layer fills the rest
     thickness_mm = 1.0
     material = "silicone_gls40"   # a catalogue name, or an inline table
@@ -17,6 +19,12 @@ A design file::
     nu = 0.47
 
 Every validation failure raises ``DesignError`` naming the offending field.
+
+The section (half-width, height, exponent) is the 2D model's whole geometry; the 3D model
+(``--model 3d``) sweeps it along the finger (``sim.geometry3d.PadGeometry``) with
+``half_length_mm`` and ``length_exponent``, the pad's defaults when left out (then they are not
+written back either, so a 2D design's dict, and the keys of stored 2D results, stay as they
+were).
 """
 
 from __future__ import annotations
@@ -29,6 +37,7 @@ from typing import Any
 
 from .errors import DesignError, read_toml
 from .geometry import REFERENCE_GEOMETRY, Geometry
+from .geometry3d import REFERENCE_PAD, PadGeometry
 from .materials import Material, material_from_spec
 
 __all__ = [
@@ -59,8 +68,12 @@ class Design:
 
     layers: tuple[Layer, ...]
     geometry: Geometry = REFERENCE_GEOMETRY
+    #: the 3D pad's c and m (``sim.geometry3d.PadGeometry``); None: the pad's default, unstated
+    half_length_mm: float | None = None
+    length_exponent: float | None = None
 
     def __post_init__(self) -> None:
+        self.pad  # noqa: B018 -- checks the 3D keys' ranges (DesignError naming the key)
         if not 1 <= len(self.layers) <= 3:
             raise DesignError("layers", f"must have 1 to 3 layers, got {len(self.layers)}")
         total = 0.0
@@ -85,6 +98,15 @@ class Design:
             )
 
     @property
+    def pad(self) -> PadGeometry:
+        """The 3D pad: the section swept along the finger (``sim.geometry3d``)."""
+        return PadGeometry(
+            self.geometry,
+            REFERENCE_PAD.half_length_mm if self.half_length_mm is None else self.half_length_mm,
+            REFERENCE_PAD.length_exponent if self.length_exponent is None else self.length_exponent,
+        )
+
+    @property
     def thicknesses_mm(self) -> tuple[float, ...]:
         """Thicknesses of all layers but the last."""
         return tuple(float(layer.thickness_mm) for layer in self.layers[:-1])
@@ -103,7 +125,15 @@ class Design:
                 entry["thickness_mm"] = float(layer.thickness_mm)
             entry["material"] = mat.name if _is_catalogue(mat) else mat.to_dict()
             layers.append(entry)
-        return {"geometry": self.geometry.to_dict(), "layers": layers}
+        geometry: dict[str, float] = self.geometry.to_dict()
+        for key in _PAD_KEYS:  # only when stated: a 2D design's dict is unchanged
+            if getattr(self, key) is not None:
+                geometry[key] = float(getattr(self, key))
+        return {"geometry": geometry, "layers": layers}
+
+
+_SECTION_KEYS = ("half_width_mm", "height_mm", "exponent")
+_PAD_KEYS = ("half_length_mm", "length_exponent")
 
 
 def _is_catalogue(mat: Material) -> bool:
@@ -129,13 +159,15 @@ def design_from_dict(
     geo = data.get("geometry", {})
     if not isinstance(geo, Mapping):
         raise DesignError("geometry", "must be a table")
-    extra = set(geo) - {"half_width_mm", "height_mm", "exponent"}
+    extra = set(geo) - {*_SECTION_KEYS, *_PAD_KEYS}
     if extra:
         raise DesignError(
             f"geometry.{sorted(extra)[0]}",
-            "unknown key; allowed: half_width_mm, height_mm, exponent",
+            f"unknown key; allowed: {', '.join((*_SECTION_KEYS, *_PAD_KEYS))}",
         )
-    geometry = Geometry(**{**REFERENCE_GEOMETRY.to_dict(), **geo})
+    section = {k: v for k, v in geo.items() if k in _SECTION_KEYS}
+    geometry = Geometry(**{**REFERENCE_GEOMETRY.to_dict(), **section})
+    pad = {k: geo[k] for k in _PAD_KEYS if k in geo}
     raw_layers = data.get("layers")
     if not isinstance(raw_layers, list) or not raw_layers:
         raise DesignError("layers", "must be an array of 1 to 3 [[layers]] tables")
@@ -152,7 +184,7 @@ def design_from_dict(
             raise DesignError(f"layers[{k}].material", "missing: a catalogue name or a table")
         mat = material_from_spec(raw["material"], f"layers[{k}].material", catalogue)
         layers.append(Layer(mat, raw.get("thickness_mm")))
-    return Design(tuple(layers), geometry)
+    return Design(tuple(layers), geometry, **pad)
 
 
 def load_design(path: str | Path, catalogue: Mapping[str, Material] | None = None) -> Design:

@@ -71,6 +71,9 @@ class Discretization:
     """
 
     dim = 2
+    #: the obstacles' plane (horizontal, vertical coordinate): every obstacle (plate, wedge,
+    #: base) is a cylinder normal to it; here the section itself
+    obstacle_axes = (0, 1)
 
     def __init__(
         self,
@@ -149,6 +152,21 @@ class Discretization:
         return Basis(MeshTri(self.mesh.p, self.mesh.t), ElementTriP2(), intorder=intorder)
 
     # ------------------------------------------------------------------ helpers
+    def force_scale(self, length_mm: float) -> float:
+        """The whole fingertip's force (N) per unit of the model's indenter force: the half
+        section's force per unit thickness (N/mm) times 2 (both halves) times the out-of-plane
+        length ``length_mm`` (the paper's plane-strain assumption)."""
+        return 2.0 * length_mm
+
+    def section_curves(self) -> list[tuple[np.ndarray, int]]:
+        """The outer surface's curves in symmetry planes, ordered from the apex, each with the
+        horizontal coordinate along which it runs: here the one surface, along x."""
+        return [(self.surface_nodes, 0)]
+
+    def quadrature_points(self) -> np.ndarray:
+        """The quadrature points in the reference configuration (2, n_el, n_q), mm."""
+        return np.asarray(self.basis.global_coordinates())
+
     def surface_weights(self) -> np.ndarray:
         """Each surface node's share of the outer surface's length (mm; per unit thickness),
         in the order of ``surface_nodes``: the contact penalty's weights."""

@@ -44,6 +44,9 @@ class Discretization3D:
     Elements are reordered so that each layer is a contiguous slice."""
 
     dim = 3
+    #: the obstacles' plane (horizontal, vertical coordinate): every obstacle is a cylinder
+    #: along x, across the finger -- the wedge's edge runs across the pad
+    obstacle_axes = (2, 1)
 
     def __init__(
         self,
@@ -95,6 +98,65 @@ class Discretization3D:
         self.upper_indices, self.upper_indptr = pat.upper_indices, pat.upper_indptr
 
     # ------------------------------------------------------------------ helpers
+    def force_scale(self, length_mm: float) -> float:
+        """The whole pad's force (N) per unit of the model's indenter force (N, on the quarter
+        x >= 0, z >= 0): 4; ``length_mm``, the 2D model's out-of-plane length, plays no part."""
+        return 4.0
+
+    def section_curves(self) -> list[tuple[np.ndarray, int]]:
+        """The outer surface's curves in the symmetry planes, ordered from the apex, each with
+        the horizontal coordinate along which it runs: x = 0 (along the finger, z) and z = 0
+        (across it, x). Ordered by the angle from the apex in the scaled coordinates (the pad
+        is star-shaped from the origin)."""
+        a, b, c = self.pmesh.geometry.semi_axes_mm()
+        s = self.surface_nodes
+        X = self.X[s]
+        curves = []
+        for plane, axis, scale in ((0, 2, c), (2, 0, a)):
+            on = np.flatnonzero(np.abs(X[:, plane]) <= 1e-9 * max(a, b, c))
+            angle = np.arctan2(X[on, axis] / scale, X[on, 1] / b)
+            curves.append((s[on[np.argsort(angle, kind="stable")]], axis))
+        return curves
+
+    def contact_area_mm2(self, u: np.ndarray, penetration: np.ndarray, samples: int = 8) -> float:
+        """The whole pad's contact area (mm^2, 4 x the quarter's): the part of the deformed
+        outer surface where the penetration is positive, projected on the plane y = const
+        (the plate's; on a flat patch the two are equal).
+
+        ``penetration`` (mm, > 0 inside the obstacle) at the surface nodes, in the order of
+        ``surface_nodes``, is interpolated over each 9-node face by its shape functions and
+        read at ``samples`` x ``samples`` midpoints of the reference face; each sample counts
+        its share of the projected area, |(dx/ds x dx/dt)_y| ds dt. A patch edge is thus
+        located to within a fraction 1/samples of an element, not snapped to the nodes."""
+        faces = np.asarray(self.pmesh.surface_faces)
+        on_surface = np.full(self.n_nodes, -np.inf)
+        on_surface[self.surface_nodes] = penetration
+        p_faces = on_surface[faces]  # (F, 9)
+        touching = np.any(p_faces > 0.0, axis=1)
+        if not np.any(touching):
+            return 0.0
+        faces, p_faces = faces[touching], p_faces[touching]
+        t = (np.arange(samples) + 0.5) / samples * 2.0 - 1.0
+        S, T = np.meshgrid(t, t, indexing="ij")
+        points = np.column_stack([S.ravel(), T.ravel()])
+        N = _q2.face_shape_functions(points)  # (P, 9)
+        dN = _q2.face_shape_gradients(points)  # (P, 9, 2)
+        x = (self.X + u)[faces]  # (F, 9, 3)
+        tangents = np.einsum("fai,pad->fpdi", x, dN)  # (F, P, 2, 3)
+        normal_y = (
+            tangents[:, :, 0, 2] * tangents[:, :, 1, 0]
+            - tangents[:, :, 0, 0] * tangents[:, :, 1, 2]
+        )  # the y component of dx/ds x dx/dt
+        weight = (2.0 / samples) ** 2
+        inside = (p_faces @ N.T) > 0.0  # (F, P)
+        return 4.0 * weight * float(np.sum(np.abs(normal_y) * inside))
+
+    def quadrature_points(self) -> np.ndarray:
+        """The Gauss points in the reference configuration (3, n_el, n_q), mm."""
+        points, _ = _q2.gauss_rule()
+        N = _q2.shape_functions(points)  # (Q, 27)
+        return np.einsum("qa,eaI->Ieq", N, self.X[self.conn])
+
     def surface_weights(self) -> np.ndarray:
         """Each surface node's share of the outer surface's area (mm^2), in the order of
         ``surface_nodes``: the contact penalty's weights (``sim.mesh3d.surface_weights``)."""

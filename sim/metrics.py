@@ -9,11 +9,13 @@ from __future__ import annotations
 __all__ = [
     "DIAGNOSTIC_KEYS",
     "METRICS",
+    "METRICS_3D",
     "PROTOCOLS",
     "SAME_METRICS_AS",
     "SETTLE_KEYS",
     "SOLVER_VERSION",
     "diagnostic_names",
+    "metric_registry",
     "same_metrics",
 ]
 
@@ -81,6 +83,24 @@ METRICS: dict[str, tuple[str, str, str]] = {
     "profile_100s_area_2mm_mm2": ("wedge", "mm^2", "as profile_1s_area_2mm_mm2, at 100 s"),
     "profile_100s_defl_at_1mm_mm": ("wedge", "mm", "as profile_1s_defl_at_1mm_mm, at 100 s"),
 }
+
+#: The 3D model's metrics beside those of ``METRICS`` (its forces are the whole pad's, with no
+#: length): the contact patch with the plate on the tapping's loading branch.
+METRICS_3D: dict[str, tuple[str, str, str]] = {
+    f"contact_{what}_at_{f}N_{unit}": ("tapping", unit.replace("mm2", "mm^2"), f"{text} at {f} N")
+    for f in (1, 4)
+    for what, unit, text in (
+        ("area", "mm2", "contact area with the plate (projected on its plane)"),
+        ("width", "mm", "contact extent across the finger (x)"),
+        ("length", "mm", "contact extent along the finger (z)"),
+    )
+}
+
+
+def metric_registry(dimension: str = "2d") -> dict[str, tuple[str, str, str]]:
+    """The metrics a model computes: ``METRICS`` in 2D, and ``METRICS_3D`` besides in 3D."""
+    return {**METRICS, **METRICS_3D} if dimension == "3d" else METRICS
+
 
 #: The tapping protocol's periodic-state figures in diagnostics() (as ``tapping_<key>``).
 SETTLE_KEYS = ("settled", "taps", "residual", "max_estimated_error", "touch_mm")

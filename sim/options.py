@@ -11,17 +11,42 @@ from typing import Any
 
 from .errors import DesignError
 from .mesh import DEFAULT_MESH, MeshOptions
+from .mesh3d import DEFAULT_MESH_3D, MeshOptions3D
 from .protocols import PlateOptions, TappingOptions, WedgeOptions
 from .solver import NewtonOptions
 from .validity import ValidityOptions
 
 __all__ = [
+    "MODELS",
+    "ModelOptions",
     "SimOptions",
     "apply_overrides",
     "option_names",
     "options_from_dict",
     "parse_override",
 ]
+
+
+#: The models a design can be simulated with: the paper's plane-strain section ("2d",
+#: ``sim.fe``) and the pad swept along the finger ("3d", ``sim.fe3d``, ``sim.geometry3d``).
+MODELS = ("2d", "3d")
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """Which model simulates the design (``--model``, ``--set model.dimension=3d``)."""
+
+    dimension: str = "2d"
+
+    def __post_init__(self) -> None:
+        if self.dimension not in MODELS:
+            raise DesignError(
+                "model.dimension", f"must be one of {', '.join(MODELS)}, got {self.dimension!r}"
+            )
+
+
+#: The sections a model does not read, left out of its dict form (``SimOptions.as_dict``)
+_UNREAD = {"2d": ("model", "mesh3d"), "3d": ("mesh",)}
 
 
 @dataclass(frozen=True)
@@ -34,6 +59,21 @@ class SimOptions:
     plate: PlateOptions = PlateOptions()
     wedge: WedgeOptions = WedgeOptions()
     validity: ValidityOptions = ValidityOptions()
+    model: ModelOptions = ModelOptions()
+    mesh3d: MeshOptions3D = DEFAULT_MESH_3D
+
+    @property
+    def dimension(self) -> str:
+        """ "2d" or "3d" (``model.dimension``)."""
+        return self.model.dimension
+
+    def as_dict(self) -> dict[str, Any]:
+        """The options' dict form (config.json, the key of a stored result) with the sections
+        the model reads: a 2D run's without ``model`` and ``mesh3d`` (so 2D results keep the
+        keys they were stored under before the 3D model existed), a 3D run's without the 2D
+        ``mesh``. ``options_from_dict`` gives the defaults to the sections left out."""
+        d = dataclasses.asdict(self)
+        return {k: v for k, v in d.items() if k not in _UNREAD[self.dimension]}
 
     def with_steps_scaled(self, factor: float) -> SimOptions:
         """Every step count multiplied by ``factor`` (time-step convergence studies)."""
@@ -58,7 +98,10 @@ class SimOptions:
         )
 
     def with_mesh_refined(self, factor: float) -> SimOptions:
-        """Every element size divided by ``factor`` (mesh convergence studies)."""
+        """Every element size divided by ``factor`` (mesh convergence studies), of the mesh
+        the model uses."""
+        if self.dimension == "3d":
+            return dataclasses.replace(self, mesh3d=self.mesh3d.refined(factor))
         return dataclasses.replace(self, mesh=self.mesh.refined(factor))
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -126,7 +125,7 @@ def write_result(
     with their sha256 in meta.json (the design holds their materials' tables in full)."""
     with run_folder(out) as tmp:
         write_json(tmp / "result.json", result.to_json())
-        config = {"design": result.design.to_dict(), "options": dataclasses.asdict(options)}
+        config = {"design": result.design.to_dict(), "options": options.as_dict()}
         if catalogues:
             config["catalogues"] = [c.record() for c in catalogues]
         write_json(tmp / "meta.json", provenance(config, kind="simulate"))

@@ -1,7 +1,11 @@
 """The paper's three loading protocols and their metrics.
 
-All forces are reported for the stated out-of-plane length L (the plane-strain force per unit
-thickness times L, times 2 for the symmetric half model); displacements in mm, time in s.
+Forces are in N for the whole fingertip (``force_scale`` of the discretisation): in 2D the
+plane-strain force per unit thickness times the stated out-of-plane length L, times 2 for the
+symmetric half model; in 3D the quarter pad's force times 4, with no length. Displacements in
+mm, time in s. In 3D the tapping also reports the contact patch with the plate at 1 N and 4 N
+(its area, and its extents across and along the finger), and the wedge's edge runs across the
+pad (its surface profile is read along the finger, on the plane x = 0).
 
 - ``tapping`` (§4.1.1): force-controlled taps, each a half sine to ``peak_force_N`` lasting
   ``1 / (2 f)`` s, then ``rest_s`` with the plate lifted off (steps spaced geometrically from
@@ -39,6 +43,7 @@ __all__ = [
     "ProtocolResult",
     "TappingOptions",
     "WedgeOptions",
+    "contact_patch",
     "hysteresis_resolution_Nmm",
     "run_plate",
     "run_tapping",
@@ -239,10 +244,10 @@ class _Recorder:
     """What every protocol records at each committed step (``_march``'s ``on_step``).
 
     The curve: the time from the curve's start, the indenter's displacement from ``top`` and the
-    force in N (``force_N`` converts the half model's force per unit thickness); over the whole
-    run: the deepest indenter penetration, the most surface nodes resting on the base and the
-    deformation (``DeformationTracker``, whose peak state the protocol marks). ``new_curve``
-    starts another curve (each tap), keeping the rest."""
+    force in N (``force_N`` converts the model's indenter force), in 3D the contact patch
+    (``contact_patch``); over the whole run: the deepest indenter penetration, the most surface
+    nodes resting on the base and the deformation (``DeformationTracker``, whose peak state the
+    protocol marks). ``new_curve`` starts another curve (each tap), keeping the rest."""
 
     def __init__(self, body: Body, top: float, force_N: Callable[[float], float]) -> None:
         self.body = body
@@ -257,6 +262,7 @@ class _Recorder:
         """Start a curve at the current time, at displacement ``disp0`` and no force."""
         self.t_start = self.body.t
         self.t, self.disp, self.force = [0.0], [disp0], [0.0]
+        self.patch: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)]
         self.peak_force = -np.inf
         self.peak_H = [s.H for s in self.body.states]
 
@@ -266,6 +272,8 @@ class _Recorder:
         self.t.append(t - self.t_start)
         self.disp.append(self.top - body.indenter_position)
         self.force.append(self.force_N(body.force))
+        if body.disc.dim == 3:
+            self.patch.append(contact_patch(body))
         self.max_penetration = max(self.max_penetration, body.max_penetration())
         self.max_base_nodes = max(self.max_base_nodes, body.base_contact_nodes())
         self.tracker.observe(body)
@@ -293,6 +301,44 @@ class _Recorder:
             "max_base_contact_nodes": self.max_base_nodes,
             "validity": self.tracker.summary(),
         }
+
+
+def contact_patch(body: Body) -> tuple[float, float, float]:
+    """The contact with the indenter of a 3D body in its committed state: the area (mm^2,
+    ``Discretization3D.contact_area_mm2``) and the full extents across (x) and along (z) the
+    finger (mm, on the symmetry planes, ``contact_half_width_mm``)."""
+    from .validity import contact_half_width_mm
+
+    disc = body.disc
+    area = disc.contact_area_mm2(body.u, body.indenter_penetration())
+    extent = {}
+    for nodes, axis in disc.section_curves():
+        coordinate = disc.X[nodes, axis] + body.u[nodes, axis]
+        extent[axis] = 2.0 * contact_half_width_mm(coordinate, body.indenter_penetration(nodes))
+    return area, extent[0], extent[2]
+
+
+#: The 3D tapping's contact metrics, read at 1 N and 4 N on the loading branch like the
+#: displacements: (metric prefix, index in ``contact_patch``'s tuple).
+PATCH_METRICS = (("contact_area", 0), ("contact_width", 1), ("contact_length", 2))
+
+
+def _patch_metrics(t, force, patch, t_load) -> dict[str, float]:
+    """The contact patch at 1 N and 4 N of the loading branch (PCHIP in the force, as the
+    displacements), NaN where the force was not reached; names from ``PATCH_METRICS``."""
+    from scipy.interpolate import PchipInterpolator
+
+    t, force, patch = np.asarray(t), np.asarray(force), np.asarray(patch)
+    load = t <= 0.5 * t_load + 1e-12
+    fl, first = np.unique(force[load], return_index=True)
+    out = {}
+    for name, k in PATCH_METRICS:
+        of_f = PchipInterpolator(fl, patch[load][first, k])
+        unit = "mm2" if name == "contact_area" else "mm"
+        for f in (1.0, 4.0):
+            value = float(of_f(f)) if fl[-1] >= f else float("nan")
+            out[f"{name}_at_{f:g}N_{unit}"] = value
+    return out
 
 
 # ---------------------------------------------------------------------------- tapping
@@ -359,8 +405,14 @@ def hysteresis_resolution_Nmm(
     finite = isinstance(d4, int | float) and np.isfinite(d4)
     travel = d4 * max(1.0, tapping.peak_force_N / 4.0) if finite else geometry.height_mm
     e0 = max(youngs_moduli(design.materials)) if design is not None else 0.0
-    atol = newton.rtol * e0 * size
-    force = FORCE_RTOL * tapping.peak_force_N + 2.0 * tapping.length_mm * atol
+    if options.model.dimension == "3d":  # Body.atol in N; the quarter pad's force x 4
+        if design is not None:
+            size = max(size, design.pad.half_length_mm)
+        force = FORCE_RTOL * tapping.peak_force_N + 4.0 * newton.rtol * e0 * size**2
+    else:  # Body.atol in N/mm of the half section; x 2 L
+        force = (
+            FORCE_RTOL * tapping.peak_force_N + 2.0 * tapping.length_mm * newton.rtol * e0 * size
+        )
     return 2.0 * abs(travel) * force
 
 
@@ -470,7 +522,8 @@ class _Taps:
         self.top0 = body.top_height()
         self.t_load = 0.5 / opts.frequency_Hz
         self.omega = np.pi / self.t_load
-        self.scale = scale = 1.0 / (2.0 * opts.length_mm)  # N -> N/mm on the half model
+        # N -> the model's indenter force (N/mm on the 2D half model, N on the 3D quarter)
+        self.scale = scale = 1.0 / body.disc.force_scale(opts.length_mm)
         self.s_rest = self.t_load + _rest_times(opts, _shortest_relaxation_time(body))
         self.steps = 0
         #: per tap and phase (loaded, rest): steps, factorisations and residual evaluations,
@@ -531,6 +584,9 @@ class _Taps:
         d1, d4, hyst = _tap_metrics(rec.t, rec.disp, rec.force, t_load, opts.peak_force_N, omega)
         metrics = np.array([d1, d4, d1 - touch, d4 - touch, hyst])
         record = {"t": rec.t, "disp": rec.disp, "force": rec.force, "touch": touch}
+        if body.disc.dim == 3:
+            patch = [*rec.patch, rec.patch[-1]]  # the lift-off point appended above
+            record["patch"] = _patch_metrics(rec.t, rec.force, patch, t_load)
         return metrics, record, rec.peak_H
 
 
@@ -584,6 +640,7 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
             history.append(metrics_k)
     metrics = {name: float(v) for name, v in zip(TAP_METRICS, history[-1], strict=True)}
     metrics["sag_mm"] = float(last["touch"])
+    metrics.update(last.get("patch", {}))
     curves = {
         "tapping": {
             "time_s": last["t"],
@@ -623,7 +680,7 @@ def run_plate(body: Body, opts: PlateOptions = PlateOptions()) -> ProtocolResult
     duration = opts.depth_mm / opts.speed_mm_per_s
     times = body.t + duration * np.arange(1, opts.steps + 1) / opts.steps
     t_start = body.t
-    scale = 2.0 * opts.length_mm
+    scale = body.disc.force_scale(opts.length_mm)
 
     def position(t: float) -> Control:
         return Control.position(top - opts.speed_mm_per_s * (t - t_start))
@@ -652,9 +709,11 @@ def surface_profile(body: Body, tip_half_width_mm: float, length_mm: float, n: i
     plotted at their deformed horizontal distance from the corner of the wedge's tip, sampled at
     ``n`` points over ``length_mm`` (as far as the surface reaches). Unlike the gap between two
     outlines at equal x, this stays well defined where the surface turns steep near the base.
+    The surface is the section's in 2D; in 3D the curve on x = 0, along the finger (normal to
+    the wedge's edge, which runs across the pad).
     """
-    s = body.disc.surface_nodes
-    x_def = body.disc.X[s, 0] + body.u[s, 0] - tip_half_width_mm
+    s, axis = body.disc.section_curves()[0]
+    x_def = body.disc.X[s, axis] + body.u[s, axis] - tip_half_width_mm
     defl = -body.u[s, 1]
     order = np.argsort(x_def)
     dist = np.linspace(0.0, length_mm, n)
@@ -695,7 +754,7 @@ def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult
         raise ValueError("wedge protocol needs a Wedge indenter")
     top = body.top_height()
     t_start = body.t
-    scale = 2.0 * opts.length_mm
+    scale = body.disc.force_scale(opts.length_mm)
     ramp = t_start + opts.ramp_s * np.arange(1, opts.ramp_steps + 1) / opts.ramp_steps
     # hold: geometric steps from 1 % of the ramp time, hitting t = 100 s exactly
     t_prof = 100.0 if opts.ramp_s < 100.0 < opts.ramp_s + opts.hold_s else opts.ramp_s + opts.hold_s

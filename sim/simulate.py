@@ -5,6 +5,7 @@ re-exported here for the imports that name ``sim.simulate``."""
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -22,6 +23,7 @@ from .metrics import (
     SETTLE_KEYS,
     SOLVER_VERSION,
     diagnostic_names,
+    metric_registry,
     same_metrics,
 )
 from .options import SimOptions
@@ -41,6 +43,7 @@ __all__ = [
     "SimOptions",
     "SimResult",
     "diagnostic_names",
+    "discretize",
     "same_metrics",
     "simulate",
 ]
@@ -173,16 +176,15 @@ def simulate(
 def _simulate(
     design: Design, protocols: tuple[str, ...] | list[str], options: SimOptions, keep_fields: bool
 ) -> SimResult:
-    from .mesh import build_mesh
-
     t0 = time.perf_counter()
     for p in protocols:
         if p not in REGISTRY:
             raise ValueError(f"unknown protocol {p!r}; known: {', '.join(PROTOCOLS)}")
-    fmesh = build_mesh(design.geometry, design.thicknesses_mm, options.mesh)
-    disc = Discretization(fmesh, design.materials)
+    disc = discretize(design, options)
     metrics: dict[str, float | None] = {
-        name: None for name, (proto, _, _) in METRICS.items() if proto in protocols
+        name: None
+        for name, (proto, _, _) in metric_registry(options.dimension).items()
+        if proto in protocols
     }
     curves: dict[str, dict[str, list[float]]] = {}
     figures: dict[str, dict[str, Any]] = {}
@@ -213,15 +215,38 @@ def _simulate(
     )
 
 
+def discretize(design: Design, options: SimOptions = SimOptions()) -> Any:
+    """The design's discretisation for the model of ``options``: the 2D section
+    (``sim.fe.Discretization`` on ``sim.mesh``) or the 3D quarter pad
+    (``sim.fe3d.Discretization3D`` on ``sim.mesh3d``); ``DesignError`` when the layers leave
+    no core in the pad."""
+    if options.dimension == "3d":
+        from .fe3d import Discretization3D
+        from .mesh3d import build_pad_mesh
+
+        pad = design.pad
+        pad.check_layers(design.thicknesses_mm)
+        return Discretization3D(
+            build_pad_mesh(pad, design.thicknesses_mm, options.mesh3d), design.materials
+        )
+    from .mesh import build_mesh
+
+    fmesh = build_mesh(design.geometry, design.thicknesses_mm, options.mesh)
+    return Discretization(fmesh, design.materials)
+
+
 def _run(
     disc: Discretization, protocol: Protocol, options: SimOptions
 ) -> tuple[Body, ProtocolResult | ProtocolFailure]:
     """``protocol`` on a fresh body of ``disc``: the body and its result, or how it failed."""
     opts = getattr(options, protocol.name)
+    newton = options.newton
+    if disc.dim == 3:  # a factorisation costs as much as a few residuals: modified Newton
+        newton = dataclasses.replace(newton, reuse_factorization=True)
     body = Body(
         disc,
         protocol.make_indenter(opts),
-        options.newton,
+        newton,
         getattr(opts, "penalty_per_mm", None),
     )
     if options.validity.stop_at_violation:

@@ -140,7 +140,9 @@ class Body:
         # core would otherwise see a penalty orders of magnitude stiffer than itself
         self.kappa = options.penalty_per_mm * moduli[0]
         size = float(np.max(disc.X))
-        self.atol = options.rtol * e0 * size
+        # a nodal force is a stress times an area: E0 size (N/mm, per unit thickness) in 2D,
+        # E0 size^2 (N) in 3D
+        self.atol = options.rtol * e0 * size ** (disc.dim - 1)
         s = disc.surface_nodes
         self.kappa_nodes = self.kappa * disc.surface_weights()
         factor = indenter_penalty_per_mm or options.penalty_per_mm
@@ -154,9 +156,12 @@ class Body:
         self._kpos = {
             (i, j): pos(self._sdof[i], self._sdof[j]) for i in range(dim) for j in range(dim)
         }
-        # the curvature of a rounded obstacle (the wedge's tip) lies in the x-y plane: every
-        # obstacle is a cylinder along z (in 3D its edge runs along the finger)
-        self._inplane = np.array([1.0, 1.0, 0.0][:dim])
+        # every obstacle is a cylinder normal to the plane of the coordinates ``obstacle_axes``
+        # (2D: the section; 3D: y-z, the wedge's edge across the pad): the curvature of a
+        # rounded obstacle (the wedge's tip) lies in that plane
+        self._axes = tuple(disc.obstacle_axes)
+        self._inplane = np.zeros(dim)
+        self._inplane[list(self._axes)] = 1.0
         # committed state
         self.u = np.zeros((disc.n_nodes, dim))
         self.states: list[LayerState] = disc.initial_states()
@@ -180,11 +185,27 @@ class Body:
         self.evaluations = 0  # residual evaluations, line-search trials included
 
     # ------------------------------------------------------------------ contact
+    def plane_coordinates(
+        self, u: np.ndarray | None = None, nodes: np.ndarray | None = None
+    ) -> np.ndarray:
+        """The deformed (horizontal, vertical) coordinates of ``nodes`` (default: the surface
+        nodes) in the obstacles' plane (``obstacle_axes``), (m, 2): what the obstacles see."""
+        u = self.u if u is None else u
+        nodes = self.disc.surface_nodes if nodes is None else nodes
+        axes = list(self._axes)
+        return self.disc.X[np.ix_(nodes, axes)] + u[np.ix_(nodes, axes)]
+
+    def indenter_penetration(self, nodes: np.ndarray | None = None) -> np.ndarray:
+        """The indenter's penetration (mm, > 0 inside) at ``nodes`` (default: the surface
+        nodes) in the committed state; zeros when it is lifted off."""
+        xy = self.plane_coordinates(nodes=nodes)
+        if self.indenter is None or not np.isfinite(self.indenter_position):
+            return np.zeros(len(xy))
+        return self.indenter.penetration(xy, self.indenter_position)[0]
+
     def _contact(self, u: np.ndarray, control: Control, d: float):
         """(penetration, normal, curvature, is_indenter) per obstacle at the surface nodes."""
-        disc = self.disc
-        s = disc.surface_nodes
-        xy = disc.X[s, :2] + u[s, :2]  # every obstacle is a cylinder along z: (x, y) decide
+        xy = self.plane_coordinates(u)
         p_b, n_b = self.base.penetration(xy)
         parts = [(p_b, self._full_normal(n_b), None, False)]
         if control.kind != "free" and self.indenter is not None:
@@ -196,25 +217,20 @@ class Body:
         return parts
 
     def _full_normal(self, n: np.ndarray) -> np.ndarray:
-        """An obstacle's in-plane normal (m, 2) with zero z component in 3D."""
+        """An obstacle's normal in its plane (m, 2) as a normal in the body's space (m, dim)."""
         if self.disc.dim == 2:
             return n
-        return np.column_stack([n, np.zeros(len(n))])
+        out = np.zeros((len(n), self.disc.dim))
+        out[:, list(self._axes)] = n
+        return out
 
     def base_contact_nodes(self) -> int:
         """Number of surface nodes resting on the rigid base beside the bone (committed state)."""
-        s = self.disc.surface_nodes
-        xy = self.disc.X[s, :2] + self.u[s, :2]
-        return int(np.sum(self.base.penetration(xy)[0] > 0))
+        return int(np.sum(self.base.penetration(self.plane_coordinates())[0] > 0))
 
     def max_penetration(self) -> float:
         """Deepest penetration of the indenter into the committed surface (mm); 0 if none."""
-        if not np.isfinite(self.indenter_position) or self.indenter is None:
-            return 0.0
-        s = self.disc.surface_nodes
-        xy = self.disc.X[s, :2] + self.u[s, :2]
-        p = self.indenter.penetration(xy, self.indenter_position)[0]
-        return float(max(0.0, p.max()))
+        return float(max(0.0, self.indenter_penetration().max(initial=0.0)))
 
     def _add_contact(
         self, r: np.ndarray, data: np.ndarray | None, parts
@@ -303,7 +319,7 @@ class Body:
         if self._solver is None:
             from ._linear import default_solver, make_solver  # `import sim` stays light
 
-            name = self.linear_solver or default_solver(self.disc.n_free)
+            name = self.linear_solver or default_solver(self.disc.n_free, self.disc.dim)
             self._solver = make_solver(name)
             self._solver.factor(self.disc.upper_matrix(data))
         else:  # same pattern: new values, the symbolic analysis kept

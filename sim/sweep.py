@@ -11,7 +11,6 @@ writes records, so a killed worker can never leave half a record.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import math
@@ -107,7 +106,7 @@ def record_key(
     """Hash of the design (as built; a user material by its whole table, not its name), the
     simulation options and the solver version."""
     design = point_to_design(point, catalogue).to_dict()
-    payload = {"design": design, "options": dataclasses.asdict(options), "solver": SOLVER_VERSION}
+    payload = {"design": design, "options": options.as_dict(), "solver": SOLVER_VERSION}
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
 
 
@@ -162,7 +161,7 @@ def sweep_config(
         "n": n,
         "seed": seed,
         "sampler": sampler,
-        "options": dataclasses.asdict(options),
+        "options": options.as_dict(),
         "solver_version": SOLVER_VERSION,
     }
     if start:
@@ -293,7 +292,7 @@ def run_sweep(
         if rec is None or (retry_failed and rec.get("status") != "ok"):
             todo.append((key, point))
     skipped = len(seen) - len(todo)
-    options_dict = dataclasses.asdict(options)
+    options_dict = options.as_dict()
     t0 = time.perf_counter()
     bar = _progress(len(todo), progress)
     counts = {"ok": 0, "failed": 0}

@@ -98,7 +98,11 @@ class ValidityOptions:
 
 # ---------------------------------------------------------------------------- kinematics
 def _smallest_stretch_sq(F: np.ndarray, J: np.ndarray) -> np.ndarray:
-    """Smallest eigenvalue of C = F^T F (the in-plane principal stretch squared), given J."""
+    """Smallest eigenvalue of C = F^T F (the smallest principal stretch squared; in 2D the
+    in-plane one), given J = det F."""
+    if F.shape[0] == 3:
+        C = np.einsum("kI...,kJ...->...IJ", F, F)
+        return np.linalg.eigvalsh(C)[..., 0]
     c00 = F[0, 0] ** 2 + F[1, 0] ** 2
     c11 = F[0, 1] ** 2 + F[1, 1] ** 2
     c01 = F[0, 0] * F[0, 1] + F[1, 0] * F[1, 1]
@@ -116,7 +120,13 @@ def compressive_log_strain(F: np.ndarray) -> np.ndarray:
 
 
 def volume_ratio(F: np.ndarray) -> np.ndarray:
-    """J = det F of plane-strain deformation gradients F (2, 2, ...) (F33 = 1)."""
+    """J = det F of deformation gradients F (d, d, ...): plane strain (F33 = 1) or 3D."""
+    if F.shape[0] == 3:
+        return (
+            F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
+            - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
+            + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0])
+        )
     return F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
 
 
@@ -249,8 +259,11 @@ class DeformationTracker:
         self.disc = disc
         self._surface = disc.surface_nodes
         self._X_surface = disc.X[self._surface]
+        # the surface's curves in the symmetry planes (2D: the one section), each with the
+        # horizontal coordinate it runs along: folding and the contact's extents are read there
+        self._curves = disc.section_curves()
         self.height_mm = float(self._X_surface[:, 1].max())
-        self._qp_xy = np.array(disc.basis.global_coordinates())  # (2, n_el, n_q), reference, mm
+        self._qp_xy = disc.quadrature_points()  # (dim, n_el, n_q), reference, mm
         self._strain_at_mm: list[float] | None = None
         n_layers = len(disc.slices)
         # each layer's Drucker-stable strain (a user material fitted unstable beyond it)
@@ -261,6 +274,7 @@ class DeformationTracker:
         self._folded = False
         self._travel_mm = 0.0
         self._width_mm: float | None = None
+        self._extent_mm: dict[int, float] = {}
         self.observed = 0
 
     def observe(self, body: Body) -> None:
@@ -272,7 +286,7 @@ class DeformationTracker:
         worst = int(np.argmin(lam_sq))
         strain = max(-0.5 * float(np.log(lam_sq.flat[worst])), 0.0)
         if strain > self._layer_strain.max():
-            self._strain_at_mm = self._qp_xy.reshape(2, -1)[:, worst].tolist()
+            self._strain_at_mm = self._qp_xy.reshape(len(self._qp_xy), -1)[:, worst].tolist()
         for k, sl in enumerate(self.disc.slices):
             if sl.stop > sl.start:
                 layer = max(-0.5 * float(np.log(lam_sq[sl].min())), 0.0)
@@ -280,19 +294,24 @@ class DeformationTracker:
                 self._layer_J[k] = min(self._layer_J[k], float(J[sl].min()))
         self._base_nodes = max(self._base_nodes, body.base_contact_nodes())
         if not self._folded:
-            self._folded = surface_folded(self._X_surface + body.u[self._surface])
+            X, u = self.disc.X, body.u
+            self._folded = any(
+                surface_folded(X[np.ix_(nodes, [axis, 1])] + u[np.ix_(nodes, [axis, 1])])
+                for nodes, axis in self._curves
+            )
         if np.isfinite(body.indenter_position):
             self._travel_mm = max(self._travel_mm, self.height_mm - body.indenter_position)
         self.observed += 1
 
     def observe_peak(self, body: Body) -> None:
-        """Record the full contact width with the indenter (2 x the half model's), in mm."""
-        if body.indenter is None or not np.isfinite(body.indenter_position):
-            self._width_mm = 0.0
-            return
-        xy = self._X_surface + body.u[self._surface]
-        p = body.indenter.penetration(xy, body.indenter_position)[0]
-        self._width_mm = 2.0 * contact_half_width_mm(xy[:, 0], p)
+        """Record the full extents of the contact with the indenter (2 x the symmetric
+        model's), in mm: across the finger (x) and, in 3D, along it (z)."""
+        self._extent_mm = {}
+        for nodes, axis in self._curves:
+            coordinate = self.disc.X[nodes, axis] + body.u[nodes, axis]
+            p = body.indenter_penetration(nodes)
+            self._extent_mm[axis] = 2.0 * contact_half_width_mm(coordinate, p)
+        self._width_mm = self._extent_mm[0]
 
     def summary(self) -> dict[str, Any]:
         """The extremes over the observed steps, JSON-ready:
@@ -317,6 +336,7 @@ class DeformationTracker:
             "max_compressive_log_strain": float(self._layer_strain.max()),
             "min_J": float(self._layer_J.min()),
             "contact_width_at_peak_mm": self._width_mm,
+            **({"contact_length_at_peak_mm": self._extent_mm.get(2)} if self.disc.dim == 3 else {}),
             "reached_base": self._base_nodes > 0,
             "folded": self._folded,
             "nominal_compression": self._travel_mm / self.height_mm,

@@ -1,0 +1,125 @@
+"""The three protocols on the 3D pad (``simulate(..., SimOptions(model=ModelOptions("3d")))``):
+forces of the whole pad from the quarter model, the contact patch metrics, the options' dict
+form of each model, and the 2D results left as they were. A coarse mesh keeps it to seconds;
+the verification against closed forms and FElupe: ``tests/test_fe3d_felupe.py``,
+``tests/test_hertz3d.py``."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from sim.design import design_from_dict, homogeneous_design
+from sim.errors import DesignError
+from sim.mesh3d import MeshOptions3D
+from sim.metrics import METRICS, METRICS_3D, metric_registry
+from sim.options import ModelOptions, SimOptions, apply_overrides, options_from_dict
+from sim.protocols import contact_patch
+from sim.simulate import discretize, simulate
+
+COARSE = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
+OPTS_3D = SimOptions(model=ModelOptions("3d"), mesh3d=COARSE)
+ELASTIC = {"model": "neo_hookean", "mu_MPa": 0.08, "nu": 0.49}
+
+
+@pytest.fixture(scope="module")
+def elastic_tap():
+    """One elastic tap to 5 N on the coarse quarter pad (an elastic body needs one tap)."""
+    design = design_from_dict({"layers": [{"material": ELASTIC}]})
+    return simulate(design, ("tapping",), OPTS_3D, keep_fields=True)
+
+
+def test_the_3d_tapping_reports_every_3d_metric(elastic_tap):
+    res = elastic_tap
+    assert res.ok, res.failures
+    assert set(res.metrics) == {
+        n for n, (p, _, _) in metric_registry("3d").items() if p == "tapping"
+    }
+    m = res.metrics
+    assert 0 < m["disp_at_1N_mm"] < m["disp_at_4N_mm"]
+    # the patch grows with the force, and a contact area is at most its bounding ellipse
+    for what in ("area", "width", "length"):
+        unit = "mm2" if what == "area" else "mm"
+        assert 0 < m[f"contact_{what}_at_1N_{unit}"] < m[f"contact_{what}_at_4N_{unit}"]
+    for f in (1, 4):
+        ellipse = np.pi / 4 * m[f"contact_width_at_{f}N_mm"] * m[f"contact_length_at_{f}N_mm"]
+        assert m[f"contact_area_at_{f}N_mm2"] < 1.2 * ellipse
+    assert res.protocols["tapping"]["taps"] == 1
+
+
+def test_the_reported_force_is_four_quarters(elastic_tap):
+    """The curve's force is the whole pad's, 4 x the quarter model's indenter force: the tap
+    asked for a 5 N peak and the force-controlled quarter carried 1.25 N."""
+    disc = elastic_tap.discretization
+    assert disc.force_scale(10.0) == 4.0
+    curve = elastic_tap.curves["tapping"]
+    assert max(curve["force_N"]) == pytest.approx(5.0, rel=1e-3)
+
+
+def test_the_contact_patch_is_zero_without_contact(elastic_tap):
+    from sim.contact import Plate
+    from sim.solver import Body
+
+    body = Body(elastic_tap.discretization, Plate())
+    assert contact_patch(body) == (0.0, 0.0, 0.0)
+
+
+def test_plate_and_wedge_run_in_3d():
+    design = homogeneous_design("silicone_gls40")
+    res = simulate(design, ("plate", "wedge"), OPTS_3D)
+    assert res.ok, res.failures
+    m = res.metrics
+    assert m["plate_force_at_1mm_N"] > 0
+    # the gel relaxes under the held wedge: less force at 100 s than at the end of the ramp
+    assert 0 < m["wedge_force_at_100s_N"] < m["wedge_peak_force_N"]
+    # the wedge's edge runs across the pad: the profile is read along the finger, it is
+    # deepest at the wedge and decays away from it
+    prof = res.curves["profile_1s"]
+    defl = np.asarray(prof["deflection_mm"])
+    assert defl[0] > 0.5 and defl[0] > defl[len(defl) // 2] > defl[-1]
+    assert res.validity["protocols"]["plate"]["contact_length_at_peak_mm"] > 0
+
+
+def test_the_options_dict_holds_what_the_model_reads():
+    """A 2D run's options dict is the one stored before the 3D model existed (no ``model`` or
+    ``mesh3d``: stored 2D records keep their keys); a 3D run's has no 2D ``mesh``; both read
+    back to the same options."""
+    two, three = SimOptions(), OPTS_3D
+    assert {"model", "mesh3d"}.isdisjoint(two.as_dict()) and "mesh" in two.as_dict()
+    assert "mesh" not in three.as_dict() and three.as_dict()["model"] == {"dimension": "3d"}
+    assert options_from_dict(two.as_dict()) == two
+    assert options_from_dict(three.as_dict()) == dataclasses.replace(three, mesh=two.mesh)
+    assert metric_registry("2d") == METRICS and set(METRICS_3D) < set(metric_registry("3d"))
+
+
+def test_a_bad_model_names_the_field():
+    with pytest.raises(DesignError, match=r"model\.dimension: must be one of 2d, 3d"):
+        apply_overrides(SimOptions(), {"model.dimension": "4d"})
+
+
+def test_a_3d_design_needs_a_core_in_the_pad():
+    """The layers must leave a core along the pad's half-length too (``PadGeometry``)."""
+    table = {
+        "geometry": {"half_length_mm": 3.0},
+        "layers": [{"thickness_mm": 2.9, "material": "silicone_gls40"}, {"material": ELASTIC}],
+    }
+    design = design_from_dict(table)  # a valid 2D design: a = 5.84, b = 5.48
+    with pytest.raises(DesignError, match="half_length"):
+        discretize(design, OPTS_3D)
+
+
+def test_the_pad_keys_round_trip_and_stay_out_of_2d_dicts():
+    plain = design_from_dict({"layers": [{"material": "silicone_gls40"}]})
+    assert set(plain.to_dict()["geometry"]) == {"half_width_mm", "height_mm", "exponent"}
+    pad = design_from_dict(
+        {
+            "geometry": {"half_length_mm": 9.0, "length_exponent": 3.0},
+            "layers": [{"material": "silicone_gls40"}],
+        }
+    )
+    assert pad.pad.half_length_mm == 9.0 and pad.pad.length_exponent == 3.0
+    assert design_from_dict(pad.to_dict()) == pad
+    with pytest.raises(DesignError, match=r"geometry\.length_exponent: must be in \[1\.2, 8\.0\]"):
+        design_from_dict({"geometry": {"length_exponent": 9}, "layers": [{"material": ELASTIC}]})
