@@ -23,15 +23,18 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from matplotlib import colormaps
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection
-from matplotlib.colors import LogNorm, Normalize
+from matplotlib.colors import ListedColormap, LogNorm, Normalize
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
 from sim.options import SimOptions
 from sim.protocols import shown_hysteresis
 from sim.provenance import write_if_changed
-from sim.targets import READINGS, Targets
+from sim.targets import READINGS, Targets, load_targets, loading_curve
 
 from ._objective import TAPPING, closeness, objectives
 from ._run_folder import (
@@ -46,11 +49,14 @@ from ._run_folder import (
 from ._types import Confirmation
 
 __all__ = [
+    "ANSWER_NAMES",
     "FIGURES",
     "LOG_RATIO",
+    "LOG_TICKS_PER_DECADE",
     "OBJECTIVE_NAMES",
     "Curve",
     "ImportanceInfo",
+    "LogAxis",
     "LoopsInfo",
     "PairProjection",
     "ParallelInfo",
@@ -62,6 +68,8 @@ __all__ = [
     "WedgeInfo",
     "importance_info",
     "load_run",
+    "log_axis",
+    "log_ticks",
     "loops_info",
     "parallel_info",
     "pareto_front_indices",
@@ -78,20 +86,23 @@ __all__ = [
     "run_options",
     "run_targets",
     "spread_labels",
+    "wedge_info",
     "write_figures",
 ]
 
 #: figure name (``figures/<name>.png``) -> one-line caption, in report order
 FIGURES: dict[str, str] = {
-    "loops": "Tapping loops (force against displacement) of the best confirmed designs, the "
-    "paper's materials and the human target points.",
-    "wedge": "Wedge indentation: force over time, and the surface profiles after 1 s and 100 s.",
+    "loops": "Tapping loops (force against displacement) of the run's answers (best credible, "
+    "gel, foam, buildable) and the paper's materials, against the human finger's loading curve.",
+    "wedge": "Wedge indentation of the run's answers and the paper's materials: force over time, "
+    "and the surface profiles after 1 s and 100 s.",
     "parity": "Surrogate prediction (median, 90 % interval) against the FE confirmation.",
     "pareto": "Trade-off between the three objectives over all trials; the non-dominated set "
     "is highlighted and the FE-confirmed designs are starred.",
     "importance": "Which design parameters matter most for the score (Optuna, continuous search).",
     "projections": "Pairwise projections of the most important parameters, coloured by score.",
-    "parallel": "Parallel coordinates of the numeric parameters; the best 10 % are highlighted.",
+    "parallel": "Parallel coordinates of the numeric parameters: every trial in grey, the best "
+    "10 % on top, coloured by score.",
 }
 _DPI = 110
 _UNITS = {
@@ -123,9 +134,10 @@ class RunData:
     ``trials``: the ``trials.csv`` columns, header order; numeric columns are float arrays
     (empty cell = inactive/missing -> NaN), the others arrays of str. ``params``: the
     design-space parameter columns (``explore._run_folder.parameter_columns``).
-    ``records`` / ``references``: FE records (``curves``, ``metrics``) by confirmation key /
-    by reference name (file stem). ``summary`` and ``config``: the parsed JSON ({} if absent);
-    ``studies``: the rounds' Optuna studies (``explore._run_folder.read_studies``).
+    ``records`` / ``references``: FE records (``curves``, ``metrics``) by confirmation key (the
+    answers' records too, by the stem of their ``fe_record``) / by reference name (file stem).
+    ``summary`` and ``config``: the parsed JSON ({} if absent); ``studies``: the rounds' Optuna
+    studies (``explore._run_folder.read_studies``).
     """
 
     run_dir: Path
@@ -173,6 +185,12 @@ def load_run(run_dir: str | Path) -> RunData:
         path = run_dir / "fe" / "records" / f"{c.key}.json"
         if path.is_file():
             records[c.key] = read_json(path)
+    summary = read_summary(run_dir)
+    for answer in (summary.get("answers") or {}).values():
+        key = _answer_key(answer)  # an answer of the FE-only screen is no confirmation
+        path = run_dir / "fe" / "records" / f"{key}.json"
+        if key is not None and key not in records and path.is_file():
+            records[key] = read_json(path)
     config_path = run_dir / CONFIG
     return RunData(
         run_dir=run_dir,
@@ -181,10 +199,16 @@ def load_run(run_dir: str | Path) -> RunData:
         confirmations=confirmations,
         records=records,
         references=_read_folder(run_dir / "fe" / "references"),
-        summary=read_summary(run_dir),
+        summary=summary,
         config=read_json(config_path) if config_path.is_file() else {},
         studies=tuple(read_studies(run_dir)),
     )
+
+
+def _answer_key(answer: Any) -> str | None:
+    """The FE record key of a summary answer (``fe_record`` "fe/records/<key>.json")."""
+    ref = answer.get("fe_record") if isinstance(answer, Mapping) else None
+    return Path(ref).stem if isinstance(ref, str) and ref.endswith(".json") else None
 
 
 def run_targets(run: RunData) -> Targets | None:
@@ -225,6 +249,84 @@ def _log_scale(values: np.ndarray) -> bool:
     """True if the active values are positive and span >= ``LOG_RATIO`` (e.g. moduli)."""
     v = values[np.isfinite(values)]
     return bool(len(v) >= 2 and v.min() > 0 and v.max() >= LOG_RATIO * v.min())
+
+
+#: labelled ticks per decade on a log axis, at most: 1, 2 and 5 x 10^k at the densest
+LOG_TICKS_PER_DECADE = 3
+#: labelled ticks on a log axis, at most (sparser mantissas, then every n-th decade, beyond)
+_MAX_LOG_TICKS = 6
+_MANTISSAS = ((1, 2, 5), (1, 3), (1,))
+
+
+@dataclass(frozen=True)
+class LogAxis:
+    """A log-scaled axis as drawn: ``limits`` (the values' range widened by 5 % of its decades
+    on each side), the labelled ``ticks`` inside them (``log_ticks``) and their ``labels``
+    (plain numbers; powers of ten as 10^k outside 1e-4 to 1e5). Minor ticks carry no label."""
+
+    limits: tuple[float, float]
+    ticks: tuple[float, ...]
+    labels: tuple[str, ...]
+
+
+def _decimal(mantissa: int, exponent: int) -> float:
+    """mantissa x 10^exponent as the float of its decimal text (2e-3 is 0.002 exactly)."""
+    return float(f"{mantissa}e{exponent}")
+
+
+def log_ticks(low: float, high: float, max_ticks: int = _MAX_LOG_TICKS) -> tuple[float, ...]:
+    """Labelled tick values for a log axis over [``low``, ``high``] (both > 0): the densest of
+    1-2-5, 1-3 and 1 x 10^k (then every 2nd, 3rd, ... decade) with at most ``max_ticks``
+    values, so never more than ``LOG_TICKS_PER_DECADE`` in a decade. A range too narrow for two
+    of them (less than a factor 2.5) gets up to three of 1..9 x 10^k, else its rounded middle."""
+    lo_e, hi_e = math.floor(math.log10(low)), math.ceil(math.log10(high))
+
+    def inside(mantissas: Iterable[int], step: int) -> list[float]:
+        out = [_decimal(m, e) for e in range(lo_e, hi_e + 1) if e % step == 0 for m in mantissas]
+        return [v for v in out if low <= v <= high]
+
+    ticks: list[float] = []
+    for step in (1, 2, 3, 5, 10, 20, 50, 100):
+        for mantissas in _MANTISSAS if step == 1 else ((1,),):
+            ticks = inside(mantissas, step)
+            if len(ticks) <= max_ticks:
+                break
+        if len(ticks) <= max_ticks:
+            break
+    if len(ticks) < 2:
+        fine = inside(range(1, 10), 1)
+        ticks = fine[:: math.ceil(len(fine) / LOG_TICKS_PER_DECADE)] if len(fine) >= 2 else []
+    if not ticks:
+        ticks = [float(f"{math.sqrt(low * high):.2g}")]
+    return tuple(ticks)
+
+
+def _tick_labels(ticks: Sequence[float]) -> tuple[str, ...]:
+    """Plain numbers when every tick is in [1e-4, 1e5), else all as m x 10^k (mathtext)."""
+    if all(1e-4 <= t < 1e5 for t in ticks):
+        return tuple(f"{t:g}" for t in ticks)
+    out = []
+    for t in ticks:
+        exponent = math.floor(math.log10(t) + 1e-9)
+        mantissa = t / 10.0**exponent
+        head = "" if round(mantissa, 6) == 1 else f"{mantissa:.2g}\\times"
+        out.append(f"${head}10^{{{exponent}}}$")
+    return tuple(out)
+
+
+def log_axis(values: Iterable[float] | np.ndarray, pad: float = 0.05) -> LogAxis | None:
+    """The log axis of ``values`` (their positive finite ones; None if there are none): limits
+    widened by ``pad`` x the decades spanned on each side (0.1 decade for a single value), and
+    the ticks of ``log_ticks`` inside the limits."""
+    v = np.asarray(values if isinstance(values, np.ndarray) else list(values), dtype=float)
+    v = v[np.isfinite(v) & (v > 0)]
+    if len(v) == 0:
+        return None
+    lo, hi = math.log10(float(v.min())), math.log10(float(v.max()))
+    margin = pad * (hi - lo) if hi > lo else 0.1
+    limits = (10.0 ** (lo - margin), 10.0 ** (hi + margin))
+    ticks = log_ticks(*limits)
+    return LogAxis(limits, ticks, _tick_labels(ticks))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -338,7 +440,8 @@ class PairProjection:
     """One projection: trials with both parameters active and a finite score (``x``, ``y`` in
     the parameters' units, ``score`` for the colour), and the coordinates of the confirmed
     designs with FE status ok (NaN where inactive); ``x_log``/``y_log``: the axis spans
-    decades (log scale)."""
+    decades (log scale), drawn as ``x_axis``/``y_axis`` (limits and labelled ticks; None on a
+    linear axis)."""
 
     x_name: str
     y_name: str
@@ -349,16 +452,29 @@ class PairProjection:
     confirmed_y: np.ndarray
     x_log: bool = False
     y_log: bool = False
+    x_axis: LogAxis | None = None
+    y_axis: LogAxis | None = None
 
 
 @dataclass(frozen=True)
 class ProjectionsInfo:
     """Pairwise projections of ``params`` (most important first); ``pairs`` holds every pair
-    (i < j) in order; ``ranked_by`` is "importance" or "variation"."""
+    (i < j) in order; ``ranked_by`` is "importance" or "variation"; ``score_axis``: the (log)
+    colour scale of the score, from the lowest score to the median one (``_score_range``),
+    with its labelled ticks (None: no positive score)."""
 
     params: tuple[str, ...]
     pairs: tuple[PairProjection, ...]
     ranked_by: str = "importance"
+    score_axis: LogAxis | None = None
+
+    @property
+    def score_norm(self) -> Normalize:
+        """The colour scale of the score: log over ``score_axis.limits`` (the lowest score to
+        the median; worse trials get the end colour)."""
+        if self.score_axis is None:
+            return Normalize(0.0, 1.0)
+        return LogNorm(*self.score_axis.limits)
 
     @property
     def empty(self) -> bool:
@@ -412,6 +528,8 @@ def projections_info(
     for a, b in itertools.combinations(params, 2):
         x, y = run.trials[a], run.trials[b]
         sel = ok & np.isfinite(x) & np.isfinite(y)
+        cx, cy = _confirmed_coordinate(run, a), _confirmed_coordinate(run, b)
+        x_log, y_log = _log_scale(x[ok]), _log_scale(y[ok])
         pairs.append(
             PairProjection(
                 a,
@@ -419,13 +537,17 @@ def projections_info(
                 _ro(x[sel]),
                 _ro(y[sel]),
                 _ro(score[sel]),
-                _confirmed_coordinate(run, a),
-                _confirmed_coordinate(run, b),
-                _log_scale(x[ok]),
-                _log_scale(y[ok]),
+                cx,
+                cy,
+                x_log,
+                y_log,
+                log_axis(np.concatenate([x[sel], cx])) if x_log else None,
+                log_axis(np.concatenate([y[sel], cy])) if y_log else None,
             )
         )
-    return ProjectionsInfo(params, tuple(pairs), ranked_by)
+    limits = _score_range(score[ok])
+    score_axis = log_axis(limits, pad=0.0) if limits and params else None
+    return ProjectionsInfo(params, tuple(pairs), ranked_by, score_axis)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -455,13 +577,17 @@ class ParetoInfo:
     """The objectives (``OBJECTIVE_NAMES``, dimensionless) of every trial with three finite
     values: ``points`` (n, 3) with their trials.csv row ``rows``; ``front``: indices into
     ``points`` of the non-dominated set (all minimised); ``confirmed``: the FE objectives
-    (m, 3) of the confirmed designs (status ok, finite), labelled by ``confirmed_labels``."""
+    (m, 3) of the confirmed designs (status ok, finite), labelled by ``confirmed_labels``;
+    ``x_axis``/``y_axis``: the log axes of the first two objectives (limits, labelled ticks),
+    None (linear axes) unless every point's two are positive."""
 
     points: np.ndarray
     rows: np.ndarray
     front: np.ndarray
     confirmed: np.ndarray
     confirmed_labels: tuple[str, ...]
+    x_axis: LogAxis | None = None
+    y_axis: LogAxis | None = None
 
     @property
     def empty(self) -> bool:
@@ -500,7 +626,11 @@ def pareto_info(run: RunData) -> ParetoInfo:
     confirmed, labels = _confirmed_objectives(run)
     front = pareto_front_indices(points)
     rows.flags.writeable = front.flags.writeable = False
-    return ParetoInfo(_ro(points), rows, front, _ro(confirmed), labels)
+    every = np.vstack([points, confirmed])
+    x_axis = y_axis = None
+    if len(every) and np.all(every[:, :2] > 0):
+        x_axis, y_axis = log_axis(every[:, 0]), log_axis(every[:, 1])
+    return ParetoInfo(_ro(points), rows, front, _ro(confirmed), labels, x_axis, y_axis)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -513,8 +643,9 @@ class ParallelInfo:
     """Parallel coordinates of the trials with a finite score: ``values`` (n, p) is each
     numeric parameter min-max normalised to [0, 1] over those trials (0.5 if constant, NaN if
     inactive); ``low``/``high`` the observed range (parameter units); ``log``: the parameter
-    spans decades and is normalised as log(x / low) / log(high / low); ``score`` colours the
-    lines; ``best`` marks the best 10 % (at least one) by score."""
+    spans decades and is normalised as log(x / low) / log(high / low); ``score`` of each
+    trial; ``best`` marks the best ``best_fraction`` (at least one) by score, the trials drawn
+    on top in a colour ramp of their score (the others grey, behind)."""
 
     params: tuple[str, ...]
     values: np.ndarray
@@ -523,10 +654,17 @@ class ParallelInfo:
     log: np.ndarray
     score: np.ndarray
     best: np.ndarray
+    best_fraction: float = 0.1
 
     @property
     def empty(self) -> bool:
         return len(self.params) == 0 or len(self.score) == 0
+
+    @property
+    def best_order(self) -> np.ndarray:
+        """Rows of the best trials, worst of them first (the drawing order: the best on top)."""
+        rows = np.flatnonzero(self.best)
+        return rows[np.argsort(-self.score[rows], kind="stable")]
 
 
 def _normalise(column: np.ndarray, log: bool) -> tuple[np.ndarray, float, float]:
@@ -563,43 +701,87 @@ def parallel_info(run: RunData, best_fraction: float = 0.1) -> ParallelInfo:
     best.flags.writeable = False
     log = np.array(logs, dtype=bool)
     log.flags.writeable = False
-    return ParallelInfo(params, _ro(values), _ro(lows), _ro(highs), log, _ro(score), best)
+    return ParallelInfo(
+        params, _ro(values), _ro(lows), _ro(highs), log, _ro(score), best, best_fraction
+    )
 
 
 # ---------------------------------------------------------------------------------------------
-# 5./6. Curves of the best confirmed designs and the references
+# 5./6. Curves of the run's answers, the references and the human finger
 # ---------------------------------------------------------------------------------------------
+
+#: the answers of a run (summary.json ``answers``, ``explore._summary.ANSWER_KINDS``), in report
+#: order, as the figures name them
+ANSWER_NAMES: dict[str, str] = {
+    "best": "best credible",
+    "gel": "gel",
+    "foam": "foam",
+    "buildable": "buildable",
+}
 
 
 @dataclass(frozen=True, eq=False)
 class Curve:
-    """One curve of an FE record: ``x``/``y`` (units of the figure's axes), ``role`` "design"
-    or "reference", and ``value``: the figure's headline metric of that record (hysteresis in
-    N mm for tapping loops, peak force in N for the wedge; None if unknown)."""
+    """One curve of an FE record: ``x``/``y`` (units of the figure's axes), ``role`` "answer",
+    "reference" or "human", and ``value``: the figure's headline metric of that record
+    (hysteresis in N mm for tapping loops, peak force in N for the wedge; None if unknown).
+    ``answers``: the summary answers (``ANSWER_NAMES`` keys) this record is, in report order
+    (two when one design is both, e.g. the best credible and the best gel design)."""
 
     label: str
     role: str
     x: np.ndarray
     y: np.ndarray
     value: float | None = None
+    answers: tuple[str, ...] = ()
 
 
-def _best_records(run: RunData, n_best: int) -> list[tuple[str, dict[str, Any]]]:
-    """(label, record) of the ``n_best`` confirmed designs (status ok) with the lowest
-    finite FE score and a record on disk, best first."""
-    ok = [
-        c
-        for c in run.confirmations
-        if c.status == "ok" and math.isfinite(c.fe_score) and c.key in run.records
+def _report_order(kinds: Iterable[str]) -> tuple[str, ...]:
+    """Answer kinds in ``ANSWER_NAMES`` order, unknown ones after it by name."""
+    order = list(ANSWER_NAMES)
+    return tuple(sorted(kinds, key=lambda k: (order.index(k) if k in order else len(order), k)))
+
+
+def _answer_records(
+    run: RunData,
+) -> tuple[list[tuple[tuple[str, ...], Mapping[str, Any], dict[str, Any]]], tuple[str, ...]]:
+    """(answer kinds, first answer, FE record) of every answer in summary.json with a record,
+    one entry per record, in ``ANSWER_NAMES`` order (unknown kinds after); and the kinds
+    without a curve (no answer, i.e. null, or its record missing)."""
+    answers = run.summary.get("answers") or {}
+    kinds = _report_order(answers)
+    by_key: dict[str, list[str]] = {}
+    missing = []
+    for kind in kinds:
+        key = _answer_key(answers[kind])
+        if key is None or key not in run.records:
+            missing.append(kind)
+        else:
+            by_key.setdefault(key, []).append(kind)
+    out = [(tuple(ks), answers[ks[0]], run.records[key]) for key, ks in by_key.items()]
+    return out, tuple(missing)
+
+
+def _answer_label(kinds: Sequence[str], answer: Mapping[str, Any]) -> str:
+    names = " = ".join(ANSWER_NAMES.get(k, k) for k in kinds)
+    score = answer.get("fe_score")
+    return f"{names} (FE score {score:.3g})" if isinstance(score, int | float) else names
+
+
+#: (label, role, answer kinds, the answer's design or {}, FE record) of one drawn record
+_Selected = tuple[str, str, tuple[str, ...], Mapping[str, Any], dict[str, Any]]
+
+
+def _selected_records(run: RunData) -> tuple[list[_Selected], tuple[str, ...]]:
+    """(label, role, answer kinds, design of the answer or {}, record) of the answers, then of
+    the references (by name); and the answer kinds without a curve."""
+    answered, missing = _answer_records(run)
+    out = [
+        (_answer_label(kinds, answer), "answer", kinds, answer.get("design") or {}, rec)
+        for kinds, answer, rec in answered
     ]
-    ok.sort(key=lambda c: c.fe_score)
-    return [(f"{_label(c)} (FE score {c.fe_score:.3g})", run.records[c.key]) for c in ok[:n_best]]
-
-
-def _selected_records(run: RunData, n_best: int) -> list[tuple[str, str, dict[str, Any]]]:
-    designs = [(label, "design", rec) for label, rec in _best_records(run, n_best)]
-    refs = [(name, "reference", rec) for name, rec in sorted(run.references.items())]
-    return designs + refs
+    out += [(name, "reference", (), {}, rec) for name, rec in sorted(run.references.items())]
+    return out, missing
 
 
 def _metric(record: Mapping[str, Any], name: str) -> float | None:
@@ -615,6 +797,7 @@ def _curve(
     xy: tuple[str, str],
     value: float | None = None,
     transform: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None,
+    answers: tuple[str, ...] = (),
 ) -> Curve | None:
     data = (record.get("curves") or {}).get(protocol) or {}
     if xy[0] not in data or xy[1] not in data or not len(data[xy[0]]):
@@ -623,7 +806,7 @@ def _curve(
     y = np.asarray(data[xy[1]], dtype=float)
     if transform is not None:
         x = transform(x, y)
-    return Curve(label, role, _ro(x), _ro(y), value)
+    return Curve(label, role, _ro(x), _ro(y), value, answers)
 
 
 def _from_touch(displacement: np.ndarray, force: np.ndarray) -> np.ndarray:
@@ -635,73 +818,124 @@ def _from_touch(displacement: np.ndarray, force: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class LoopsInfo:
-    """Tapping loops (x: displacement in mm, read as the targets are; y: force in N) with each
-    curve's hysteresis (N mm) in ``Curve.value``; the human target points
-    ((disp_at_1N_mm, 1 N), (disp_at_4N_mm, 4 N)) and target hysteresis (None: no targets)."""
+    """Tapping loops (x: displacement in mm, read as the targets are; y: force in N) of the
+    run's answers (role "answer", in ``ANSWER_NAMES`` order) and the references, each curve's
+    hysteresis (N mm) in ``Curve.value``; ``missing``: the answer kinds without a loop (no
+    answer, or no record). The human target points ((disp_at_1N_mm, 1 N), (disp_at_4N_mm,
+    4 N)) and hysteresis (None: no targets); ``human``: the loading curve through the points
+    (``sim.targets.loading_curve``, derived, not a published fit), from 0 to the tap's peak
+    force, with ``human_fit`` = (B in N, k in 1/mm) of F = B (exp(k d) - 1); ``human_is_finger``:
+    the targets are the shipped human ones (else a user's own)."""
 
     curves: tuple[Curve, ...]
     target_points: tuple[tuple[float, float], ...]
     target_hysteresis_Nmm: float | None
     reading: str = "from_undeformed_top"
+    human: Curve | None = None
+    human_fit: tuple[float, float] | None = None
+    human_is_finger: bool = False
+    missing: tuple[str, ...] = ()
 
     @property
     def empty(self) -> bool:
         return not self.curves and not self.target_points
 
+    @property
+    def answers(self) -> tuple[str, ...]:
+        """Every answer kind with a loop, in the order drawn."""
+        return tuple(k for c in self.curves for k in c.answers)
 
-def loops_info(run: RunData, n_best: int = 3) -> LoopsInfo:
-    """Tapping loops of the best ``n_best`` confirmed designs (lowest FE score, status ok) and
-    of every reference, with the human target points and hysteresis."""
+
+def _human_curve(
+    targets: Targets, peak_force_N: float, n: int = 101
+) -> tuple[Curve | None, tuple[float, float] | None, bool]:
+    """The loading curve through the targets' 1 N and 4 N points, up to ``peak_force_N``."""
+    curve = loading_curve(targets)
+    if curve is None:
+        return None, None, False
+    finger = targets.values == load_targets().values
+    who = "human finger, Serina et al. 1997" if finger else "targets"
+    d = np.linspace(0.0, float(curve.displacement(max(peak_force_N, 4.0))), n)
+    label = (
+        f"{who}: loading curve, exponential through the 1 N and 4 N points (derived, not a "
+        "published fit)"
+    )
+    value = targets.values.get("hysteresis_Nmm")
+    fit = (curve.B_N, curve.k_per_mm)
+    return Curve(label, "human", _ro(d), _ro(curve.force(d)), value), fit, finger
+
+
+def loops_info(run: RunData) -> LoopsInfo:
+    """Tapping loops of the run's answers (summary.json ``answers``: best credible, gel, foam,
+    buildable; their ``fe_record``) and of every reference, with the human target points and
+    hysteresis and the human loading curve through the points."""
     targets = run_targets(run)
     reading = targets.reading if targets else "from_undeformed_top"
     transform = _from_touch if reading == "from_first_touch" else None
     curves = []
     options = run_options(run)
-    for label, role, rec in _selected_records(run, n_best):
-        # 0 below what the solver's tolerances resolve (a record names its design's point, not
-        # its design: the resolution's indenter term alone)
-        hyst = shown_hysteresis(rec.get("metrics") or {}, None, options)
-        c = _curve(label, role, rec, "tapping", ("displacement_mm", "force_N"), hyst, transform)
+    selected, missing = _selected_records(run)
+    for label, role, kinds, design, rec in selected:
+        # 0 below what the solver's tolerances resolve (a reference names no design: the
+        # resolution's indenter term alone)
+        hyst = shown_hysteresis(rec.get("metrics") or {}, design or None, options)
+        xy = ("displacement_mm", "force_N")
+        c = _curve(label, role, rec, "tapping", xy, hyst, transform, kinds)
         if c is not None:
             curves.append(c)
+        elif role == "answer":
+            missing += kinds
     points: tuple[tuple[float, float], ...] = ()
     hysteresis = None
+    human, fit, finger = None, None, False
     if targets is not None:
         v = targets.values
         points = ((v["disp_at_1N_mm"], 1.0), (v["disp_at_4N_mm"], 4.0))
         hysteresis = v["hysteresis_Nmm"]
-    return LoopsInfo(tuple(curves), points, hysteresis, reading)
+        human, fit, finger = _human_curve(targets, options.tapping.peak_force_N)
+    missing = _report_order(missing)
+    return LoopsInfo(tuple(curves), points, hysteresis, reading, human, fit, finger, missing)
 
 
 @dataclass(frozen=True)
 class WedgeInfo:
     """Wedge force (N) over time (s), peak force (N) in ``Curve.value``; surface deflection
-    (mm) against distance from the wedge (mm) after 1 s and 100 s; same designs as the loops."""
+    (mm) against distance from the wedge (mm) after 1 s and 100 s; the same answers and
+    references as the loops (``missing``: answer kinds without a wedge curve)."""
 
     force: tuple[Curve, ...]
     profile_1s: tuple[Curve, ...]
     profile_100s: tuple[Curve, ...]
+    missing: tuple[str, ...] = ()
 
     @property
     def empty(self) -> bool:
         return not (self.force or self.profile_1s or self.profile_100s)
 
+    @property
+    def answers(self) -> tuple[str, ...]:
+        """Every answer kind with a wedge force curve, in the order drawn."""
+        return tuple(k for c in self.force for k in c.answers)
 
-def wedge_info(run: RunData, n_best: int = 3) -> WedgeInfo:
-    """Wedge force-time curves and the 1 s / 100 s surface profiles of the best ``n_best``
-    confirmed designs and of every reference."""
+
+def wedge_info(run: RunData) -> WedgeInfo:
+    """Wedge force-time curves and the 1 s / 100 s surface profiles of the run's answers and
+    of every reference."""
     force, p1, p100 = [], [], []
     profile_xy = ("distance_mm", "deflection_mm")
-    for label, role, rec in _selected_records(run, n_best):
+    selected, missing = _selected_records(run)
+    for label, role, kinds, _design, rec in selected:
         peak = _metric(rec, "wedge_peak_force_N")
         for out, curve in (
-            (force, _curve(label, role, rec, "wedge", ("time_s", "force_N"), peak)),
-            (p1, _curve(label, role, rec, "profile_1s", profile_xy)),
-            (p100, _curve(label, role, rec, "profile_100s", profile_xy)),
+            (force, _curve(label, role, rec, "wedge", ("time_s", "force_N"), peak, None, kinds)),
+            (p1, _curve(label, role, rec, "profile_1s", profile_xy, None, None, kinds)),
+            (p100, _curve(label, role, rec, "profile_100s", profile_xy, None, None, kinds)),
         ):
             if curve is not None:
                 out.append(curve)
-    return WedgeInfo(tuple(force), tuple(p1), tuple(p100))
+    drawn = {k for c in force for k in c.answers}
+    lost = [k for label, role, kinds, _d, _r in selected for k in kinds if k not in drawn]
+    return WedgeInfo(tuple(force), tuple(p1), tuple(p100), _report_order((*missing, *lost)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -800,18 +1034,45 @@ def _no_data(title: str, message: str = "no data") -> Figure:
     return fig
 
 
-def _score_norm(*arrays: np.ndarray) -> Normalize:
-    """Log colour scale over the positive finite scores (linear if there are none)."""
-    values = np.concatenate([np.ravel(a) for a in arrays]) if arrays else np.zeros(0)
-    pos = values[np.isfinite(values) & (values > 0)]
+def _score_range(scores: np.ndarray) -> tuple[float, float] | None:
+    """The score's colour range: the lowest positive finite score to the median of them (the
+    worse half all in the palest colour: a few poor trials would otherwise squeeze the good
+    ones into one colour); to the highest if the median is the lowest. None: no such score."""
+    pos = scores[np.isfinite(scores) & (scores > 0)]
     if len(pos) == 0:
-        return Normalize(0.0, 1.0)
-    lo, hi = float(pos.min()), float(pos.max())
-    return LogNorm(lo, hi if hi > lo else lo * 10.0)
+        return None
+    lo, mid, hi = float(pos.min()), float(np.median(pos)), float(pos.max())
+    return (lo, mid if mid > lo else (hi if hi > lo else 10.0 * lo))
 
 
 def _clip(values: np.ndarray, norm: Normalize) -> np.ndarray:
     return np.clip(values, norm.vmin, None) if isinstance(norm, LogNorm) else values
+
+
+def _set_log_axis(axis: Any, log: LogAxis) -> None:
+    """Draw ``axis`` (an Axes' xaxis or yaxis, or a colour bar's) as the log axis ``log``: its
+    limits, its labelled ticks, unlabelled minor ticks (matplotlib labels the minor ticks of an
+    axis spanning few decades, and those labels run into each other)."""
+    axis.set_ticks(log.ticks, labels=log.labels)
+    axis.set_minor_locator(LogLocator(base=10.0, subs=tuple(range(2, 10))))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def _log_axes(ax: Any, x: LogAxis | None, y: LogAxis | None) -> None:
+    """Log scale, limits and ticks on the axes given (the others stay linear)."""
+    for log, scale, limits, axis in (
+        (x, ax.set_xscale, ax.set_xlim, ax.xaxis),
+        (y, ax.set_yscale, ax.set_ylim, ax.yaxis),
+    ):
+        if log is not None:
+            scale("log")
+            limits(*log.limits)
+            _set_log_axis(axis, log)
+
+
+#: the score's colour ramp: dark is good (the best drawn last, on top), the pale yellow end of
+#: viridis left out (it vanishes on white)
+_SCORE_CMAP = ListedColormap(colormaps["viridis"](np.linspace(0.0, 0.85, 256)))
 
 
 def render_projections(info: ProjectionsInfo) -> Figure:
@@ -822,7 +1083,7 @@ def render_projections(info: ProjectionsInfo) -> Figure:
     n = len(info.params) - 1
     fig = _figure(2.6 * n + 1.2, 2.4 * n + 0.6)
     axes = fig.subplots(n, n, squeeze=False)
-    norm = _score_norm(*(p.score for p in info.pairs))
+    norm = info.score_norm
     index = {p: k for k, p in enumerate(info.params)}
     mappable = None
     for ax in axes.flat:
@@ -830,18 +1091,27 @@ def render_projections(info: ProjectionsInfo) -> Figure:
     for pair in info.pairs:
         ax = axes[index[pair.y_name] - 1, index[pair.x_name]]
         ax.set_visible(True)
+        order = np.argsort(-pair.score, kind="stable")  # the best drawn last, on top
         mappable = ax.scatter(
-            pair.x, pair.y, c=_clip(pair.score, norm), norm=norm, cmap="viridis_r", s=8, lw=0
+            pair.x[order],
+            pair.y[order],
+            c=_clip(pair.score[order], norm),
+            norm=norm,
+            cmap=_SCORE_CMAP,
+            s=8,
+            lw=0,
         )
         ax.scatter(pair.confirmed_x, pair.confirmed_y, marker="*", s=90, c="none", ec="red")
-        ax.set_xscale("log" if pair.x_log else "linear")
-        ax.set_yscale("log" if pair.y_log else "linear")
+        _log_axes(ax, pair.x_axis, pair.y_axis)
         ax.set_xlabel(pair.x_name, fontsize=7)
         ax.set_ylabel(pair.y_name, fontsize=7)
-        ax.tick_params(labelsize=6)
+        ax.tick_params(which="both", labelsize=6)
     if mappable is not None:
-        fig.colorbar(mappable, ax=axes, label="score (lower is better)", shrink=0.6)
-    fig.suptitle(f"{title}; red stars: FE-confirmed designs", fontsize=9)
+        label = "score (lower is better; the worse half of the trials: the end colour)"
+        bar = fig.colorbar(mappable, ax=axes, label=label, shrink=0.6, extend="max")
+        if info.score_axis is not None:
+            _set_log_axis(bar.ax.yaxis, info.score_axis)
+    fig.suptitle(f"{title}; the best drawn on top; red stars: FE-confirmed designs", fontsize=9)
     return fig
 
 
@@ -865,9 +1135,7 @@ def render_pareto(info: ParetoInfo) -> Figure:
     if len(info.confirmed):
         cx, cy, cz = info.confirmed.T
         ax.scatter(cx, cy, c=cz, norm=norm, marker="*", s=160, ec="black", label="FE-confirmed")
-    if np.all(every[:, :2] > 0):
-        ax.set_xscale("log")
-        ax.set_yscale("log")
+    _log_axes(ax, info.x_axis, info.y_axis)
     if len(info.confirmed):
         _callouts(fig, ax, info.confirmed[:, :2], info.confirmed_labels)
     fig.colorbar(sc, ax=ax, label="wedge effort F / F_ref")
@@ -938,41 +1206,58 @@ def _segments(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def render_parallel(info: ParallelInfo) -> Figure:
-    """Parallel coordinates: one line per trial, coloured by score (log), best 10 % bold."""
+    """Parallel coordinates: every trial a thin grey line behind, the best ones on top in a
+    colour ramp of their score (linear over the best; the very best drawn thickest, last)."""
     title = "Parallel coordinates (each axis: observed min to max)"
     if info.empty:
         return _no_data(title)
     p = len(info.params)
     fig = _figure(max(6.0, 1.1 * p + 2.0), 4.6)
     ax = fig.add_subplot()
-    norm = _score_norm(info.score)
     segs, rows = _segments(info.values)
-    colour = _clip(info.score[rows], norm)
-    for sel, width, alpha in ((~info.best[rows], 0.5, 0.25), (info.best[rows], 1.8, 1.0)):
-        lc = LineCollection(segs[sel], cmap="viridis_r", norm=norm, linewidths=width, alpha=alpha)
-        lc.set_array(colour[sel])
-        ax.add_collection(lc)
+    order = info.best_order  # worst of the best first
+    best_scores = info.score[order]
+    norm = Normalize(float(best_scores.min()), float(best_scores.max()))
+    if norm.vmax <= norm.vmin:
+        norm = Normalize(norm.vmin - 0.5, norm.vmin + 0.5)
+    rest = ~info.best[rows]
+    ax.add_collection(LineCollection(segs[rest], colors="0.6", linewidths=0.4, alpha=0.25))
+    rank = np.empty(len(info.score), dtype=int)
+    rank[order] = np.arange(len(order))  # the drawing order of the best rows
+    top = np.flatnonzero(info.best[rows])
+    top = top[np.argsort(rank[rows[top]], kind="stable")]
+    lc = LineCollection(segs[top], cmap=_SCORE_CMAP, norm=norm, linewidths=1.0, alpha=0.9)
+    lc.set_array(info.score[rows[top]])
+    ax.add_collection(lc)
+    winner = top[rows[top] == order[-1]]
+    ax.add_collection(LineCollection(segs[winner], colors="black", linewidths=2.2))
     if p == 1:  # one axis, no segments: mark the values
-        ax.scatter(
-            np.zeros(len(info.score)),
-            info.values[:, 0],
-            c=_clip(info.score, norm),
-            norm=norm,
-            cmap="viridis_r",
-            s=8,
-        )
+        others = info.values[~info.best, 0]
+        ax.scatter(np.zeros(len(others)), others, c="0.6", s=6)
+        ax.scatter(np.zeros(len(order)), info.values[order, 0], c=best_scores, norm=norm,
+                   cmap=_SCORE_CMAP, s=10)  # fmt: skip
     for k in range(p):
         ax.axvline(k, color="0.3", lw=0.8)
-        ax.text(k, -0.06, f"{info.low[k]:.3g}", ha="center", va="top", fontsize=6)
-        ax.text(k, 1.04, f"{info.high[k]:.3g}", ha="center", va="bottom", fontsize=6)
+        ax.text(k, -0.06, f"{info.low[k]:.3g}", ha="center", va="top", fontsize=7)
+        ax.text(k, 1.04, f"{info.high[k]:.3g}", ha="center", va="bottom", fontsize=7)
     ax.set_xlim(-0.3, p - 0.7)
     ax.set_ylim(-0.15, 1.12)
     names = [f"{n} (log)" if log else n for n, log in zip(info.params, info.log, strict=True)]
     ax.set_xticks(range(p), names, rotation=30, ha="right", fontsize=7)
     ax.set_yticks([])
-    mappable = LineCollection([], cmap="viridis_r", norm=norm)
-    fig.colorbar(mappable, ax=ax, label="score (lower is better)")
-    ax.set_title(f"{title}\nbold: the best 10 % ({int(info.best.sum())} trials)", fontsize=9)
+    n, n_best = len(info.score), len(order)
+    share = f"{100 * info.best_fraction:.3g} %"
+    bar = fig.colorbar(lc, ax=ax, pad=0.01)
+    bar.set_label(f"score of the best {share} (lower is better)", fontsize=8)
+    handles = [
+        Line2D([], [], color="0.6", lw=1.0, label=f"other trials ({n - n_best})"),
+        Line2D([], [], color=_SCORE_CMAP(0.5), lw=1.0,
+               label=f"best {share} ({n_best} trials), coloured by score"),
+        Line2D([], [], color="black", lw=2.2,
+               label=f"best trial (score {info.score[order[-1]]:.3g})"),
+    ]  # fmt: skip
+    fig.legend(handles=handles, fontsize=7, loc="outside lower center", ncols=3, frameon=False)
+    ax.set_title(f"{title}: the best {share} of {n} trials on top of the others", fontsize=9)
     return fig
 
 
@@ -995,52 +1280,82 @@ def render_importance(info: ImportanceInfo) -> Figure:
     return fig
 
 
-def _draw_curves(ax: Any, curves: Iterable[Curve], fmt: str = "") -> None:
+#: the colour of each answer in the loops and wedge figures (the same in both)
+_ANSWER_COLOURS = {"best": "C0", "gel": "C1", "foam": "C2", "buildable": "C3"}
+
+
+def _draw_curves(ax: Any, curves: Iterable[Curve], value: str = "") -> None:
+    """The answers in their colours (``_ANSWER_COLOURS``), the references grey and dashed;
+    ``value`` formats ``Curve.value`` into the legend ("{:.3g} N", say)."""
     styles = itertools.cycle(["--", ":", "-."])
-    k = 0
+    extra = itertools.count(4)
     for c in curves:
-        label = c.label if c.role == "design" else f"{c.label} (reference)"
-        if c.value is not None and fmt:
-            label += f", {format(c.value, fmt)}"
-        if c.role == "design":
-            ax.plot(c.x, c.y, "-", color=f"C{k}", lw=1.5, label=label)
-            k += 1
+        label = c.label if c.role == "answer" else f"{c.label} (paper's material)"
+        if c.value is not None and value:
+            label += f"; {value.format(c.value)}"
+        if c.role == "answer":
+            colour = _ANSWER_COLOURS.get(c.answers[0] if c.answers else "", None)
+            ax.plot(c.x, c.y, "-", color=colour or f"C{next(extra)}", lw=1.6, label=label)
         else:
-            ax.plot(c.x, c.y, next(styles), color="0.45", lw=1.2, label=label)
+            ax.plot(c.x, c.y, next(styles), color="0.5", lw=1.1, label=label)
+
+
+def _missing_note(missing: Sequence[str]) -> str:
+    names = ", ".join(ANSWER_NAMES.get(k, k) for k in missing)
+    return f"\nno curve for: {names} (no such answer in summary.json, or no FE record)"
 
 
 def render_loops(info: LoopsInfo) -> Figure:
-    """Force against displacement of each tap; target points as black crosses."""
+    """Force against displacement of each tap of the answers and the references, against the
+    human loading curve (solid between the two measured points, dotted beyond) and points."""
     title = "Tapping loops"
     if info.empty:
         return _no_data(title)
-    fig = _figure(6.4, 4.6)
+    fig = _figure(10.0, 5.0)
     ax = fig.add_subplot()
-    _draw_curves(ax, info.curves, ".3g")
+    _draw_curves(ax, info.curves, "hysteresis {:.3g} N mm")
+    who = "human finger" if info.human_is_finger else "targets"
+    if info.human is not None:
+        h = info.human
+        forces = [f for _, f in info.target_points] or [1.0, 4.0]
+        inside = (h.y >= min(forces)) & (h.y <= max(forces))
+        ax.plot(h.x[inside], h.y[inside], "-", color="black", lw=2.4, zorder=5,
+                label=h.label.replace(": ", ":\n", 1))  # fmt: skip
+        for part in (h.y <= min(forces), h.y >= max(forces)):
+            ax.plot(h.x[part], h.y[part], ":", color="black", lw=1.6, zorder=5)
+        ax.plot([], [], ":", color="black", lw=1.6,
+                label=f"{who}: the curve extrapolated below 1 N and above 4 N")  # fmt: skip
     if info.target_points:
         x, y = zip(*info.target_points, strict=True)
+        source = " (Serina et al. 1997, via Cabibihan et al.)" if info.human_is_finger else ""
         hyst = f", hysteresis {info.target_hysteresis_Nmm:.3g} N mm"
-        ax.plot(x, y, "kX", ms=10, label=f"human target{hyst}")
+        ax.plot(x, y, "o", color="black", ms=8, mfc="white", mew=2, zorder=6,
+                label=f"{who}: measured points{source}{hyst}")  # fmt: skip
     reading = "from first touch" if info.reading == "from_first_touch" else "from undeformed top"
     ax.set_xlabel(f"displacement ({reading}) [mm]")
     ax.set_ylabel("force [N]")
-    ax.set_title(f"{title} (legend: hysteresis in N mm)", fontsize=9)
-    ax.legend(fontsize=6)
+    ax.set_xlim(left=0.0 if info.reading == "from_first_touch" else None)
+    ax.set_ylim(bottom=0.0)
+    note = _missing_note(info.missing) if info.missing else ""
+    ax.set_title(f"{title} of the run's answers against the {who}{note}", fontsize=9)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     return fig
 
 
 def render_wedge(info: WedgeInfo) -> Figure:
-    """Three panels: wedge force over time (symlog time), the 1 s and the 100 s profiles."""
+    """Three panels: wedge force over time (symlog time), the 1 s and the 100 s profiles; one
+    legend for the three, below them."""
     title = "Wedge indentation"
     if info.empty:
         return _no_data(title)
-    fig = _figure(13.0, 4.0)
+    fig = _figure(13.0, 4.8)
     axes = fig.subplots(1, 3)
-    _draw_curves(axes[0], info.force, ".3g")
+    _draw_curves(axes[0], info.force, "peak {:.3g} N")
     axes[0].set_xscale("symlog", linthresh=1.0)
+    axes[0].xaxis.set_major_formatter(FormatStrFormatter("%g"))
     axes[0].set_xlabel("time [s]")
     axes[0].set_ylabel("wedge force [N]")
-    axes[0].set_title("force (legend: peak force in N; lower is better)", fontsize=8)
+    axes[0].set_title("force (lower is better: a human finger needs almost none)", fontsize=8)
     profiles = ((axes[1], info.profile_1s, "1 s"), (axes[2], info.profile_100s, "100 s"))
     for ax, curves, when in profiles:
         _draw_curves(ax, curves)
@@ -1053,9 +1368,14 @@ def render_wedge(info: WedgeInfo) -> Figure:
         if not curves:
             ax.text(0.5, 0.5, f"not reached (a wedge hold shorter than {when})", ha="center",
                     va="center", fontsize=8, transform=ax.transAxes)  # fmt: skip
-    for ax in axes:
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=6)
+    handles, labels = axes[0].get_legend_handles_labels()
+    if not handles:
+        handles, labels = axes[1].get_legend_handles_labels()
+    if handles:
+        fig.legend(handles, labels, loc="outside lower center", ncols=3, fontsize=7,
+                   frameon=False)  # fmt: skip
+    note = _missing_note(info.missing) if info.missing else ""
+    fig.suptitle(f"{title} of the run's answers{note}", fontsize=9)
     return fig
 
 

@@ -41,7 +41,16 @@ import numpy as np
 
 from .errors import DesignError, read_toml
 
-__all__ = ["ALLOWED_KEYS", "DEFAULT_TARGETS_PATH", "READINGS", "Targets", "load_targets"]
+__all__ = [
+    "ALLOWED_KEYS",
+    "DEFAULT_TARGETS_PATH",
+    "LOADING_CURVE_SOURCE",
+    "READINGS",
+    "LoadingCurve",
+    "Targets",
+    "load_targets",
+    "loading_curve",
+]
 
 DEFAULT_TARGETS_PATH = Path(__file__).parent / "data" / "human_targets.toml"
 READINGS = {
@@ -200,3 +209,72 @@ def _read_profile(path: Path) -> tuple[np.ndarray, np.ndarray]:
     if len(d) < 2 or np.any(np.diff(d) <= 0) or d[0] < 0 or not np.all(np.isfinite(y)):
         raise DesignError(field_name, f"{path}: distances must increase from >= 0, values finite")
     return d, y
+
+
+# ---------------------------------------------------------------------------------------------
+# The human loading curve (force against displacement from touch) drawn with the tapping loops
+# ---------------------------------------------------------------------------------------------
+
+#: Where the loading curve comes from. Serina, Mote & Rempel (J. Biomech. 30(10) (1997)
+#: 1035-1040) fitted a force-displacement law per loading angle and rate, but neither its form nor
+#: its parameters could be read from any available source (docs/fingertip_3d.md, "Human
+#: force-displacement curve"; searched again for issue 35: only abstracts of other studies were
+#: found). So the curve is *derived, not Serina's fit*: the exponential F = B (exp(k d) - 1)
+#: through the two loading points the targets source (Serina et al. 1997 as listed in Table 2 of
+#: Cabibihan et al.: 1.83 mm at 1 N and 2.91 mm at 4 N, 0.5 Hz, 0 deg). The exponential form is
+#: the one measured on the fingerpad under a flat probe: "The instantaneous elastic response
+#: increased exponentially with position" (Pawluk DTV, Howe RD, J. Biomech. Eng. 121(2) (1999)
+#: 178-183, abstract). For the human targets it gives B = 0.1243 N, k = 1.2035 1/mm
+#: (docs/fingertip_3d.md). Only the stretch between the two points is supported by data; below
+#: 1 N and above 4 N the curve is an extrapolation.
+LOADING_CURVE_SOURCE = (
+    "exponential F = B (exp(k d) - 1) through the targets' loading points (disp_at_1N_mm, 1 N) "
+    "and (disp_at_4N_mm, 4 N); for the human targets these are Serina, Mote & Rempel, J. Biomech. "
+    "30 (1997) 1035-1040, as listed in Table 2 of Cabibihan et al. Derived, not Serina et al.'s "
+    "own fit, whose form and parameters could not be found; exponential form after Pawluk & "
+    "Howe, J. Biomech. Eng. 121 (1999) 178-183"
+)
+
+
+@dataclass(frozen=True)
+class LoadingCurve:
+    """Force (N) against displacement from first touch (mm) on loading, F = B (exp(k d) - 1),
+    through ``points`` ((displacement mm, force N) pairs); ``source``: where it comes from."""
+
+    B_N: float
+    k_per_mm: float
+    points: tuple[tuple[float, float], ...]
+    source: str = LOADING_CURVE_SOURCE
+
+    def force(self, displacement_mm: Any) -> np.ndarray:
+        """F(d) in N for displacements d in mm (array or number)."""
+        return self.B_N * np.expm1(self.k_per_mm * np.asarray(displacement_mm, dtype=float))
+
+    def displacement(self, force_N: Any) -> np.ndarray:
+        """d(F) in mm for forces F in N (the inverse of ``force``)."""
+        return np.log1p(np.asarray(force_N, dtype=float) / self.B_N) / self.k_per_mm
+
+
+def _growth(k: float, d1: float, d2: float) -> float:
+    """expm1(k d2) / expm1(k d1): the force ratio of the exponential, d2 / d1 at k = 0."""
+    return d2 / d1 if k == 0.0 else math.expm1(k * d2) / math.expm1(k * d1)
+
+
+def loading_curve(targets: Targets | None = None) -> LoadingCurve | None:
+    """The exponential loading curve through the targets' (disp_at_1N_mm, 1 N) and
+    (disp_at_4N_mm, 4 N) (the human targets when ``targets`` is None); see
+    ``LOADING_CURVE_SOURCE``. None when the targets lack them or the 4 N displacement is not the
+    larger (no rising curve passes through both). ``k`` < 0 when the points rise less than
+    proportionally (d4 / d1 > 4)."""
+    values = (targets or load_targets()).values
+    d1, d4 = values.get("disp_at_1N_mm"), values.get("disp_at_4N_mm")
+    if d1 is None or d4 is None or not 0.0 < d1 < d4:
+        return None
+    from scipy.optimize import brentq  # here: `import sim` stays light
+
+    ratio = 4.0  # F(d4) / F(d1)
+    # the growth rises with k (monotonic) from below 1 to beyond any ratio on this bracket
+    k = brentq(lambda k: _growth(k, d1, d4) - ratio, -50.0 / d4, 50.0 / d4, xtol=1e-14)
+    if k == 0.0:  # exactly proportional points: a line, as the limit of the exponential
+        k = 1e-12
+    return LoadingCurve(1.0 / math.expm1(k * d1), k, ((d1, 1.0), (d4, 4.0)))

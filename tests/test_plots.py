@@ -15,9 +15,13 @@ import pytest
 
 from explore._objective import closeness
 from explore._plots import (
+    ANSWER_NAMES,
     FIGURES,
+    LOG_TICKS_PER_DECADE,
     importance_info,
     load_run,
+    log_axis,
+    log_ticks,
     loops_info,
     parallel_info,
     pareto_front_indices,
@@ -30,7 +34,7 @@ from explore._plots import (
 from explore._report import write_report
 from explore._storage import open_storage
 from explore._types import Candidate, Confirmation
-from sim.targets import Targets
+from sim.targets import Targets, load_targets, loading_curve
 
 HUMAN = {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
 F_REF = 2.35  # explore._objective.WEDGE_REFERENCE_N
@@ -190,11 +194,16 @@ def _summary(confirmations: list[Confirmation]) -> dict:
             "fe_score": c.fe_score,
             "errors_vs_targets": errors,
             "within_tolerance": within,
+            "fe_record": f"fe/records/{c.key}.json",
         }
 
+    # as explore._summary writes them: the best design is also the best gel one (one record,
+    # two answers), and no foam design was credible (null)
     return {
         "answers": {
             "best": answer(best, design_best),
+            "gel": answer(best, design_best),
+            "foam": None,
             "buildable": answer(buildable, design_build),
         },
         "targets": HUMAN,
@@ -324,6 +333,31 @@ def test_parallel_coordinates_are_normalised_with_nan_for_inactive(run_dir: Path
     assert info.score[info.best].max() <= info.score[~info.best].min()
 
 
+def test_parallel_highlights_the_best_k_by_score_drawn_best_last(run_dir: Path) -> None:
+    """The coloured lines are exactly the best k trials by score, drawn worst of them first (the
+    best on top); every other trial is one grey line behind them."""
+    from explore._plots import render_parallel
+
+    info = parallel_info(load_run(run_dir), best_fraction=0.25)
+    k = math.ceil(0.25 * len(info.score))
+    assert set(np.flatnonzero(info.best)) == set(np.argsort(info.score, kind="stable")[:k])
+    order = info.best_order
+    assert sorted(order) == sorted(np.flatnonzero(info.best))
+    assert np.all(np.diff(info.score[order]) <= 0) and order[-1] == np.argmin(info.score)
+    fig = render_parallel(info)
+    ax = fig.axes[0]
+    grey, ramp, best = ax.collections[:3]
+    coloured = np.asarray(ramp.get_array())
+    assert set(coloured) == set(info.score[info.best])  # coloured: the best k, by their score
+    assert coloured[-1] == info.score.min()  # the very best drawn last (on top), and in black
+    assert len(best.get_segments()) >= 1 and grey.get_alpha() < 0.5
+    bar = fig.axes[1]
+    assert "best 25 %" in bar.get_ylabel() and "lower is better" in bar.get_ylabel()
+    legend = [t.get_text() for t in fig.legends[0].get_texts()]
+    assert legend[0] == f"other trials ({len(info.score) - k})"
+    assert legend[1].startswith(f"best 25 % ({k} trials)")
+
+
 def test_parity_inside_fraction_and_median_error_match_a_hand_computation(run_dir: Path) -> None:
     info = parity_info(load_run(run_dir))
     by_name = {m.name: m for m in info.metrics}
@@ -339,37 +373,96 @@ def test_parity_inside_fraction_and_median_error_match_a_hand_computation(run_di
     assert wedge.inside_fraction == 1.0 and wedge.median_abs_rel_error == pytest.approx(0.05)
 
 
-def test_loops_show_best_designs_references_and_the_human_targets(run_dir: Path) -> None:
+def test_loops_show_the_answers_of_summary_json_by_name(run_dir: Path) -> None:
     run = load_run(run_dir)
-    info = loops_info(run, n_best=2)
-    assert info.target_points == ((1.83, 1.0), (2.91, 4.0))
-    assert info.target_hysteresis_Nmm == 2.26
-    designs = [c for c in info.curves if c.role == "design"]
+    info = loops_info(run)
+    answers = {k for k, v in run.summary["answers"].items() if v}
+    assert set(info.answers) == answers and len(info.answers) == len(answers)
+    assert info.answers == ("best", "gel", "buildable")  # report order
+    assert info.missing == ("foam",)  # null in summary.json: no curve, and said so
+    designs = [c for c in info.curves if c.role == "answer"]
     refs = [c for c in info.curves if c.role == "reference"]
-    # lowest FE score first: "best" (0.05 wedge term + rms 0.141) before "uncertain"
-    assert [c.label.split(" (")[0] for c in designs] == ["best r0/t7", "uncertain r0/t11"]
+    # one record that is two answers is one curve, named by both
+    assert [c.answers for c in designs] == [("best", "gel"), ("buildable",)]
+    assert [c.label.split(" (")[0] for c in designs] == ["best credible = gel", "buildable"]
+    assert all(ANSWER_NAMES[k] in c.label for c in designs for k in c.answers)
     assert {c.label for c in refs} == {"silicone_gls40", "polyurethane_74_45"}
     tap = run.records["key0"]["curves"]["tapping"]
     np.testing.assert_array_equal(designs[0].x, tap["displacement_mm"])
     np.testing.assert_array_equal(designs[0].y, tap["force_N"])
     assert designs[0].value == pytest.approx(2.26 * 1.2)  # the record's hysteresis
     assert max(c.y.max() for c in info.curves) >= 4.0  # the loops reach the 4 N target
+    assert info.target_points == ((1.83, 1.0), (2.91, 4.0))
+    assert info.target_hysteresis_Nmm == 2.26
+
+
+def test_loops_draw_the_human_loading_curve_of_the_sourced_points(run_dir: Path) -> None:
+    """The human curve is F = B (exp(k d) - 1) through Serina et al.'s 1 N and 4 N points
+    (sim.targets.LOADING_CURVE_SOURCE); B = 0.1243 N, k = 1.2035 1/mm are the values derived
+    in docs/fingertip_3d.md ("Human force-displacement curve"), checked here at a few points."""
+    info = loops_info(load_run(run_dir))
+    assert info.human_is_finger and info.human is not None and info.human.role == "human"
+    b, k = info.human_fit
+    assert (b, k) == pytest.approx((0.1243, 1.2035), abs=5e-5)
+    d, f = info.human.x, info.human.y
+    np.testing.assert_allclose(f, b * np.expm1(k * d), rtol=1e-12)
+    # the docs' table: displacement (mm) at 0.25, 0.5, 2, 3 and 5 N, and the two targets
+    table = {0.25: 0.92, 0.5: 1.34, 1.0: 1.83, 2.0: 2.36, 3.0: 2.68, 4.0: 2.91, 5.0: 3.09}
+    np.testing.assert_allclose(np.interp(list(table), f, d), list(table.values()), atol=0.006)
+    assert d[0] == 0.0 and f[0] == 0.0 and f[-1] == pytest.approx(5.0)  # up to the tap's peak
+    assert info.human.value == 2.26  # the target hysteresis goes with it
+    curve = loading_curve()  # the human targets: the same curve
+    assert curve.force([1.83, 2.91]) == pytest.approx([1.0, 4.0], rel=1e-9)
+    assert curve.displacement(curve.force(2.5)) == pytest.approx(2.5)
+    assert "Serina" in curve.source and "not Serina et al.'s own fit" in curve.source
+    assert load_targets().values == HUMAN  # the values it is drawn through are unchanged
+
+
+def test_loading_curve_through_other_targets_and_none_without_a_rise() -> None:
+    soft = loading_curve(Targets(values={"disp_at_1N_mm": 1.0, "disp_at_4N_mm": 5.0}))
+    assert soft.k_per_mm < 0  # rises less than proportionally: concave
+    assert soft.force([1.0, 5.0]) == pytest.approx([1.0, 4.0], rel=1e-9)
+    line = loading_curve(Targets(values={"disp_at_1N_mm": 1.0, "disp_at_4N_mm": 4.0}))
+    assert line.force([1.0, 2.0, 4.0]) == pytest.approx([1.0, 2.0, 4.0], rel=1e-6)
+    assert loading_curve(Targets(values={"disp_at_1N_mm": 2.0, "disp_at_4N_mm": 1.0})) is None
+
+
+def test_an_answer_of_the_fe_only_screen_is_drawn_from_its_record(run_dir, tmp_path) -> None:
+    """A buildable answer found by the FE-only screen is no confirmation: its record is read
+    through summary.json's ``fe_record``; an answer whose record is missing is listed."""
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(run_dir, run, ignore=shutil.ignore_patterns("figures"))
+    record = json.loads((run / "fe" / "records" / "key2.json").read_text())
+    (run / "fe" / "records" / "screen0.json").write_text(json.dumps({**record, "key": "screen0"}))
+    summary = json.loads((run / "summary.json").read_text())
+    summary["answers"]["buildable"]["fe_record"] = "fe/records/screen0.json"
+    summary["answers"]["foam"] = {**summary["answers"]["gel"], "fe_record": "fe/records/x.json"}
+    summary["answers"]["gel"] = None
+    (run / "summary.json").write_text(json.dumps(summary))
+    info = loops_info(load_run(run))
+    assert info.answers == ("best", "buildable") and info.missing == ("gel", "foam")
+    assert wedge_info(load_run(run)).answers == ("best", "buildable")
 
 
 def test_first_touch_loops_start_at_zero_displacement(run_dir: Path) -> None:
     run = load_run(run_dir)
     targets = {**HUMAN, "displacement_reading": "from_first_touch"}
     touch = dataclasses.replace(run, config={**run.config, "targets": targets})
-    info = loops_info(touch, n_best=1)
+    info = loops_info(touch)
     assert info.reading == "from_first_touch"
     assert all(c.x[0] == 0.0 for c in info.curves)
 
 
-def test_wedge_info_has_the_same_designs_with_force_and_profiles(run_dir: Path) -> None:
-    info = wedge_info(load_run(run_dir), n_best=3)
-    assert len(info.force) == len(info.profile_1s) == len(info.profile_100s) == 5
-    peaks = [c.value for c in info.force if c.role == "design"]
-    np.testing.assert_allclose(peaks, [F_REF * f for f in (0.5, 1.0, 2.0)])
+def test_wedge_info_has_the_same_answers_with_force_and_profiles(run_dir: Path) -> None:
+    run = load_run(run_dir)
+    info = wedge_info(run)
+    assert info.answers == loops_info(run).answers == ("best", "gel", "buildable")
+    assert info.missing == ("foam",)
+    assert len(info.force) == len(info.profile_1s) == len(info.profile_100s) == 4
+    peaks = [c.value for c in info.force if c.role == "answer"]
+    np.testing.assert_allclose(peaks, [F_REF * f for f in (0.5, 2.0)])
     for c in info.force:
         assert c.y.max() == pytest.approx(c.value, rel=0.01)  # curve peak = recorded peak
     assert all(c.x[0] == 0.0 and np.all(np.diff(c.x) > 0) for c in info.profile_1s)
@@ -595,3 +688,114 @@ def test_tied_importances_are_ranked_by_name_whatever_the_string_hashing():
         for seed in ("1", "2", "3", "4", "5")
     }  # fmt: skip
     assert runs == {"['geometry.height_mm', 'core.material', 'layers.count', 'skin.material']\n"}
+
+
+# ---------------------------------------------------------------------------------------------
+# Log axes: few labelled ticks per decade, labels apart
+# ---------------------------------------------------------------------------------------------
+
+RANGES = [
+    (0.24, 8.3),  # runs/main's compliance error: minor-tick labels ran into each other
+    (0.0021, 9.3),  # its hysteresis error
+    (0.00255, 0.0683),  # core.mu0_MPa
+    (0.04, 1.99),
+    (0.6, 0.9),
+    (0.61, 0.64),
+    (1e-6, 1e3),
+    (2e-5, 3e-5),
+    (1e5, 5e7),
+]
+
+
+def _per_decade(ticks) -> int:
+    decades = np.floor(np.log10(ticks) + 1e-9)
+    return max(int(np.sum(decades == d)) for d in set(decades))
+
+
+@pytest.mark.parametrize(("low", "high"), RANGES)
+def test_log_ticks_are_few_per_decade_inside_the_range_and_apart(low, high) -> None:
+    ticks = np.array(log_ticks(low, high))
+    assert len(ticks) >= 1 and np.all((low <= ticks) & (ticks <= high))
+    assert _per_decade(ticks) <= LOG_TICKS_PER_DECADE and len(ticks) <= 6
+    assert np.all(ticks[1:] / ticks[:-1] >= 4 / 3 - 1e-12)  # 1.3 decades apart at the least
+    if high / low >= 2.5:
+        assert len(ticks) >= 2
+
+
+def test_log_axis_limits_and_plain_labels() -> None:
+    axis = log_axis([0.3, 9.0, np.nan, -1.0])  # NaN and negative values ignored
+    lo, hi = axis.limits
+    assert lo < 0.3 and hi > 9.0 and np.log10(0.3 / lo) == pytest.approx(0.05 * np.log10(30))
+    assert axis.ticks == (0.5, 1.0, 2.0, 5.0, 10.0)  # 10 is inside the widened limits
+    assert axis.labels == ("0.5", "1", "2", "5", "10")
+    assert log_axis([1e-6, 1.0]).labels[0] == "$10^{-6}$"  # no mix of 0.0001 and 10^-6
+    assert log_axis([np.nan]) is None
+
+
+def _tick_label_boxes(fig, axis):
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    lo, hi = sorted(axis.get_view_interval())
+    return [
+        t.get_window_extent(renderer)
+        for tick in axis.get_major_ticks() + axis.get_minor_ticks()
+        if lo <= tick.get_loc() <= hi
+        for t in (tick.label1, tick.label2)
+        if t.get_visible() and t.get_text()
+    ]
+
+
+def _assert_apart(fig, axis) -> list:
+    boxes = _tick_label_boxes(fig, axis)
+    assert len(boxes) >= 2
+    assert not any(_overlap(a, b) for a, b in itertools.combinations(boxes, 2))
+    return boxes
+
+
+def test_pareto_log_axes_have_separate_labels(run_dir: Path) -> None:
+    """The spans of runs/main (compliance error 0.24-8.3, hysteresis error 0.0021-9.3), where
+    matplotlib's own log axis labelled the minor ticks (one decade tick in view) and they ran
+    into each other: the labels are the info's ticks and no two of them touch."""
+    from explore._plots import render_pareto
+
+    info = pareto_info(load_run(run_dir))
+    assert info.x_axis is not None and info.y_axis is not None
+    wide = np.column_stack([np.geomspace(0.24, 8.3, 50), np.geomspace(0.0021, 9.3, 50),
+                            np.linspace(0.0, 1.0, 50)])  # fmt: skip
+    crowded = dataclasses.replace(
+        info, points=wide, x_axis=log_axis(wide[:, 0]), y_axis=log_axis(wide[:, 1])
+    )
+    for one in (info, crowded):
+        fig = render_pareto(one)
+        ax = fig.axes[0]
+        for axis, log in ((ax.xaxis, one.x_axis), (ax.yaxis, one.y_axis)):
+            _assert_apart(fig, axis)
+            shown = [t.get_text() for t in axis.get_ticklabels(which="both") if t.get_text()]
+            assert shown == list(log.labels)  # minor ticks unlabelled
+            assert _per_decade(log.ticks) <= LOG_TICKS_PER_DECADE
+
+
+def test_projection_log_axes_and_score_scale_have_separate_labels(run_dir: Path) -> None:
+    from explore._plots import render_projections
+
+    run = load_run(run_dir)
+    info = projections_info(run, top=4, importance=importance_info(run))
+    logs = [(p, p.x_axis if p.x_log else p.y_axis) for p in info.pairs if p.x_log or p.y_log]
+    assert logs and all(log is not None for _, log in logs)
+    # runs/main's core.mu0_MPa, 0.0027-0.068 MPa: one decade tick (0.01) in view, so
+    # matplotlib labelled the minor ticks too, into one unreadable string
+    pair = info.pairs[0]
+    mu = np.geomspace(0.0027, 0.068, len(pair.x))
+    crowded = dataclasses.replace(pair, x=mu, x_log=True, x_axis=log_axis(mu))
+    for one in (info, dataclasses.replace(info, pairs=(crowded, *info.pairs[1:]))):
+        fig = render_projections(one)
+        for ax in fig.axes:
+            for axis, scale in ((ax.xaxis, ax.get_xscale()), (ax.yaxis, ax.get_yscale())):
+                if ax.get_visible() and scale == "log":
+                    _assert_apart(fig, axis)
+    for _, log in logs:
+        assert _per_decade(log.ticks) <= LOG_TICKS_PER_DECADE
+    # the colour scale: the lowest finite score to the median one
+    scores = run.column("score")
+    scores = scores[np.isfinite(scores)]
+    assert info.score_axis.limits == pytest.approx((scores.min(), np.median(scores)))
