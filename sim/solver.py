@@ -299,17 +299,22 @@ class Body:
 
     def _may_reuse(self, norms: list[float], active: np.ndarray) -> bool:
         """Modified Newton (``NewtonOptions.reuse_factorization``): the factorisation made
-        earlier in this step may serve this iteration if the last iteration cut the residual
-        by ``reuse_ratio`` and the indenter touches the same nodes (``active``) as when it was
-        made. A step's first iteration always factorises: the predictor moves the state, and
-        a factorisation from before a change of the contact set misleads Newton."""
+        earlier may serve this iteration if the last iteration cut the residual by
+        ``reuse_ratio`` and the indenter touches the same nodes (``active``) as when it was
+        made. A step's first iteration factorises afresh unless the body is free of the
+        indenter now and was then: the predictor moves the state, and a factorisation from
+        before a change of the contact set misleads Newton, but a free body only relaxes (the
+        rest between taps: its tangent changes with the material's history alone). A kept
+        factorisation that fails the line search is replaced at once (``_stale``)."""
         opts = self.options
-        if not opts.reuse_factorization or self._stale or len(norms) < 2:
+        if not opts.reuse_factorization or self._stale:
             self._stale = False
             return False
         same_contact = self._factored_active is not None and np.array_equal(
             active, self._factored_active
         )
+        if len(norms) < 2:
+            return same_contact and not np.any(active)
         return same_contact and norms[-1] <= opts.reuse_ratio * norms[-2]
 
     def _factor(self, data):

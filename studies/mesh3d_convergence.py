@@ -1,0 +1,103 @@
+"""Mesh convergence of the 3D pad's metrics: regenerates ``docs/mesh3d_convergence.json``
+(used by ``docs/model_3d.md``, "Mesh convergence").
+
+    python studies/mesh3d_convergence.py                 # every level, resumes
+    python studies/mesh3d_convergence.py --levels 1 1.41  # a quick look
+
+Each design is simulated on the mesh family ``BASE.refined(f)`` (every target size / f) with
+the elastic tap (one tap to 5 N) and the plate; the validity stop is off so every level gives
+every metric. Per metric the script fits err(h) = C h^p to the differences between successive
+levels (``np.polyfit`` on the logs), extrapolates (Richardson) and prints each level's error
+against the extrapolated value: the coarsest level within 1 % is the one to simulate with.
+Results are written after each run, so an interrupted study resumes where it stopped."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from sim.design import design_from_dict
+from sim.mesh3d import MeshOptions3D
+from sim.options import ModelOptions, SimOptions
+from sim.simulate import simulate
+
+OUT = Path(__file__).resolve().parents[1] / "docs" / "mesh3d_convergence.json"
+#: the family's coarsest member; the levels refine it by f
+BASE = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
+LEVELS = (1.0, 1.41, 2.0, 2.83)
+METRICS = (
+    "disp_at_1N_mm",
+    "disp_at_4N_mm",
+    "contact_area_at_1N_mm2",
+    "contact_area_at_4N_mm2",
+    "plate_force_at_1mm_N",
+)
+#: the main job's gel answer, elastic (its long-term Ogden law, docs/fingertip_3d.md), and the
+#: paper's GLS40 silicone over the reference outline, elastic: a soft, nearly incompressible
+#: pad strained to ~0.6 and a stiffer one
+DESIGNS = {
+    "gel": {
+        "geometry": {"half_width_mm": 7.89, "height_mm": 6.45, "exponent": 1.31},
+        "layers": [
+            {"material": {"model": "ogden", "mu_MPa": [0.0101], "alpha": [3.84], "nu": 0.499}}
+        ],
+    },
+    "silicone": {
+        "layers": [{"material": {"model": "neo_hookean", "mu_MPa": 0.06, "nu": 0.499}}],
+    },
+}
+
+
+def run(levels: tuple[float, ...]) -> dict:
+    done = json.loads(OUT.read_text()) if OUT.exists() else {}
+    for name, table in DESIGNS.items():
+        design = design_from_dict(table)
+        for f in levels:
+            key = f"{name}@{f:g}"
+            if key in done:
+                continue
+            options = SimOptions(
+                model=ModelOptions("3d"), mesh3d=BASE.refined(f)
+            ).without_validity_stop()
+            t0 = time.perf_counter()
+            res = simulate(design, ("tapping", "plate"), options)
+            done[key] = {
+                "design": name,
+                "refine": f,
+                "dofs": res.n_dofs,
+                "metrics": {m: res.metrics.get(m) for m in METRICS},
+                "factorizations": sum(p.get("factorizations", 0) for p in res.protocols.values()),
+                "wall_s": time.perf_counter() - t0,
+                "failures": [fl.__dict__ for fl in res.failures],
+            }
+            OUT.write_text(json.dumps(done, indent=1) + "\n")
+            print(key, done[key], flush=True)
+    return done
+
+
+def report(done: dict) -> None:
+    for name in DESIGNS:
+        rows = sorted((v for v in done.values() if v["design"] == name), key=lambda v: v["refine"])
+        if len(rows) < 3:
+            continue
+        print(f"\n{name}: dofs {[r['dofs'] for r in rows]}")
+        h = 1.0 / np.array([r["refine"] for r in rows])
+        for m in METRICS:
+            y = np.array([r["metrics"][m] or np.nan for r in rows])
+            diff = np.abs(np.diff(y))
+            p = np.polyfit(np.log(h[1:]), np.log(diff), 1)[0] if np.all(diff > 0) else np.nan
+            ratio = h[-2] / h[-1]
+            best = y[-1] + (y[-1] - y[-2]) / (ratio**p - 1.0) if np.isfinite(p) else y[-1]
+            errs = ", ".join(f"{100 * (v / best - 1):+.2f}%" for v in y)
+            print(f"  {m:26s} rate {p:4.2f}  extrapolated {best:.4g}  errors {errs}")
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--levels", type=float, nargs="+", default=list(LEVELS))
+    args = ap.parse_args()
+    report(run(tuple(args.levels)))
