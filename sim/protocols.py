@@ -136,6 +136,9 @@ class ProtocolResult:
     steps: int
     wall_time_s: float
     info: dict = field(default_factory=dict)
+    #: displacement fields (n_nodes, dim) of chosen states by name, e.g. the measured tap's
+    #: ``tapping_1N`` and ``tapping_4N`` (``SNAPSHOT_FORCES_N``); not JSON, not in records
+    fields: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
 
 
 # ---------------------------------------------------------------------------- stepping
@@ -263,6 +266,7 @@ class _Recorder:
         self.t_start = self.body.t
         self.t, self.disp, self.force = [0.0], [disp0], [0.0]
         self.patch: list[tuple[float, float, float]] = [(0.0, 0.0, 0.0)]
+        self.snapshots: dict[str, np.ndarray] = {}  # tapping_<F>N -> u, on loading
         self.peak_force = -np.inf
         self.peak_H = [s.H for s in self.body.states]
 
@@ -287,12 +291,19 @@ class _Recorder:
 
     def record_peak_force(self, t: float) -> None:
         """``record``, the peak being the step of the curve's largest force so far (its Prony
-        history kept as ``peak_H``; committed states are new arrays: no copy needed)."""
+        history kept as ``peak_H``; committed states are new arrays: no copy needed); the
+        state of the first step at or beyond each of ``SNAPSHOT_FORCES_N`` on the way up is
+        kept in ``snapshots``."""
         body = self.body
         peak = body.force > self.peak_force
         if peak:
             self.peak_force, self.peak_H = body.force, [s.H for s in body.states]
         self.record(t, peak)
+        if peak:
+            for f in SNAPSHOT_FORCES_N:
+                name = f"tapping_{f:g}N"
+                if name not in self.snapshots and self.force[-1] >= f * (1.0 - 1e-9):
+                    self.snapshots[name] = body.u
 
     def info(self) -> dict[str, Any]:
         """The figures over the whole run for ``ProtocolResult.info``."""
@@ -317,6 +328,11 @@ def contact_patch(body: Body) -> tuple[float, float, float]:
         extent[axis] = 2.0 * contact_half_width_mm(coordinate, body.indenter_penetration(nodes))
     return area, extent[0], extent[2]
 
+
+#: The forces (N) on the measured tap's loading branch whose states a tapping keeps: the first
+#: committed step at or beyond each (``ProtocolResult.fields``, ``tapping_<F>N``), for the VTU
+#: files and the figure of the deformed pad and its contact patch.
+SNAPSHOT_FORCES_N = (1.0, 4.0)
 
 #: The 3D tapping's contact metrics, read at 1 N and 4 N on the loading branch like the
 #: displacements: (metric prefix, index in ``contact_patch``'s tuple).
@@ -665,7 +681,9 @@ def run_tapping(body: Body, opts: TappingOptions = TappingOptions()) -> Protocol
         "cost": taps.cost,
         **taps.recorder.info(),
     }
-    return _result("tapping", body, t0, it0, taps.steps, metrics, curves, info)
+    res = _result("tapping", body, t0, it0, taps.steps, metrics, curves, info)
+    res.fields.update(taps.recorder.snapshots)  # the measured tap's (new_curve resets them)
+    return res
 
 
 def _json_float(v: float) -> float | None:

@@ -162,8 +162,9 @@ def simulate(
     """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised.
 
     ``keep_fields``: keep the discretisation and each completed protocol's final displacements
-    in the result (``discretization``, ``fields``: what ``sim.output.write_vtu`` draws); by
-    default the result holds figures only.
+    in the result (``discretization``, ``fields``: what ``sim.output.write_vtu`` draws), with
+    the tapping's states at 1 N and 4 N (``tapping_1N``, ``tapping_4N``); by default the result
+    holds figures only.
 
     Every BLAS call runs on one thread (``threadpoolctl``): the same design gives the same bits
     whatever OMP_NUM_THREADS says (a threaded dot product sums in another order)."""
@@ -201,6 +202,7 @@ def _simulate(
         figures[name] = _figures(outcome, body)
         if keep_fields:
             fields[name] = body.u.copy()
+            fields.update(outcome.fields)
     return SimResult(
         design=design,
         metrics=metrics,

@@ -47,6 +47,10 @@ def test_the_3d_tapping_reports_every_3d_metric(elastic_tap):
         ellipse = np.pi / 4 * m[f"contact_width_at_{f}N_mm"] * m[f"contact_length_at_{f}N_mm"]
         assert m[f"contact_area_at_{f}N_mm2"] < 1.2 * ellipse
     assert res.protocols["tapping"]["taps"] == 1
+    # the states at 1 N and 4 N on the way up are kept for the VTU files and the figure
+    assert {"tapping", "tapping_1N", "tapping_4N"} <= set(res.fields)
+    apex = res.discretization.apex_node
+    assert 0 < -res.fields["tapping_1N"][apex, 1] < -res.fields["tapping_4N"][apex, 1]
 
 
 def test_the_reported_force_is_four_quarters(elastic_tap):
