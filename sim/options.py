@@ -154,11 +154,33 @@ def apply_overrides(options: SimOptions, overrides: Mapping[str, Any]) -> SimOpt
             raise DesignError(name, f"unknown option; known: {', '.join(option_names(options))}")
         sections.setdefault(section, {})[field] = _parse(name, raw, getattr(current, field))
     out = options
-    for section, changes in sections.items():
-        out = dataclasses.replace(
-            out, **{section: dataclasses.replace(getattr(out, section), **changes)}
-        )
+    for section, changes in sorted(sections.items(), key=lambda item: item[0] != "model"):
+        try:  # the model first: which options apply depends on it
+            value = dataclasses.replace(getattr(out, section), **changes)
+        except ValueError as exc:  # a section's own range check (e.g. MeshOptions3D)
+            name = f"{section}.{next(iter(changes))}"
+            prefix = f"{type(getattr(out, section)).__name__}."
+            raise DesignError(name, str(exc).removeprefix(prefix)) from None
+        out = dataclasses.replace(out, **{section: value})
+    for name in overrides:
+        section, _, field = name.partition(".")
+        other = _ONLY_IN.get((section, field)) or _ONLY_IN.get((section, "*"))
+        if other is not None and other != out.dimension:
+            raise DesignError(
+                name, f"applies to the {other} model only, not to --model {out.dimension}"
+            )
     return out
+
+
+#: Options that only one model reads (section, field or "*"): naming them for the other model
+#: is an error, not a silent no-op. The 3D pad's forces have no out-of-plane length.
+_ONLY_IN = {
+    ("mesh", "*"): "2d",
+    ("mesh3d", "*"): "3d",
+    ("tapping", "length_mm"): "2d",
+    ("plate", "length_mm"): "2d",
+    ("wedge", "length_mm"): "2d",
+}
 
 
 def _parse(name: str, raw: Any, default: Any) -> Any:

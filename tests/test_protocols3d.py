@@ -127,3 +127,22 @@ def test_the_pad_keys_round_trip_and_stay_out_of_2d_dicts():
     assert design_from_dict(pad.to_dict()) == pad
     with pytest.raises(DesignError, match=r"geometry\.length_exponent: must be in \[1\.2, 8\.0\]"):
         design_from_dict({"geometry": {"length_exponent": 9}, "layers": [{"material": ELASTIC}]})
+
+
+@pytest.mark.parametrize(
+    ("overrides", "message"),
+    [
+        ({"model.dimension": "3d", "mesh.h_apex_mm": "0.1"}, r"mesh\.h_apex_mm: applies to the 2d"),
+        ({"mesh3d.h_apex_mm": "0.5"}, r"mesh3d\.h_apex_mm: applies to the 3d model only"),
+        ({"model.dimension": "3d", "tapping.length_mm": "5"}, r"tapping\.length_mm: applies to"),
+        (
+            {"model.dimension": "3d", "mesh3d.contact_fraction": "2"},
+            r"contact_fraction: .*\(0, 1\]",
+        ),
+    ],
+)
+def test_an_option_of_the_other_model_is_refused(overrides, message):
+    """A 2D-only option with the 3D model (or the reverse) is one error naming it, not a
+    silent no-op; a 3D mesh option out of its range names its range."""
+    with pytest.raises(DesignError, match=message):
+        apply_overrides(SimOptions(), overrides)
