@@ -19,6 +19,7 @@ to use one thread.
 
 from __future__ import annotations
 
+import sys
 from typing import Any, ClassVar
 
 import numpy as np
@@ -103,12 +104,13 @@ class Pardiso(LinearSolver):
         return self._ps._call_pardiso(self._csr, b)
 
     def __del__(self) -> None:
-        import sys
-
         ps = getattr(self, "_ps", None)
         if ps is None or sys.meta_path is None:  # at interpreter exit MKL frees it anyway
             return
-        ps.free_memory(everything=True)
+        try:
+            ps.free_memory(everything=True)
+        except Exception:  # modules half torn down at exit: nothing left to free
+            pass
 
 
 def _csr_order(upper: Any) -> np.ndarray:
