@@ -15,7 +15,8 @@ The jobs, one module each: the configuration and the checks of every input befor
 (``explore._retrain``), the answer and its notes (``explore._summary``), the run folder's files
 (``explore._run_folder``). Here: the whole pipeline, from the inputs to the ``Summary``
 (:func:`optimize`), after a sweep and a training for ``fingertip run --from-scratch``
-(:func:`run`).
+(:func:`run`), and the answers as design files (:func:`write_answer_files`: every run writes
+them at its end; ``fingertip report`` writes them for an existing run folder).
 """
 
 from __future__ import annotations
@@ -36,18 +37,22 @@ from ._rounds import Search, fe_alongside, fe_only_screen, run_rounds
 from ._run_folder import (
     CONFIG,
     SUMMARY,
+    read_config,
+    read_meta,
+    read_summary,
     run_time,
     time_parts,
+    write_answers,
     write_config,
     write_confirmations,
     write_summary,
     write_trials,
 )
 from ._storage import is_database_url, open_storage, repair_journal
-from ._summary import summarise
+from ._summary import ANSWER_KINDS, answer_file_text, summarise
 from ._types import Summary
 
-__all__ = ["optimize", "run", "scratch_folders"]
+__all__ = ["optimize", "run", "scratch_folders", "write_answer_files"]
 
 
 def optimize(
@@ -98,7 +103,70 @@ def optimize(
     search.record_time()
     wall_time_s, timings = run_time(out)
     timing = write_summary(out, summary, wall_time_s, timings, resumed)
+    write_answer_files(out)
     return dataclasses.replace(summary, timing=timing)
+
+
+def write_answer_files(out: str | Path) -> list[Path]:
+    """Write ``answers/<name>.toml`` for every answer of the run folder's summary.json (an
+    old folder's too; none before its summary is written): each a design file that
+    ``fingertip simulate`` and ``fingertip predict`` read as it is, its header naming the
+    answer, its FE score, the run's command and the ``--set`` options its FE ran with (when not
+    the defaults). Files whose text is unchanged are left alone. Returns the files."""
+    out = Path(out)
+    summary = read_summary(out)
+    answers = summary.get("answers") if isinstance(summary, dict) else None
+    if not isinstance(answers, dict):
+        return []
+    config = read_config(out) or {}
+    reading = config.get("displacement_reading")
+    raw_targets = config.get("targets") or {}
+    if isinstance(raw_targets, dict) and reading is None:
+        reading = raw_targets.get("displacement_reading")
+    texts: dict[str, str | None] = {}
+    for kind in (*ANSWER_KINDS, *(k for k in answers if k not in ANSWER_KINDS)):
+        answer = answers.get(kind)
+        if not isinstance(answer, dict) or not isinstance(answer.get("design"), dict):
+            texts[kind] = None
+            continue
+        texts[kind] = answer_file_text(
+            kind,
+            answer,
+            run_name=out.resolve().name,
+            made_by=_command(read_meta(out).get("command")),
+            reading=reading or "from_undeformed_top",
+            tolerance=summary.get("tolerance"),
+            option_overrides=_option_overrides(config.get("sim_options")),
+        )
+    return write_answers(out, texts)
+
+
+def _command(command: object) -> str | None:
+    """A run's recorded command line (meta.json) with the program's name only
+    (``/venv/bin/fingertip run ...`` -> ``fingertip run ...``)."""
+    if not isinstance(command, str) or not command.strip():
+        return None
+    program, *rest = command.split(" ")
+    return " ".join([Path(program).name, *rest])
+
+
+def _option_overrides(recorded: object) -> list[str]:
+    """The ``--set section.field=value`` options that give the simulation options a run
+    recorded (config.json's ``sim_options``), from the defaults: none when they are the
+    defaults (or not recorded)."""
+    from sim.options import SimOptions, options_from_dict
+
+    if not isinstance(recorded, Mapping):
+        return []
+    run, base = options_from_dict(dict(recorded)), SimOptions()
+    out = []
+    for section in dataclasses.fields(base):
+        ours, default = getattr(run, section.name), getattr(base, section.name)
+        for f in dataclasses.fields(ours):
+            value = getattr(ours, f.name)
+            if value != getattr(default, f.name):
+                out.append(f"{section.name}.{f.name}={value}")
+    return out
 
 
 def _warn_of_another_solver(config: OptimizeConfig, s: Setup) -> None:

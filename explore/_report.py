@@ -3,6 +3,12 @@
 Reads the run folder (``explore._run_folder`` describes it) through ``explore._plots.load_run``,
 writes every figure with ``write_figures`` and links them relatively, so the folder can be
 moved or browsed on GitHub as it is.
+
+It leads with the verdict (:func:`_verdict`): one paragraph naming the closest credible design,
+its error on each target, what limits it (the validity limit or the sag limit it is at, and how
+many confirmed designs went beyond them) and the best buildable design. Materials are named as
+the search drew them: a catalogue name, or a family of the design space (``gel``, ``foam``)
+with its parameters. Displacements are shown in the one reading the targets use.
 """
 
 from __future__ import annotations
@@ -16,12 +22,15 @@ import numpy as np
 
 from sim.options import SimOptions
 from sim.protocols import shown_hysteresis
-from sim.provenance import write_if_changed
+from sim.provenance import nan_if_none, write_if_changed
 from sim.targets import Targets
+from sim.validity import ValidityOptions
 
 from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
 from ._plots import FIGURES, RunData, load_run, run_options, run_targets, write_figures
-from ._run_folder import screened_designs
+from ._run_folder import ANSWERS, screened_designs
+from ._summary import ANSWER_WORDS, READING_WORDS, LayerMaterial, layer_materials
+from ._types import Confirmation
 
 __all__ = ["write_report"]
 
@@ -30,12 +39,7 @@ _TARGET_WORDS = {
     "disp_at_4N_mm": ("displacement at 4 N", "mm"),
     "hysteresis_Nmm": ("energy lost per tap (loop area)", "N mm"),
 }
-_ANSWERS = {
-    "best": "Best credible design (closest to the targets, confirmed by FE)",
-    "gel": "Best gel-only design (every layer a silicone gel, confirmed by FE)",
-    "foam": "Best foam-core design (a soft foam core, confirmed by FE)",
-    "buildable": "Best buildable design (catalogue materials only, confirmed by FE)",
-}
+_ANSWERS = ANSWER_WORDS
 _ROUND_ORDER = ("round", "n_confirmed", "max_rel_error", "median_rel_error", "agreed")
 _UNIT_SUFFIXES = (("_MPa", "MPa"), ("_mm", "mm"), ("_s", "s"), ("_N", "N"))
 
@@ -70,15 +74,12 @@ def _quantity(key: str, value: Any) -> str:
     return f"{key} {text}"
 
 
-def _material_words(material: Any) -> str:
-    """A catalogue name, or an inline table (``Material.to_dict()``) in words."""
-    if isinstance(material, str):
-        return f"`{material}` (catalogue)"
-    if not isinstance(material, Mapping):
-        return "unknown material"
+def _law_words(material: Mapping[str, Any]) -> str:
+    """An inline material table (``Material.to_dict()``) in words: its law, parameters and
+    relaxation."""
     skip = {"model", "name", "source", "moduli", "prony_g", "prony_tau_s", "prony_k", "provenance"}
     law = ", ".join(_quantity(k, v) for k, v in material.items() if k not in skip)
-    text = f"{material.get('name') or 'a custom'} {material.get('model', 'material')} ({law})"
+    text = f"{material.get('model', 'material')} ({law})"
     g, tau = material.get("prony_g") or [], material.get("prony_tau_s") or []
     if g and tau:
         text += (
@@ -90,12 +91,38 @@ def _material_words(material: Any) -> str:
     return text
 
 
-def _layer_words(layers: Sequence[Mapping[str, Any]]) -> list[str]:
+def _family_words(origin: LayerMaterial) -> str:
+    """``the `gel` family (mu0_MPa 0.0105, alpha 3.8, ...)``, or `` `name` (catalogue)``."""
+    if origin.family is None:
+        return f"`{origin.name}` (catalogue)" if origin.name else "an inline material"
+    values = ", ".join(f"{k} {_fmt(v)}" for k, v in origin.parameters)
+    return f"the `{origin.family}` family" + (f" ({values})" if values else "")
+
+
+def _material_words(material: Any, origin: LayerMaterial | None = None) -> str:
+    """A layer's material: its catalogue name, or the family the search drew it from with the
+    family's parameters, then the law the solver takes (an inline table)."""
+    if isinstance(material, str):
+        return f"`{material}` (catalogue)"
+    if not isinstance(material, Mapping):
+        return "unknown material"
+    if origin is not None and origin.family is not None:
+        what = f": {origin.description}" if origin.description else ""
+        return f"{_family_words(origin)}{what}; as simulated, {_law_words(material)}"
+    name = material.get("name") or (origin.name if origin is not None else None)
+    head = f"`{name}` (user catalogue)" if name else "an inline material"
+    return f"{head}: {_law_words(material)}"
+
+
+def _layer_words(
+    layers: Sequence[Mapping[str, Any]], origins: Sequence[LayerMaterial] = ()
+) -> list[str]:
     out = []
     for k, layer in enumerate(layers):
         last = k == len(layers) - 1
         size = "fills the rest (core)" if last else f"{_fmt(layer.get('thickness_mm'))} mm thick"
-        out.append(f"  {k + 1}. {size}: {_material_words(layer.get('material'))}")
+        origin = origins[k] if k < len(origins) else None
+        out.append(f"  {k + 1}. {size}: {_material_words(layer.get('material'), origin)}")
     return out
 
 
@@ -109,7 +136,7 @@ def _design_words(answer: Mapping[str, Any]) -> list[str]:
             f"- **Outline**: superellipse, half-width {_fmt(geo.get('half_width_mm'))} mm, "
             f"height {_fmt(geo.get('height_mm'))} mm, exponent {_fmt(geo.get('exponent'))}.",
             f"- **Layers** ({len(layers)}, outermost first):",
-            *_layer_words(layers),
+            *_layer_words(layers, layer_materials(answer)),
         ]
     point = answer.get("point") or {}
     items = [
@@ -130,7 +157,224 @@ def _grouped(n: int) -> str:
     return f"{n:,}".replace(",", " ")
 
 
-def _intro(run: RunData) -> list[str]:
+# ---------------------------------------------------------------------------------------------
+# The verdict: the first paragraph
+# ---------------------------------------------------------------------------------------------
+
+#: a design this close to a limit (its value over the limit, or the limit over it for J) is
+#: held at it: the limit binds
+_AT_LIMIT = 0.95
+#: a sag this close to the targets' limit binds
+_SAG_AT_LIMIT = 0.8
+#: the protocols whose validity diagnostics an FE result records
+_PROTOCOLS = ("tapping", "plate", "wedge")
+
+
+def _stack_words(answer: Mapping[str, Any]) -> str:
+    """The layers in one phrase: "a 0.393 mm skin of `x` (catalogue) over a core of the `gel`
+    family (mu0_MPa 0.0105, ...)"."""
+    layers = (answer.get("design") or {}).get("layers") or []
+    origins = layer_materials(answer)
+    parts = []
+    for k, (layer, origin) in enumerate(zip(layers, origins, strict=False)):
+        what = _family_words(origin)
+        if k == len(layers) - 1:
+            parts.append(f"a one-layer body of {what}" if k == 0 else f"a core of {what}")
+        else:
+            role = "skin" if k == 0 else "middle layer"
+            parts.append(f"a {_fmt(layer.get('thickness_mm'))} mm {role} of {what}")
+    if len(parts) > 1:
+        return ", ".join(parts[:-1]) + " over " + parts[-1]
+    return parts[0] if parts else "a design"
+
+
+def _outline_words(answer: Mapping[str, Any]) -> str:
+    geo = (answer.get("design") or {}).get("geometry") or {}
+    return (
+        f"on a {_fmt(geo.get('half_width_mm'))} mm half-width, {_fmt(geo.get('height_mm'))} mm "
+        f"high outline (exponent {_fmt(geo.get('exponent'))})"
+    )
+
+
+def _error_words(answer: Mapping[str, Any], targets: Targets) -> str:
+    """Each target's error, with the FE value against the target."""
+    fe = answer.get("fe_metrics") or {}
+    errors = answer.get("errors_vs_targets") or {}
+    parts = []
+    for name in TAPPING:
+        words, unit = _TARGET_WORDS[name]
+        value, target = fe.get(targets.metric(name)), targets.values.get(name)
+        parts.append(
+            f"{_pct(errors.get(name))} on the {words.split(' (')[0]} ({_fmt(value)} vs "
+            f"{_fmt(target)} {unit})"
+        )
+    return ", ".join(parts[:-1]) + " and " + parts[-1]
+
+
+def _direction_words(answer: Mapping[str, Any], tolerance: float) -> str:
+    """What the errors mean: stiffer or softer than the finger, too little or too much energy
+    lost per tap ("" when every target is met)."""
+    e = answer.get("errors_vs_targets") or {}
+    disp = [e.get(m) for m in ("disp_at_1N_mm", "disp_at_4N_mm") if isinstance(e.get(m), float)]
+    words = []
+    if disp and all(x < -tolerance for x in disp):
+        words.append("stiffer than the finger")
+    elif disp and all(x > tolerance for x in disp):
+        words.append("softer than the finger")
+    h = e.get("hysteresis_Nmm")
+    if isinstance(h, float) and h < -tolerance:
+        words.append("losing too little energy per tap")
+    elif isinstance(h, float) and h > tolerance:
+        words.append("losing too much energy per tap")
+    return " and ".join(words)
+
+
+def _rejected(run: RunData, targets: Targets, validity: ValidityOptions) -> dict[str, int]:
+    """How many FE-confirmed designs are no answer, and why: "strain" (beyond the strain
+    limit), "J" (beyond the volume-ratio limit), "other" (another validity limit), "unsettled",
+    "sag" (sagging over the targets' limit), "failed"."""
+    out = dict.fromkeys(("strain", "J", "other", "unsettled", "sag", "failed"), 0)
+    for c in run.confirmations:
+        d = c.diagnostics
+        if c.status != "ok":
+            out["failed"] += 1
+        elif d.get("valid") is False:
+            strains = [d.get(f"{p}_max_compressive_log_strain") for p in validity.strain_limited]
+            js = [d.get(f"{p}_min_J") for p in _PROTOCOLS]
+            limit = validity.max_compressive_log_strain
+            if any(isinstance(x, int | float) and x > limit for x in strains):
+                out["strain"] += 1
+            elif any(isinstance(x, int | float) and x < validity.min_J for x in js):
+                out["J"] += 1
+            else:
+                out["other"] += 1
+        elif d.get("settled") is False:
+            out["unsettled"] += 1
+        elif not targets.sag_ok(nan_if_none(c.fe_metrics.get("sag_mm"))):
+            out["sag"] += 1
+    return out
+
+
+def _limit_words(answer: Mapping[str, Any], run: RunData, targets: Targets) -> str:
+    """What holds the best design where it is: the validity limit or the sag limit it is at,
+    and how many other confirmed designs went beyond those limits."""
+    validity = run_options(run).validity
+    limit, min_j = validity.max_compressive_log_strain, validity.min_J
+    d = answer.get("diagnostics") or {}
+    strains = {
+        p: d[f"{p}_max_compressive_log_strain"]
+        for p in validity.strain_limited
+        if isinstance(d.get(f"{p}_max_compressive_log_strain"), int | float)
+    }
+    js = {p: d[f"{p}_min_J"] for p in _PROTOCOLS if isinstance(d.get(f"{p}_min_J"), int | float)}
+    sag = (answer.get("readings") or {}).get("sag_mm")
+    max_sag = targets.max_sag_mm
+    binding, free = [], []
+    if strains:
+        where, strain = max(strains.items(), key=lambda kv: kv[1])
+        text = (
+            f"its {where} compresses it to a log strain of {strain:.3f} against the validity "
+            f"limit of {limit:.2f} (the strain the materials were tested to)"
+        )
+        (binding if strain >= _AT_LIMIT * limit else free).append(text)
+    if js:
+        where, j = min(js.items(), key=lambda kv: kv[1])
+        if min_j >= _AT_LIMIT * j:
+            binding.append(f"its {where} brings the volume ratio J to {j:.2f}, the limit {min_j}")
+    if isinstance(sag, int | float) and max_sag is not None:
+        text = f"its sag between taps is {_fmt(sag)} mm against the {_fmt(max_sag)} mm limit"
+        (binding if sag >= _SAG_AT_LIMIT * max_sag else free).append(text)
+    n = len(run.confirmations)
+    why = _rejected(run, targets, validity)
+    beyond = [
+        f"{why[k]} went beyond {words}"
+        for k, words in (
+            ("strain", "the strain limit"),
+            ("J", "the volume limit"),
+            ("other", "another validity limit"),
+        )
+        if why[k]
+    ]
+    if why["sag"]:
+        beyond.append(f"{why['sag']} sagged over the limit")
+    if why["unsettled"]:
+        beyond.append(f"{why['unsettled']} did not settle")
+    if why["failed"]:
+        beyond.append(f"{why['failed']} failed")
+    others = f" Of the {n} FE-confirmed designs, " + ", ".join(beyond) + "." if beyond else ""
+    if binding:
+        softer = ""
+        e = answer.get("errors_vs_targets") or {}
+        if any("strain" in b for b in binding) and all(
+            isinstance(e.get(m), float) and e[m] < 0 for m in ("disp_at_1N_mm", "disp_at_4N_mm")
+        ):
+            softer = (
+                ": a softer design, nearer the displacement targets, would strain more and go "
+                "beyond it"
+            )
+        text = "What limits it: " + "; ".join(binding) + softer
+        if free:
+            text += " (" + "; ".join(free) + ")"
+        return text + "." + others
+    return (
+        "No validity or sag limit holds it (" + "; ".join(free) + "): the bounds of the design "
+        "space and the trade-off between the targets do (see the notes)." + others
+        if free
+        else "The run records no validity diagnostics for it." + others
+    )
+
+
+def _verdict(run: RunData, targets: Targets | None) -> list[str]:
+    """The first paragraph: the closest credible design, its error on each target and what
+    limits it, and the best buildable design."""
+    if not run.summary:
+        return ["**Verdict**: none yet: the run has no summary.json (it has not finished).", ""]
+    answers = run.summary.get("answers") or {}
+    best, build = answers.get("best"), answers.get("buildable")
+    tolerance = run.summary.get("tolerance")
+    tol = tolerance if isinstance(tolerance, int | float) else 0.0
+    if not best:
+        notes = run.summary.get("notes") or ["no design was confirmed by FE"]
+        return [f"**Verdict: no credible design.** {notes[0][0].upper()}{notes[0][1:]}.", ""]
+    met = all((best.get("within_tolerance") or {}).values())
+    tol_text = f"±{100 * tol:.0f} %"
+    noun = (
+        "closest design (NOT CREDIBLE: let in by `--allow-untrusted`)"
+        if best.get("credible") is False
+        else "closest credible design"
+    )
+    head = (
+        f"**Verdict**: the {noun} meets every target within {tol_text}"
+        if met
+        else f"**Verdict**: no design of this run meets the targets within {tol_text}"
+    )
+    text = (
+        f"{head}. The {noun} (FE score {_fmt(best.get('fe_score'))}, "
+        f"[`{ANSWERS}/best.toml`]({ANSWERS}/best.toml)) is {_stack_words(best)}, "
+        f"{_outline_words(best)}."
+    )
+    if targets is not None:
+        direction = _direction_words(best, tol)
+        text += (
+            f" Against the targets (displacements read {READING_WORDS[targets.reading]}) it is "
+            f"{_error_words(best, targets)}" + (f": {direction}." if direction else ".")
+        )
+        if not met:
+            text += " " + _limit_words(best, run, targets)
+    if build:
+        errors = ", ".join(_pct(v) for v in (build.get("errors_vs_targets") or {}).values())
+        text += (
+            f" The best buildable design (catalogue materials only; FE score "
+            f"{_fmt(build.get('fe_score'))}, "
+            f"[`{ANSWERS}/buildable.toml`]({ANSWERS}/buildable.toml)) is "
+            f"{_stack_words(build)}: {errors} on the same targets."
+        )
+    else:
+        text += " No buildable design (catalogue materials only) was confirmed credible."
+    return [text, ""]
+
+
+def _intro(run: RunData, targets: Targets | None = None) -> list[str]:
     rounds = {int(r) for r in run.column("round") if math.isfinite(r)}
     n_ok = sum(c.status == "ok" for c in run.confirmations)
     screen, total = screened_designs(run.config, run.studies)
@@ -145,6 +389,7 @@ def _intro(run: RunData) -> list[str]:
     return [
         f"# Fingertip skin search: `{run.run_dir.name}`",
         "",
+        *_verdict(run, targets),
         f"With the neural surrogate, the search {screened}scored {run.n_trials} Optuna trials"
         f"{best} over {len(rounds)} "
         f"round(s), then re-ran {len(run.confirmations)} of them with the full "
@@ -181,24 +426,24 @@ def _targets_section(targets: Targets | None, tolerance: Any) -> list[str]:
     return [*lines, ""]
 
 
-def _readings_rows(answer: Mapping[str, Any]) -> list[str]:
-    """Both readings of the tapping displacements, and the sag between them."""
-    r = answer.get("readings")
-    if not r:
-        return []
-    top, touch = r.get("from_undeformed_top", {}), r.get("from_first_touch", {})
+def _readings_rows(answer: Mapping[str, Any], targets: Targets | None) -> list[str]:
+    """The sag between the two readings of the displacements (those above are in the targets'
+    reading) and the validity of the FE result."""
+    r = answer.get("readings") or {}
     d = answer.get("diagnostics") or {}
+    if not r and not d:
+        return []
+    reading = targets.reading if targets is not None else "from_undeformed_top"
+    other = "from_undeformed_top" if reading == "from_first_touch" else "from_first_touch"
+    shown = r.get(other) or {}
+    sag = r.get("sag_mm")
     return [
-        "| reading | at 1 N (mm) | at 4 N (mm) |",
-        "|---|---|---|",
-        f"| from first touch | {_fmt(touch.get('disp_at_1N_mm'))} | "
-        f"{_fmt(touch.get('disp_at_4N_mm'))} |",
-        f"| from the undeformed top | {_fmt(top.get('disp_at_1N_mm'))} | "
-        f"{_fmt(top.get('disp_at_4N_mm'))} |",
-        "",
-        f"- **Sag** (left by earlier taps): {_fmt(r.get('sag_mm'))} mm; settled: "
-        f"{_fmt(d.get('settled'))}; within the validity limits: {_fmt(d.get('valid'))} "
-        f"(largest compressive log strain in tapping "
+        f"- **Sag** (the displacement left by the earlier taps): {_fmt(sag)} mm. The "
+        f"displacements above are read {READING_WORDS[reading]}, as the targets are; read "
+        f"{READING_WORDS[other]} they are {_fmt(shown.get('disp_at_1N_mm'))} and "
+        f"{_fmt(shown.get('disp_at_4N_mm'))} mm (they differ by the sag).",
+        f"- **Settled**: {_fmt(d.get('settled'))}; **within the validity limits**: "
+        f"{_fmt(d.get('valid'))} (largest compressive log strain in tapping "
         f"{_fmt(d.get('tapping_max_compressive_log_strain'))}, smallest J "
         f"{_fmt(d.get('tapping_min_J'))}).",
         "",
@@ -247,16 +492,21 @@ def _answer_section(
     tolerance: Any,
     options: SimOptions,
 ) -> list[str]:
-    lines = [f"### {_ANSWERS[kind]}", ""]
+    lines = [f"### {_ANSWERS.get(kind, kind)}", ""]
     if not answer:
         return [*lines, f"No credible {kind} design was confirmed by FE in this run.", ""]
     lines += _design_words(answer)
-    lines += [f"- **FE score**: {_fmt(answer.get('fe_score'))} (0 = every target met).", ""]
+    lines += [
+        f"- **FE score**: {_fmt(answer.get('fe_score'))} (0 = every target met).",
+        f"- **Design file**: [`{ANSWERS}/{kind}.toml`]({ANSWERS}/{kind}.toml) "
+        f"(`fingertip simulate {ANSWERS}/{kind}.toml`).",
+        "",
+    ]
     if answer.get("credible") is False:
         lines += ["**Not credible** (let in by `--allow-untrusted`): see its diagnostics.", ""]
     if targets is not None:
         lines += [*_answer_rows(answer, targets, tolerance, options), ""]
-    lines += _readings_rows(answer)
+    lines += _readings_rows(answer, targets)
     return lines
 
 
@@ -267,7 +517,7 @@ def _answers_section(run: RunData, targets: Targets | None) -> list[str]:
     if not run.summary:
         return [*lines, "No summary.json: the run did not finish its confirmations.", ""]
     options = run_options(run)
-    for kind in _ANSWERS:
+    for kind in (*_ANSWERS, *(k for k in answers if k not in _ANSWERS)):
         lines += _answer_section(kind, answers.get(kind), targets, tolerance, options)
     return lines
 
@@ -358,15 +608,51 @@ def _study_section(run_dir: Path, storage: object) -> list[str]:
 _SCORED = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm", "wedge_peak_force_N")
 
 
-def _confirmations_section(run: RunData) -> list[str]:
-    """Surrogate vs FE per confirmed design and scored metric."""
+def _no_score(c: Confirmation) -> str:
+    """Why a confirmed design has no FE score: its FE failed, it went beyond the validity
+    limits (and stopped there), its taps did not settle, or a scored metric was not reached."""
+    d = c.diagnostics
+    if c.status != "ok":
+        return f"FE failed: {c.reason or 'no reason recorded'}"
+    if d.get("valid") is False:
+        stopped = d.get("stopped")
+        stopped = f"; stopped there: {stopped.replace(',', ', ')}" if stopped else ""
+        return f"invalid: {d.get('violations') or 'beyond the validity limits'}{stopped}"
+    if d.get("settled") is False:
+        return "unsettled: the taps did not reach their periodic state"
+    missing = [m for m in _SCORED if c.fe_metrics.get(m) is None]
+    return "not reached: " + ", ".join(missing) if missing else "no score recorded"
+
+
+def _score_cell(c: Confirmation, targets: Targets | None) -> str:
+    """A confirmation's FE score, with why there is none, or why a scored design is no
+    answer (it sags more than the targets allow)."""
+    if not math.isfinite(c.fe_score):
+        return f"– ({_no_score(c)})"
+    sag = c.fe_metrics.get("sag_mm")
+    if (
+        targets is not None
+        and c.trusted
+        and isinstance(sag, int | float)
+        and not targets.sag_ok(sag)
+    ):
+        return f"{_fmt(c.fe_score)} (not credible: sag {_fmt(sag)} > {_fmt(targets.max_sag_mm)} mm)"
+    if not c.trusted:
+        return f"{_fmt(c.fe_score)} (not credible: {_no_score(c)})"
+    return _fmt(c.fe_score)
+
+
+def _confirmations_section(run: RunData, targets: Targets | None) -> list[str]:
+    """Surrogate vs FE per confirmed design and scored metric (the displacements in the
+    targets' reading)."""
     lines = ["## Confirmed designs: surrogate vs FE", ""]
     if not run.confirmations:
         return [*lines, "No design was confirmed by FE yet.", ""]
+    scored = [targets.metric(m) if targets is not None else m for m in _SCORED]
     head = ["round", "trial", "chosen as", "FE status", "FE score"]
     lines += [
-        "| " + " | ".join(head + [f"`{m}` error" for m in _SCORED]) + " |",
-        "|" + "---|" * (len(head) + len(_SCORED)),
+        "| " + " | ".join(head + [f"`{m}` error" for m in scored]) + " |",
+        "|" + "---|" * (len(head) + len(scored)),
     ]
     for c in run.confirmations:
         cells = [
@@ -374,17 +660,19 @@ def _confirmations_section(run: RunData) -> list[str]:
             str(c.candidate.trial),
             f"{c.candidate.reason} ({c.candidate.search})",
             c.status,
-            _fmt(c.fe_score),
+            _score_cell(c, targets),
         ]
-        for m in _SCORED:
+        for m in scored:
             err, inside = c.rel_error.get(m), c.inside_90.get(m)
             mark = "" if inside is None else (" ✓" if inside else " ✗")
             cells.append("–" if err is None else f"{100 * err:+.1f} %{mark}")
         lines.append("| " + " | ".join(cells) + " |")
+    reading = READING_WORDS.get(targets.reading, "") if targets is not None else ""
     lines += [
         "",
         "Error = (surrogate prediction − FE) / |FE|; ✓ / ✗: the FE value lies inside / outside "
-        "the surrogate's 90 % interval.",
+        "the surrogate's 90 % interval; – : no FE value (the FE score says why)"
+        + (f". Displacements read {reading}, as the targets are." if reading else "."),
         "",
     ]
     return lines
@@ -405,11 +693,11 @@ def write_report(run_dir: str | Path) -> Path:
     targets = run_targets(run)
     paths = write_figures(run_dir, workers=_workers(run.config.get("workers")))
     lines = [
-        *_intro(run),
+        *_intro(run, targets),
         *_targets_section(targets, run.summary.get("tolerance")),
         *_answers_section(run, targets),
         *_rounds_section(run),
-        *_confirmations_section(run),
+        *_confirmations_section(run, targets),
         *_notes_section(run),
         *_study_section(run_dir, run.config.get("storage")),
         *_figures_section(paths),

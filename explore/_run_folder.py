@@ -39,7 +39,12 @@ that the search writes and the report reads, with its form, written and read her
   spent up to its last finished stage (an interrupted one, its interrupted stage too).
 - ``summary.json`` (:func:`write_summary`, :func:`read_summary`): ``Summary.to_json()`` and the
   timing of the run when the answer was written (``TIMING_KEYS``: every invocation's part of
-  time.json summed); ``report.md`` and ``figures/*.png``.
+  time.json summed); ``report.md`` and ``figures/*.png``. :func:`read_answer`: one answer of
+  it by name (``fingertip simulate RUN --answer NAME``).
+- ``answers/<name>.toml`` (:func:`write_answers`, :func:`answer_path`): each answer of
+  summary.json that exists ("best", "gel", "foam", "buildable") as a design file
+  (``sim.design.design_to_toml``, the text from ``explore._summary.answer_file_text``), which
+  ``fingertip simulate`` and ``fingertip predict`` read as it is.
 
 Every file is written atomically (``sim.provenance``), and only when its content changes.
 """
@@ -69,11 +74,14 @@ __all__ = [
     "OBJECTIVE_NAMES",
     "TIMING_KEYS",
     "add_study",
+    "answer_path",
     "parameter_columns",
+    "read_answer",
     "read_candidates",
     "read_config",
     "read_confirmations",
     "read_json",
+    "read_meta",
     "read_studies",
     "read_summary",
     "read_trials",
@@ -82,6 +90,7 @@ __all__ = [
     "surrogate_path",
     "time_parts",
     "trials_header",
+    "write_answers",
     "write_candidates",
     "write_config",
     "write_confirmations",
@@ -90,7 +99,7 @@ __all__ = [
     "write_trials",
 ]
 
-CONFIG, META, STUDIES, TRIALS, CONFIRMATIONS, SUMMARY, TIME = (
+CONFIG, META, STUDIES, TRIALS, CONFIRMATIONS, SUMMARY, TIME, ANSWERS = (
     "config.json",
     "meta.json",
     "studies.json",
@@ -98,6 +107,7 @@ CONFIG, META, STUDIES, TRIALS, CONFIRMATIONS, SUMMARY, TIME = (
     "confirmations.json",
     "summary.json",
     "time.json",
+    "answers",
 )
 
 #: trials.csv: the columns before the parameters, those after them, and the prefixes of the
@@ -141,6 +151,13 @@ def write_config(out: Path, record: dict[str, Any], meta: dict[str, Any]) -> Non
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / CONFIG, record)
     write_json(out / META, meta)
+
+
+def read_meta(out: Path) -> dict[str, Any]:
+    """The run folder's meta.json ({} without it, or when it is not a JSON object)."""
+    path = out / META
+    meta = read_json(path) if path.is_file() else {}
+    return meta if isinstance(meta, dict) else {}
 
 
 # ----------------------------------------------------------------------------- studies.json
@@ -340,6 +357,57 @@ def write_summary(
     timing = {"wall_time_s": wall_time_s, "timings": timings, "resumed": resumed}
     write_if_changed(path, json_text({**data, **timing}, indent=1) + "\n")
     return timing
+
+
+def read_answer(source: Path, name: str) -> dict[str, Any]:
+    """Answer ``name`` of a search run: ``source`` is the run folder or its summary.json. Every
+    problem is one ``DesignError`` naming ``--answer`` (an unknown name: with the run's names;
+    an answer the run has not found: with those it has)."""
+    source = Path(source)
+    path = source / SUMMARY if source.is_dir() else source
+    if not path.is_file() or path.suffix != ".json":
+        if source.is_dir():
+            what = f"{source} has no {SUMMARY} (not a finished search run)"
+        else:
+            what = f"no such file: {source}" if not path.exists() else f"{source} is no summary"
+        raise DesignError("--answer", f"{what}; give a search run folder or its {SUMMARY}")
+    summary = read_json(path)
+    answers = summary.get("answers") if isinstance(summary, dict) else None
+    if not isinstance(answers, dict):
+        raise DesignError("--answer", f"{path} is not the summary of a search run (no answers)")
+    if name not in answers:
+        raise DesignError("--answer", f"unknown answer {name!r}; allowed: {', '.join(answers)}")
+    answer = answers[name]
+    if not isinstance(answer, dict) or not isinstance(answer.get("design"), dict):
+        found = [k for k, a in answers.items() if isinstance(a, dict) and a.get("design")]
+        raise DesignError(
+            "--answer",
+            f"the run found no {name!r} answer (no credible such design confirmed by FE); "
+            f"allowed here: {', '.join(found) or 'none'}",
+        )
+    return answer
+
+
+# ----------------------------------------------------------------------------- answers/*.toml
+def answer_path(out: Path, name: str) -> Path:
+    """The design file of answer ``name``: ``answers/<name>.toml``."""
+    return out / ANSWERS / f"{name}.toml"
+
+
+def write_answers(out: Path, texts: dict[str, str | None]) -> list[Path]:
+    """``answers/<name>.toml`` for every answer ``name`` with a text (a design file), each
+    written only when its content changes; the file of an answer without one (None: the run
+    has none) is removed. Returns the answer files, in the order of ``texts``."""
+    paths = []
+    for name, text in texts.items():
+        path = answer_path(out, name)
+        if text is None:
+            path.unlink(missing_ok=True)
+            continue
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_if_changed(path, text)
+        paths.append(path)
+    return paths
 
 
 # ----------------------------------------------------------------------------- time.json

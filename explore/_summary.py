@@ -10,10 +10,15 @@ stayed within the validity limits and recovers between taps.
 from __future__ import annotations
 
 import math
+import textwrap
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
+from sim.design import design_to_toml
+from sim.families import FAMILIES, is_family
 from sim.provenance import nan_if_none
-from sim.space import point_to_design
+from sim.space import active_roles, point_to_design
 from sim.targets import READINGS, Targets
 
 from ._buildable import FE_SEARCH, material_notes
@@ -22,10 +27,27 @@ from ._search import FAMILY_SEARCHES, TrialRow, design_family
 from ._sensitivity import sensitivity_notes
 from ._types import Confirmation, Summary
 
-__all__ = ["ANSWER_KINDS", "credible", "summarise", "target_errors", "target_met"]
+__all__ = [
+    "ANSWER_KINDS",
+    "ANSWER_WORDS",
+    "LayerMaterial",
+    "answer_file_text",
+    "credible",
+    "layer_materials",
+    "summarise",
+    "target_errors",
+    "target_met",
+]
 
 #: the answers of a run, in report order: kind -> what the design must be (``design_family``)
 ANSWER_KINDS = {"best": None, "gel": "gel", "foam": "foam", "buildable": "catalogue"}
+#: each answer in words (the report's headings, the answer files' headers)
+ANSWER_WORDS = {
+    "best": "Best credible design (closest to the targets, confirmed by FE)",
+    "gel": "Best gel-only design (every layer of the gel family, confirmed by FE)",
+    "foam": "Best foam-core design (a core of the foam family, confirmed by FE)",
+    "buildable": "Best buildable design (catalogue materials only, confirmed by FE)",
+}
 
 
 def target_errors(c: Confirmation, targets: Targets) -> dict[str, float]:
@@ -221,3 +243,120 @@ def _why(
 
 def _rel(v: float | None, target: float) -> float:
     return math.inf if v is None else (v - target) / target
+
+
+# ---------------------------------------------------------------------------------------------
+# An answer's materials, and its design file
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LayerMaterial:
+    """Where the material of an answer's layer comes from: ``role`` ("skin", "middle",
+    "core"); ``family``: the design-space family the search drew it from ("gel", "foam", ...,
+    ``sim.families``), None for a catalogue material; ``name``: its catalogue name (None for a
+    family member); ``parameters``: the family parameters it was drawn with (``mu0_MPa``,
+    ``alpha``, ``nu``, ``g_total``, ``tau_s``: those the family uses), from the answer's point."""
+
+    role: str
+    family: str | None
+    name: str | None
+    parameters: tuple[tuple[str, float], ...] = ()
+
+    def words(self) -> str:
+        """``platsil_gel_10_marechal (catalogue)`` or ``gel family (mu0_MPa 0.0105, alpha 3.8,
+        g_total 0.555, tau_s 0.0408)``."""
+        if self.family is None:
+            return f"{self.name or 'an inline material'} (catalogue)"
+        values = ", ".join(f"{k} {v:.3g}" for k, v in self.parameters)
+        return f"{self.family} family" + (f" ({values})" if values else "")
+
+    @property
+    def description(self) -> str:
+        """What the family is (``sim.families.Family.description``; "" for a catalogue
+        material)."""
+        fam = FAMILIES.get(self.family) if self.family is not None else None
+        return fam.description if fam is not None else ""
+
+
+def layer_materials(answer: Mapping[str, Any]) -> list[LayerMaterial]:
+    """The materials of an answer's layers, outermost first: a catalogue name, or the family
+    (and its parameters) the search used (the ``point``'s ``<role>.material``)."""
+    layers = (answer.get("design") or {}).get("layers") or []
+    point = answer.get("point") or {}
+    out = []
+    for role, layer in zip(active_roles(len(layers)), layers, strict=False):
+        chosen = point.get(f"{role}.material")
+        if is_family(chosen):
+            keys = FAMILIES[chosen].keys
+            params = tuple(
+                (k, float(point[f"{role}.{k}"]))
+                for k in keys
+                if isinstance(point.get(f"{role}.{k}"), int | float)
+            )
+            out.append(LayerMaterial(role, chosen, None, params))
+            continue
+        material = layer.get("material")
+        name = material if isinstance(material, str) else None
+        if isinstance(material, Mapping):
+            name = material.get("name") or (chosen if isinstance(chosen, str) else None)
+        out.append(LayerMaterial(role, None, name))
+    return out
+
+
+def answer_file_text(
+    kind: str,
+    answer: Mapping[str, Any],
+    *,
+    run_name: str,
+    made_by: str | None,
+    reading: str,
+    tolerance: float | None,
+    option_overrides: Sequence[str] = (),
+) -> str:
+    """The design file of answer ``kind`` (``answers/<kind>.toml``): the design, as
+    ``fingertip simulate`` and ``fingertip predict`` read it, under a comment header naming the
+    answer, its FE score and errors, the command and run that made it (``made_by``: the run's
+    command, ``run_name``: its folder) and how to check it (``option_overrides``: the
+    ``--set`` options under which the run's FE ran, when not the defaults); a comment on each
+    layer says which catalogue material or family it is."""
+    errors = answer.get("errors_vs_targets") or {}
+    score = answer.get("fe_score")
+    record = answer.get("fe_record")
+    tol = f" (tolerance ±{100 * tolerance:.0f} %)" if isinstance(tolerance, int | float) else ""
+    words = ANSWER_WORDS.get(kind, kind)
+    header = [
+        f'fingertip answer "{kind}" of the search run "{run_name}":',
+        f"  {words[0].lower()}{words[1:]}",
+        f"made by: {made_by or 'a command meta.json does not record'}",
+        f"  (round {answer.get('round')}, {answer.get('search')} search"
+        + (f"; FE record {record})" if record else ")"),
+    ]
+    if isinstance(score, int | float):
+        header.append(f"FE score {score:.3g} (0 = every target met, lower is better)")
+    if errors:
+        header += [
+            f"error vs the targets, displacements read {READING_WORDS.get(reading, reading)}{tol}:",
+            "  " + ", ".join(f"{m} {100 * e:+.1f} %" for m, e in errors.items()),
+        ]
+    if answer.get("credible") is False:
+        header.append("NOT CREDIBLE: let in by --allow-untrusted (its diagnostics: summary.json)")
+    sets = "".join(f" --set {o}" for o in option_overrides)
+    header += [
+        f"check it: fingertip simulate THIS_FILE{sets}",
+        "          fingertip predict CHECKPOINT THIS_FILE",
+    ]
+    if not sets:
+        header.append("(the run's FE ran with the default options)")
+    notes = {}
+    for k, m in enumerate(layer_materials(answer)):
+        text = f"{m.role}: {m.words()}" + (f": {m.description}" if m.description else "")
+        notes[f"layers[{k}]"] = textwrap.wrap(text, 96, break_on_hyphens=False)
+    return design_to_toml(answer["design"], header, notes)
+
+
+#: how a targets file's displacement reading is said in words
+READING_WORDS = {
+    "from_first_touch": "from the first touch of each tap",
+    "from_undeformed_top": "from the undeformed top of the fingertip",
+}

@@ -12,7 +12,7 @@ import math
 import sys
 from collections.abc import Callable
 
-from sim import DesignError, homogeneous_design, load_design, simulate
+from sim import DesignError, design_from_dict, homogeneous_design, load_design, simulate
 from sim.metrics import METRICS, PROTOCOLS
 from sim.options import SimOptions, apply_overrides, parse_override
 from sim.protocols import shown_hysteresis
@@ -54,15 +54,59 @@ def _user_catalogues(args: argparse.Namespace):
     return load_user_catalogues(args.catalogue or [])
 
 
+#: the answers a search run names (summary.json's ``answers``; ``fingertip ... --answer NAME``)
+ANSWER_NAMES = ("best", "gel", "foam", "buildable")
+_ANSWER_HELP = (
+    "an answer of the search run given as the input (a run folder of fingertip run / optimize, "
+    f"or its summary.json): {', '.join(ANSWER_NAMES)}, e.g. runs/main --answer gel (the same "
+    "design as the run's answers/NAME.toml)"
+)
+
+
+def _answer_design(source, name: str) -> dict:
+    """The design-file dict of answer ``name`` of the search run ``source`` (a run folder or
+    its summary.json): one error line naming --answer otherwise."""
+    from explore._run_folder import read_answer
+
+    return read_answer(source, name)["design"]
+
+
+def _not_a_run(path, field: str) -> None:
+    """A search run folder (or its summary.json) given where a design file is expected, without
+    --answer: one error line saying how to name one of its answers."""
+    from pathlib import Path
+
+    path = Path(path)
+    run = path.is_dir() and (path / "summary.json").is_file()
+    if run or path.name == "summary.json":
+        what = "search run folder" if run else "search run's summary"
+        raise DesignError(
+            field,
+            f"{path} is a {what}: name one of its answers with --answer NAME "
+            f"({', '.join(ANSWER_NAMES)}), or give a design file such as "
+            f"{(path if run else path.parent) / 'answers' / 'best.toml'}",
+        )
+
+
 def _cmd_simulate(args: argparse.Namespace) -> int:
     if (args.design is None) == (args.material is None):
-        raise UsageError("simulate: give either DESIGN.toml or --material NAME")
+        raise UsageError(
+            "simulate: give either DESIGN.toml (or a search run folder with --answer NAME) or "
+            "--material NAME"
+        )
+    if args.answer is not None and args.design is None:
+        raise UsageError(
+            "--answer: give the search run folder (or its summary.json) whose answer it names, "
+            "e.g. fingertip simulate runs/main --answer best"
+        )
     user, catalogue = _user_catalogues(args)
-    design = (
-        homogeneous_design(args.material, catalogue=catalogue)
-        if args.material
-        else load_design(args.design, catalogue)
-    )
+    if args.answer is not None:
+        design = design_from_dict(_answer_design(args.design, args.answer), catalogue)
+    elif args.material:
+        design = homogeneous_design(args.material, catalogue=catalogue)
+    else:
+        _not_a_run(args.design, "DESIGN")
+        design = load_design(args.design, catalogue)
     protocols = PROTOCOLS if args.protocol == "all" else (args.protocol,)
     options = apply_overrides(SimOptions(), dict(parse_override(s) for s in args.set or []))
     if args.out is not None:
@@ -157,7 +201,18 @@ def _validity_line(protocol: str, summary: dict, stopped: bool = False) -> str:
 def _add_simulate(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p.add_argument("design", nargs="?", type=Path, help="design TOML file")
+    p.description = (
+        "Simulate one design by FE. Inputs: a design TOML file (docs/designs/*.toml, a search "
+        "run's answers/<answer>.toml), or a search run folder or its summary.json with --answer "
+        "NAME, or --material NAME of the material catalogue; --catalogue adds a user catalogue."
+    )
+    p.add_argument(
+        "design",
+        nargs="?",
+        type=Path,
+        help="design TOML file; or, with --answer, a search run folder or its summary.json",
+    )
+    p.add_argument("--answer", metavar="NAME", help=_ANSWER_HELP)
     p.add_argument("--material", help="a catalogue material on the reference geometry")
     p.add_argument("--protocol", choices=[*PROTOCOLS, "all"], default="all")
     p.add_argument("--json", action="store_true", help="print one JSON object")
@@ -208,6 +263,12 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 def _add_sweep(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
+    p.description = (
+        "Evaluate a sampled design space by FE into a sweep folder (a dataset for train; "
+        "resumable). Inputs: a design-space TOML (default: the shipped one; sim/data/*_space.toml "
+        "are examples); --catalogue adds a user catalogue; --out a sweep folder (new, or one to "
+        "resume)."
+    )
     p.add_argument("space", nargs="?", type=Path, help="design-space TOML (default: shipped)")
     p.add_argument("--n", type=int, required=True, help="number of designs")
     p.add_argument("--out", type=Path, required=True, help="sweep folder, e.g. runs/NAME")
@@ -276,6 +337,11 @@ def _cmd_train(args: argparse.Namespace) -> int:
 def _add_train(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
+    p.description = (
+        "Train the neural surrogate (a deep ensemble) on a sweep. Input: a sweep folder of "
+        "fingertip sweep (the dataset: table.csv and config.json); --out a new training run "
+        "folder (its model.safetensors is the checkpoint)."
+    )
     p.add_argument("sweep", type=Path, help="sweep folder (runs/NAME with table.csv)")
     p.add_argument("--out", type=Path, help="run folder (default: runs/<sweep>-surrogate)")
     p.add_argument(
@@ -301,7 +367,16 @@ def _cmd_predict(args: argparse.Namespace) -> int:
     from surrogate import load_checkpoint, read_points
 
     model = load_checkpoint(args.checkpoint, allow_solver_mismatch=args.allow_solver_mismatch)
-    pred = model.predict(read_points(args.designs, model.space))
+    if args.answer is not None:
+        from sim.space import point_from_design
+        from surrogate import check_point
+
+        design = design_from_dict(_answer_design(args.designs, args.answer), model.space.catalogue)
+        points = [check_point(model.space, point_from_design(design, model.space))]
+    else:
+        _not_a_run(args.designs, "DESIGNS")
+        points = read_points(args.designs, model.space)
+    pred = model.predict(points)
     if args.json:
         out = {
             "checkpoint": str(args.checkpoint),
@@ -327,6 +402,13 @@ def _cmd_predict(args: argparse.Namespace) -> int:
 def _add_predict(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
+    p.description = (
+        "Predict the metrics of designs with a trained surrogate. Inputs: a checkpoint (a "
+        ".safetensors file or a training run folder); designs as a design TOML file (a search "
+        "run's answers/<answer>.toml too), a design-point TOML (name = value), a CSV of points "
+        "(a sweep's table.csv: a dataset), or a search run folder or its summary.json with "
+        "--answer NAME."
+    )
     p.add_argument(
         "checkpoint",
         type=Path,
@@ -334,8 +416,12 @@ def _add_predict(p: argparse.ArgumentParser) -> None:
         "model.safetensors (e.g. surrogate/pretrained/default)",
     )
     p.add_argument(
-        "designs", type=Path, help="design-point TOML (name = value) or CSV (one point per row)"
+        "designs",
+        type=Path,
+        help="design TOML file, design-point TOML (name = value) or CSV (one point per row); "
+        "or, with --answer, a search run folder or its summary.json",
     )
+    p.add_argument("--answer", metavar="NAME", help=_ANSWER_HELP)
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument(
         "--allow-solver-mismatch",
@@ -379,7 +465,10 @@ def _optimize_config(args: argparse.Namespace):
 
 def _finish(summary, out) -> int:
     """Report a search's ``Summary`` (the one ``optimize`` returned) and write its report."""
+    from pathlib import Path
+
     from explore._report import write_report
+    from explore._run_folder import answer_path
 
     report = write_report(out)
     labels = {
@@ -408,6 +497,9 @@ def _finish(summary, out) -> int:
         print(f"  {note}")
     if summary.timing.get("timings"):
         print(_time_line(summary.timing))
+    answers = [p for k in summary.answers if (p := answer_path(Path(out), k)).is_file()]
+    if answers:
+        print("answers: " + ", ".join(str(a) for a in answers))
     print(f"report: {report}")
     return 0
 
@@ -510,9 +602,21 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
 
 
+#: the inputs of a search (``optimize`` and ``run``), for their --help
+_SEARCH_INPUTS = (
+    "Inputs: --surrogate a checkpoint (a .safetensors file or a training run folder; default "
+    "the shipped one), --space a design-space TOML, --targets a targets TOML (default the human "
+    "fingertip, sim/data/human_targets.toml), --dataset the surrogate's sweep folder (a dataset, "
+    "for retraining), --catalogue a user catalogue, --storage an Optuna journal file or database "
+    "URL; --out the search run folder (new, or one to resume), which ends with summary.json, "
+    "report.md and answers/<answer>.toml (design files)."
+)
+
+
 def _add_optimize(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
+    p.description = "Search the surrogate, confirm with FE, retrain (resumable). " + _SEARCH_INPUTS
     _add_search_options(p)
     p.add_argument("--out", type=Path, required=True, help="run folder (resumes if it exists)")
     p.set_defaults(func=_cmd_optimize)
@@ -550,6 +654,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def _add_run(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
+    p.description = (
+        "The main job: the shipped surrogate (or, with --from-scratch, a sweep and a training "
+        "first) -> search -> FE confirmation -> report and answer files. " + _SEARCH_INPUTS
+    )
     _add_search_options(p)
     p.add_argument(
         "--out", type=Path, default=Path("runs/main"), help="run folder (default runs/main)"
@@ -583,14 +691,24 @@ def _cmd_report(args: argparse.Namespace) -> int:
             f"report: {args.run} {what} a search run folder (fingertip optimize / run); "
             "nothing written"
         )
-    print(f"report: {write_report(args.run)}")
+    from explore._pipeline import write_answer_files
+
+    answers = write_answer_files(args.run)
+    report = write_report(args.run)
+    if answers:
+        print("answers: " + ", ".join(str(a) for a in answers))
+    print(f"report: {report}")
     return 0
 
 
 def _add_report(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    p.add_argument("run", type=Path, help="run folder of fingertip optimize / run")
+    p.description = (
+        "Write a search run's report.md, figures/ and answers/<answer>.toml (the answers as "
+        "design files). Input: a search run folder of fingertip run / optimize."
+    )
+    p.add_argument("run", type=Path, help="search run folder of fingertip optimize / run")
     p.set_defaults(func=_cmd_report)
 
 
@@ -650,6 +768,11 @@ def _add_fit_material(p: argparse.ArgumentParser) -> None:
 
     from sim.fit import FIT_MODELS, MODES
 
+    p.description = (
+        "Fit a catalogue entry to test data. Inputs: CSV files of uniaxial, biaxial, planar or "
+        "compression tests (nominal strain, nominal stress) and of a relaxation test; --out the "
+        "user catalogue TOML to write (for --catalogue of simulate, sweep, optimize, run)."
+    )
     p.add_argument("--model", required=True, choices=FIT_MODELS)
     p.add_argument(
         "--terms",
@@ -705,12 +828,51 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="fingertip", description="Design explorer for human-like fingertip skins."
     )
+    parser.add_argument(
+        "--version", action=_Version, help="print the version of the fingertip package and exit"
+    )
     sub = parser.add_subparsers(dest="command", required=True)
     for name, (help_, add_arguments) in _SUBCOMMANDS.items():
         p = sub.add_parser(name, help=help_)
         if command is None or command == name:
             add_arguments(p)
     return parser
+
+
+class _Version(argparse.Action):
+    """``--version``: the package version on stdout, exit 0 (looked up only when asked: the
+    metadata lookup costs every other command's start-up nothing)."""
+
+    def __init__(self, option_strings: list[str], dest: str, help: str | None = None) -> None:
+        super().__init__(option_strings, argparse.SUPPRESS, nargs=0, help=help)
+
+    def __call__(
+        self,
+        parser: argparse.ArgumentParser,
+        namespace: argparse.Namespace,
+        values: object,
+        option_string: str | None = None,
+    ) -> None:
+        print(f"fingertip {package_version()}")
+        parser.exit()
+
+
+def package_version() -> str:
+    """The installed fingertip package's version (its metadata, from pyproject.toml); from
+    pyproject.toml itself in a source tree that is not installed."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("fingertip")
+    except metadata.PackageNotFoundError:
+        import tomllib
+        from pathlib import Path
+
+        pyproject = Path(__file__).resolve().parents[1] / "pyproject.toml"
+        try:
+            return tomllib.loads(pyproject.read_text())["project"]["version"]
+        except (OSError, KeyError, tomllib.TOMLDecodeError):
+            return "unknown"
 
 
 def _command(argv: list[str]) -> str | None:

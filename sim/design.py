@@ -30,7 +30,7 @@ were).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -46,6 +46,7 @@ __all__ = [
     "Design",
     "Layer",
     "design_from_dict",
+    "design_to_toml",
     "homogeneous_design",
     "load_design",
 ]
@@ -201,3 +202,125 @@ def homogeneous_design(
     """A one-layer design of ``material`` (a name of ``catalogue`` or a Material) on
     ``geometry``."""
     return Design((Layer(material_from_spec(material, "material", catalogue)),), geometry)
+
+
+# ---------------------------------------------------------------------------------------------
+# Writing a design file
+# ---------------------------------------------------------------------------------------------
+
+_BARE_KEY = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_-")
+#: the escapes of a TOML basic string (any other control character: \\uXXXX)
+_ESCAPES = {
+    '"': '\\"',
+    "\\": "\\\\",
+    "\b": "\\b",
+    "\t": "\\t",
+    "\n": "\\n",
+    "\f": "\\f",
+    "\r": "\\r",
+}
+
+
+def design_to_toml(
+    data: Design | Mapping[str, Any],
+    header: Sequence[str] = (),
+    notes: Mapping[str, Sequence[str]] | None = None,
+) -> str:
+    """The design file of ``data`` (a ``Design`` or its ``to_dict()`` form, the form
+    :func:`design_from_dict` reads): TOML text that :func:`load_design` reads back to the same
+    design (floats written with ``repr``: bit for bit). ``header``: comment lines on top (without
+    their ``#``); ``notes``: comment lines placed under a table's header, by the table's path
+    (``"geometry"``, ``"layers[1]"``, ``"layers[1].material"``).
+
+    The values a design file holds: text, numbers, booleans, lists of them, tables of them
+    (``[geometry]``, ``[layers.material]``, a material's ``provenance``) and the array of
+    ``[[layers]]`` tables."""
+    table = data.to_dict() if isinstance(data, Design) else data
+    lines = [*(_comment(line) for line in header), *([""] if header else [])]
+    _write_table(table, [], "", lines, notes or {}, array=False)
+    return "\n".join(lines).strip("\n") + "\n"
+
+
+def _comment(text: str) -> str:
+    """A comment line (a line break or control character, which TOML refuses in a comment,
+    written as its escape)."""
+    text = " ".join(text.splitlines())
+    text = "".join(
+        f"\\u{ord(ch):04X}" if (ord(ch) < 0x20 and ch != "\t") or ord(ch) == 0x7F else ch
+        for ch in text
+    )
+    return "# " + text if text else "#"
+
+
+def _write_table(
+    table: Mapping[str, Any],
+    keys: list[str],
+    path: str,
+    lines: list[str],
+    notes: Mapping[str, Sequence[str]],
+    array: bool,
+) -> None:
+    """``table`` at ``keys`` (its TOML name) and ``path`` (its ``notes`` key): the header (none
+    for the top), its notes, its values, then its tables and its arrays of tables."""
+    if keys:
+        name = ".".join(_key(k) for k in keys)
+        if lines and lines[-1] and not lines[-1].startswith(("[", "#")):  # apart from values
+            lines.append("")
+        lines.append(f"[[{name}]]" if array else f"[{name}]")
+    lines += [_comment(n) for n in notes.get(path, ())]
+    tables = []
+    for key, value in table.items():
+        if isinstance(value, Mapping) or _is_table_array(value):
+            tables.append((key, value))
+        else:
+            lines.append(f"{_key(key)} = {_value(value, f'{path}.{key}'.lstrip('.'))}")
+    for key, value in tables:
+        sub = f"{path}.{key}".lstrip(".")
+        if isinstance(value, Mapping):
+            _write_table(value, [*keys, key], sub, lines, notes, array=False)
+        else:
+            for k, item in enumerate(value):
+                _write_table(item, [*keys, key], f"{sub}[{k}]", lines, notes, array=True)
+
+
+def _is_table_array(value: Any) -> bool:
+    return (
+        isinstance(value, list | tuple)
+        and bool(value)
+        and all(isinstance(v, Mapping) for v in value)
+    )
+
+
+def _key(key: str) -> str:
+    return key if key and set(key) <= _BARE_KEY else _string(key)
+
+
+def _string(text: str) -> str:
+    """A TOML basic string: quotes, backslashes and control characters escaped."""
+    out = []
+    for ch in text:
+        if ch in _ESCAPES:
+            out.append(_ESCAPES[ch])
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _value(value: Any, field: str) -> str:
+    """One TOML value: text, a boolean, an integer, a finite float (``repr``: read back bit for
+    bit) or an inline array of them."""
+    if isinstance(value, str):
+        return _string(value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            raise DesignError(field, f"must be a finite number, got {value!r}")
+        return repr(value)
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_value(v, f"{field}[{k}]") for k, v in enumerate(value)) + "]"
+    raise DesignError(field, f"cannot be written to a design file: {value!r}")

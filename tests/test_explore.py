@@ -37,6 +37,7 @@ from explore._search import (
 from explore._storage import open_storage
 from explore._types import Candidate, Confirmation
 from sim import METRICS, SimOptions
+from sim.design import load_design
 from sim.families import is_family
 from sim.space import load_space, space_from_dict
 from sim.sweep import record_key
@@ -438,6 +439,14 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     assert f"{best['readings']['sag_mm']:.2f}" in row and "outline" in row
     report = (out / "report.md").read_text()
     assert "figures/loops.png" in report or "figures/" in report
+    # the report leads with the verdict; every answer is a design file (issue 35, items 3, 4)
+    assert report.split("\n\n")[1].startswith("**Verdict**")
+    for kind, answer in summary["answers"].items():
+        path = out / "answers" / f"{kind}.toml"
+        assert path.is_file() == (answer is not None), kind
+        if answer is not None:
+            assert load_design(path).to_dict() == answer["design"], kind
+    assert f"answers: {out / 'answers' / 'best.toml'}" in proc.stdout
     # what the surrogate scored: every study's screen (--screen 2048) and the Optuna trials
     n_studies = len(json.loads((out / "studies.json").read_text()))
     n_trials = len((out / "trials.csv").read_text().splitlines()) - 1
@@ -581,8 +590,12 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     timed = ("meta.json", "summary.json", "study.log", "surrogates/", "fe/", "config.json",
              "time.json")  # fmt: skip
     for name in files:
-        if not name.startswith(timed):
+        if name.startswith("answers/"):  # their header names the command: its --workers differ
+            a, b = ((d / name).read_text().replace(str(d), "RUN") for d in (ref, out))
+            assert a.replace("--workers 1", "--workers 2") == b, f"{name} differs"
+        elif not name.startswith(timed):
             same_bytes(name)
+    assert "answers/best.toml" in files
     cfg_a = json.loads((ref / "config.json").read_text())
     cfg_b = json.loads((out / "config.json").read_text().replace(str(out), str(ref)))
     assert cfg_a["workers"] == 1 and cfg_b["workers"] == 2  # the one entry that may differ
