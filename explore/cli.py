@@ -13,8 +13,8 @@ import sys
 from collections.abc import Callable
 
 from sim import DesignError, design_from_dict, homogeneous_design, load_design, simulate
-from sim.metrics import METRICS, PROTOCOLS
-from sim.options import SimOptions, apply_overrides, parse_override
+from sim.metrics import PROTOCOLS, metric_registry
+from sim.options import MODELS, SimOptions, apply_overrides, parse_override
 from sim.protocols import shown_hysteresis
 from sim.provenance import check_new_folder, json_text
 
@@ -108,7 +108,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         _not_a_run(args.design, "DESIGN")
         design = load_design(args.design, catalogue)
     protocols = PROTOCOLS if args.protocol == "all" else (args.protocol,)
-    options = apply_overrides(SimOptions(), dict(parse_override(s) for s in args.set or []))
+    options = _sim_options(args)
     if args.out is not None:
         check_new_folder(args.out)  # fail before computing, not after
     result = simulate(design, protocols, options, keep_fields=args.out is not None)
@@ -120,12 +120,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     if args.json:
         sys.stdout.write(json_text(result.to_json()) + "\n")
     else:
+        registry = metric_registry(options.dimension)
         for name, value in result.metrics.items():
-            unit = METRICS[name][1]
+            unit = registry[name][1]
             if name == "hysteresis_Nmm":  # 0 below what the solver's tolerances resolve
                 value = shown_hysteresis(result.metrics, design, options)
             if value is None or not math.isfinite(value):
-                if METRICS[name][0] in result.stopped:
+                if registry[name][0] in result.stopped:
                     text = "not computed: beyond the validity limits"
                 elif result.failures:
                     text = "failed"
@@ -165,6 +166,28 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0 if result.ok else 1
 
 
+def _sim_options(args: argparse.Namespace) -> SimOptions:
+    """The simulation options of ``--model`` and ``--set`` (the model first: which options
+    apply depends on it; ``sim.options.apply_overrides`` refuses the other model's)."""
+    overrides = dict(parse_override(s) for s in getattr(args, "set", None) or [])
+    model = getattr(args, "model", None)
+    if model is not None:
+        if overrides.get("model.dimension", model) != model:
+            raise UsageError(f"--model {model} and --set model.dimension=... disagree")
+        overrides = {"model.dimension": model, **overrides}
+    return apply_overrides(SimOptions(), overrides)
+
+
+def _add_model_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--model",
+        choices=MODELS,
+        help="2d: the paper's plane-strain section, forces x 10 mm (default); 3d: the pad swept "
+        "along the finger (geometry.half_length_mm, geometry.length_exponent), forces of the "
+        "whole pad, with the contact patch (docs/model_3d.md)",
+    )
+
+
 def _settle_line(tap: dict) -> str:
     """Whether the taps reached their periodic state, with the residual and error estimate."""
     state = "periodic state reached" if tap["settled"] else "NOT settled"
@@ -192,6 +215,11 @@ def _validity_line(protocol: str, summary: dict, stopped: bool = False) -> str:
         f"validity ({protocol}): compressive log strain {summary['max_compressive_log_strain']:.2f}"
         f", min J {summary['min_J']:.2f}"
         + (f", contact width {width:.2f} mm" if width is not None else "")
+        + (
+            f" x length {summary['contact_length_at_peak_mm']:.2f} mm"
+            if summary.get("contact_length_at_peak_mm") is not None
+            else ""
+        )
         + f", nominal compression {100 * summary['nominal_compression']:.0f} %"
         + "".join(f", {f}" for f in flags)
         + (" (up to its stop)" if stopped else "")
@@ -217,13 +245,14 @@ def _add_simulate(p: argparse.ArgumentParser) -> None:
     p.add_argument("--protocol", choices=[*PROTOCOLS, "all"], default="all")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--out", type=Path, help="run folder for result, plots and VTU meshes")
+    _add_model_option(p)
     p.add_argument(
         "--set",
         action="append",
         metavar="SECTION.FIELD=VALUE",
         help="override an option, e.g. tapping.peak_force_N=4, tapping.frequency_Hz=1, "
-        "tapping.rest_s=0.5, tapping.settle_tol=1e-3, wedge.hold_s=50, mesh.h_apex_mm=0.03 "
-        "(repeatable; see sim.options.option_names())",
+        "tapping.rest_s=0.5, tapping.settle_tol=1e-3, wedge.hold_s=50, mesh.h_apex_mm=0.03, "
+        "mesh3d.h_apex_mm=0.5 with --model 3d (repeatable; see sim.options.option_names())",
     )
     _add_catalogue_option(p)
     p.set_defaults(func=_cmd_simulate)
@@ -235,7 +264,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
     user, catalogue = _user_catalogues(args)
     space = load_space(args.space, catalogue)
-    options = apply_overrides(SimOptions(), dict(parse_override(s) for s in args.set or []))
+    options = _sim_options(args)
     summary = run_sweep(
         space,
         args.n,
@@ -293,6 +322,7 @@ def _add_sweep(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument("--retry-failed", action="store_true", help="run failed designs again")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_model_option(p)
     p.add_argument("--set", action="append", metavar="SECTION.FIELD=VALUE")
     _add_catalogue_option(p)
     p.set_defaults(func=_cmd_sweep)

@@ -315,7 +315,7 @@ def run_sweep(
             _run_local(workers, todo, options_dict, store_result, materials)
     finally:
         bar.close()
-        store.consolidate(keys, space.names, first_index=start)
+        store.consolidate(keys, space.names, first_index=start, dimension=options.dimension)
     final = store.load()
     statuses = [final[k]["status"] for k in dict.fromkeys(keys) if k in final]
     return SweepSummary(

@@ -33,7 +33,7 @@ import zlib
 from pathlib import Path
 from typing import IO, Any
 
-from .metrics import METRICS, diagnostic_names
+from .metrics import diagnostic_names, metric_registry
 from .protocols import profile_summary
 from .provenance import json_safe, json_text, replacing, sha256_file, write_json
 
@@ -130,14 +130,15 @@ def write_meta(folder: Path, meta: dict[str, Any]) -> None:
     write_json(Path(folder) / META, meta)
 
 
-def table_header(names: list[str]) -> list[str]:
-    """The columns of ``table.csv`` for the space parameters ``names``."""
+def table_header(names: list[str], dimension: str = "2d") -> list[str]:
+    """The columns of ``table.csv`` for the space parameters ``names`` and the model's metrics
+    (``sim.metrics.metric_registry``: a 3D sweep's table has the contact patch too)."""
     return [
         "index",
         "key",
         "status",
         *names,
-        *METRICS,
+        *metric_registry(dimension),
         *diagnostic_names(),
         "wall_time_s",
         "reason",
@@ -167,11 +168,14 @@ class SweepStore:
         self.records_dir.mkdir(parents=True, exist_ok=True)
         write_json(self.records_dir / f"{key}.json", {"key": key, **record}, indent=None)
 
-    def consolidate(self, keys: list[str], names: list[str], first_index: int = 0) -> None:
+    def consolidate(
+        self, keys: list[str], names: list[str], first_index: int = 0, dimension: str = "2d"
+    ) -> None:
         """Rebuild table.csv and curves.jsonl for ``keys`` (the sweep's designs, in order; the
-        first one's ``index`` is ``first_index``: a segment's, its position in the sample)."""
+        first one's ``index`` is ``first_index``: a segment's, its position in the sample) of a
+        sweep of the ``dimension`` model."""
         records = self.load()
-        metric_names = list(METRICS)
+        metric_names = list(metric_registry(dimension))
         diag_names = diagnostic_names()
         with (
             replacing(self.folder / TABLE) as tmp_table,
@@ -180,7 +184,7 @@ class SweepStore:
             tmp_curves.open("w") as fc,
         ):
             writer = csv.writer(fh)
-            writer.writerow(table_header(names))
+            writer.writerow(table_header(names, dimension))
             for i, key in enumerate(keys, start=first_index):
                 rec = records.get(key)
                 if rec is None:

@@ -146,3 +146,22 @@ def test_an_option_of_the_other_model_is_refused(overrides, message):
     silent no-op; a 3D mesh option out of its range names its range."""
     with pytest.raises(DesignError, match=message):
         apply_overrides(SimOptions(), overrides)
+
+
+def test_the_cli_simulates_in_3d_and_refuses_2d_options(tmp_path, capsys):
+    """``fingertip simulate DESIGN --model 3d``: the 3D metrics in newtons of the whole pad;
+    a 2D-only option with it is one line and exit 2."""
+    from explore.cli import main
+
+    design = tmp_path / "pad.toml"
+    design.write_text('[geometry]\nhalf_length_mm = 9.0\n[[layers]]\nmaterial = "silicone_gls40"\n')
+    coarse = ["--set", "mesh3d.h_apex_mm=1.0", "--set", "mesh3d.h_contact_mm=1.5",
+              "--set", "mesh3d.h_max_mm=3", "--set", "mesh3d.grading=0.6"]  # fmt: skip
+    assert main(["simulate", str(design), "--model", "3d", "--protocol", "plate", *coarse]) == 0
+    out = capsys.readouterr().out
+    assert "plate_force_at_1mm_N" in out and " x length " in out
+    assert main(["simulate", str(design), "--model", "3d", "--set", "mesh.h_apex_mm=0.1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [
+        "fingertip: error: mesh.h_apex_mm: applies to the 2d model only, not to --model 3d"
+    ]
