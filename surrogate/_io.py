@@ -334,6 +334,12 @@ def read_sweep(
         space = space_from_dict(config["space"])
     except (json.JSONDecodeError, KeyError, TypeError) as exc:
         raise DesignError("SWEEP", f"unreadable {config_path}: {exc}") from None
+    model = ((config.get("options") or {}).get("model") or {}).get("dimension", "2d")
+    if model != "2d":  # the search confirms with the 2D FE: a 3D surrogate would mix the two
+        raise DesignError(
+            "SWEEP",
+            f"{folder} is a sweep of the {model} model; the surrogate learns from 2D sweeps only",
+        )
     validity = _validity_options(config)
     points, targets, index, whole = [], [], [], []
     bounds: list[list[int]] = []  # per row, trust_censoring (when the table has trust columns)

@@ -1142,3 +1142,18 @@ def test_a_stopped_protocols_trust_figures_are_bounds():
     whole = trust_values({**row, "stopped": ""})
     assert whole["reached_base"] == 0.0 and whole["failed"] == 0.0
     assert trust_censoring({**row, "stopped": ""}) == dict.fromkeys(c, 0)
+
+
+def test_a_3d_sweep_is_refused_for_training(sweep, tmp_path):
+    """The search confirms its answers with the 2D FE: a sweep of the 3D model (its
+    config.json says so) is one clear error, not a surrogate of the wrong fidelity."""
+    import json
+    import shutil
+
+    copy = tmp_path / "pad"
+    shutil.copytree(sweep, copy)
+    config = json.loads((copy / "config.json").read_text())
+    config["options"]["model"] = {"dimension": "3d"}
+    (copy / "config.json").write_text(json.dumps(config))
+    with pytest.raises(DesignError, match="sweep of the 3d model"):
+        read_sweep(copy)
