@@ -1,0 +1,223 @@
+"""What a person looks at of a 3D result (``sim.output``): the VTU files of the whole pad
+mirrored from the quarter model, the figure of the deformed pad and its contact patch
+(``sim._pad_figure``: its info object, not its pixels) and the curves' labels. One coarse
+elastic tap of a two-layer pad (seconds)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim.design import design_from_dict
+from sim.mesh3d import MeshOptions3D, element_volumes, jacobian_determinants
+from sim.options import ModelOptions, SimOptions
+from sim.output import curve_plot_data, pad_figure_info, write_result, write_vtu
+from sim.simulate import simulate
+
+meshio = pytest.importorskip("meshio")
+
+COARSE = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
+OPTS_3D = SimOptions(model=ModelOptions("3d"), mesh3d=COARSE)
+SKIN = {"model": "neo_hookean", "mu_MPa": 0.08, "nu": 0.49}
+PULP = {"model": "neo_hookean", "mu_MPa": 0.04, "nu": 0.49}
+
+
+@pytest.fixture(scope="module")
+def tap():
+    """An elastic tap to 5 N on the coarse quarter pad, a 1 mm skin on a softer pulp."""
+    design = design_from_dict(
+        {"layers": [{"thickness_mm": 1.0, "material": SKIN}, {"material": PULP}]}
+    )
+    res = simulate(design, ("tapping",), OPTS_3D, keep_fields=True)
+    assert res.ok, res.failures
+    return res
+
+
+@pytest.fixture(scope="module")
+def info(tap):
+    return pad_figure_info(tap)
+
+
+# ----------------------------------------------------------------------------- VTU
+def test_the_vtu_files_hold_the_whole_pad(tap, tmp_path):
+    disc = tap.discretization
+    pm = disc.pmesh
+    paths = write_vtu(tap, tmp_path)
+    assert sorted(p.name for p in paths) == [
+        "deformed_tapping.vtu",
+        "deformed_tapping_1N.vtu",
+        "deformed_tapping_4N.vtu",
+    ]
+    # four copies, the nodes on the symmetry planes shared
+    on_both = len(np.intersect1d(pm.sym_x, pm.sym_z))
+    n_whole = 4 * disc.n_nodes - 2 * len(pm.sym_x) - 2 * len(pm.sym_z) + on_both
+    for path in paths:
+        u = tap.fields[path.stem.removeprefix("deformed_")]
+        mesh = meshio.read(path)
+        assert len(mesh.cells) == 1 and mesh.cells[0].type == "hexahedron27"
+        cells = mesh.cells[0].data
+        assert cells.shape == (4 * disc.n_el, 27)
+        assert mesh.points.shape == (n_whole, 3)
+        assert len(np.unique(cells)) == n_whole  # every node in a cell
+        assert len(np.unique(np.round(mesh.points, 9), axis=0)) == n_whole  # none twice
+        disp = mesh.point_data["displacement_mm"]
+        assert disp.shape == (n_whole, 3)
+        for name in ("layer", "compressive_log_strain", "J"):
+            assert mesh.cell_data[name][0].shape == (4 * disc.n_el,)
+        assert set(np.unique(mesh.cell_data["layer"][0])) == {0, 1}
+        # positive cells (every Gauss point), and 4 x the quarter's deformed volume
+        assert np.all(jacobian_determinants(mesh.points, cells) > 0.0)
+        volumes = element_volumes(mesh.points, cells)
+        quarter = element_volumes(disc.X + u, disc.conn).sum()
+        assert volumes.sum() == pytest.approx(4.0 * quarter, rel=1e-10)
+        # the whole pad is symmetric about x = 0 and z = 0, its displacements too
+        reference = mesh.points - disp
+        for axis in (0, 2):
+            image = mesh.points * np.where(np.arange(3) == axis, -1.0, 1.0)
+            assert _same_rows(image, mesh.points)
+            assert _same_rows(reference * np.where(np.arange(3) == axis, -1.0, 1.0), reference)
+        assert reference[:, 1].min() == pytest.approx(0.0, abs=1e-12)  # the base
+    # the quarter alone when asked
+    quarter = meshio.read(write_vtu(tap, tmp_path, whole_pad=False)[0])
+    assert quarter.points.shape == (disc.n_nodes, 3)
+
+
+def test_the_vtu_cells_hold_the_worst_quadrature_point(tap, tmp_path):
+    """Strain and J per cell: the extremes over its Gauss points (``sim.validity``)."""
+    from sim.validity import compressive_log_strain, volume_ratio
+
+    disc = tap.discretization
+    path = next(p for p in write_vtu(tap, tmp_path) if p.stem.endswith("4N"))
+    cells = meshio.read(path).cell_data
+    F = disc.deformation_gradient(tap.fields["tapping_4N"])
+    strain, J = compressive_log_strain(F), volume_ratio(F)
+    assert strain.shape == J.shape == (disc.n_el, 27)  # the 3D F dispatches
+    E = disc.n_el
+    np.testing.assert_allclose(cells["compressive_log_strain"][0][:E], strain.max(axis=1))
+    np.testing.assert_allclose(cells["J"][0][:E], J.min(axis=1))
+    assert 0.0 < strain.max() < 1.0 and 0.5 < J.min() <= 1.0 + 1e-9
+
+
+def _same_rows(a: np.ndarray, b: np.ndarray, decimals: int = 9) -> bool:
+    """Whether the rows of ``a`` and ``b`` are the same set (rounded)."""
+    ra, rb = np.round(a, decimals) + 0.0, np.round(b, decimals) + 0.0  # no -0.0
+    return np.array_equal(np.unique(ra, axis=0), np.unique(rb, axis=0))
+
+
+# ----------------------------------------------------------------------------- figure
+def test_the_pad_figure_info_has_both_forces(tap, info):
+    assert [s.force_N for s in info.states] == [1.0, 4.0]
+    assert [s.name for s in info.states] == ["tapping_1N", "tapping_4N"]
+    for st in info.states:
+        # the state: the first step at or beyond the force (a little beyond it)
+        assert st.force_N <= st.state_force_N < 1.5 * st.force_N
+        assert st.metric_area_mm2 == tap.metrics[f"contact_area_at_{st.force_N:g}N_mm2"]
+        P = len(st.footprint_xz_mm)
+        assert st.penetration_mm.shape == st.pressure_kPa.shape == (P,)
+        assert st.footprint_triangles.max() < P
+    low, high = info.states
+    assert 0 < low.patch_area_mm2 < high.patch_area_mm2
+    assert high.plate_position_mm < low.plate_position_mm
+
+
+def test_the_plate_position_is_the_recorded_one(tap, info):
+    """Read from the tap's curve: the surface pierces the plate by the penalty's ~1e-4 mm at
+    its top, and the penalty forces there add up to the state's force."""
+    disc = tap.discretization
+    s = disc.surface_nodes
+    weights = disc.surface_weights()
+    for st in info.states:
+        u = tap.fields[st.name]
+        p = disc.X[s, 1] + u[s, 1] - st.plate_position_mm
+        assert 1e-6 < p.max() < 1e-3
+        force = 4.0 * info.kappa_N_per_mm3 * float(weights @ np.maximum(p, 0.0))
+        assert force == pytest.approx(st.state_force_N, rel=1e-9)
+
+
+def test_the_drawn_patch_is_the_metrics_patch(tap, info):
+    """The drawn patch's area is the contact area of ``Discretization3D.contact_area_mm2`` at
+    the state (another sampling of the same interpolated penetration), and near the metric,
+    which is interpolated to exactly 1 N / 4 N while the state is a little beyond it."""
+    disc = tap.discretization
+    s = disc.surface_nodes
+    for st in info.states:
+        u = tap.fields[st.name]
+        p = disc.X[s, 1] + u[s, 1] - st.plate_position_mm
+        assert st.patch_area_mm2 == pytest.approx(disc.contact_area_mm2(u, p, 16), rel=0.02)
+        # the area grows about like the force^(2/3) (Hertz) between the metric and the state
+        grown = (st.state_force_N / st.force_N) ** (2.0 / 3.0)
+        assert st.metric_area_mm2 < st.patch_area_mm2 < 1.25 * grown * st.metric_area_mm2
+
+
+def test_the_footprint_lies_inside_the_pad(info):
+    outline = info.outline_xz_mm
+    a, c = np.abs(outline).max(axis=0)
+    assert np.allclose(outline[0], outline[-1])  # closed
+    for st in info.states:
+        x, z = st.footprint_xz_mm.T
+        inside = st.penetration_mm > 0.0
+        # the reference pad's length exponent is 2: the base outline is an ellipse
+        assert np.all((x[inside] / a) ** 2 + (z[inside] / c) ** 2 < 1.0)
+        # the whole patch: symmetric about both axes, centred on the apex
+        assert x[inside].max() == pytest.approx(-x[inside].min())
+        assert z[inside].max() == pytest.approx(-z[inside].min())
+        assert np.all(st.pressure_kPa >= 0.0)
+
+
+def test_the_pressure_carries_the_force(info):
+    """The drawn pressure integrated over the footprint is the state's force, within what the
+    piecewise bilinear drawing of the nodal pressures changes (a few %)."""
+    for st in info.states:
+        xy, tri = st.footprint_xz_mm, st.footprint_triangles
+        ab, ac = xy[tri[:, 1]] - xy[tri[:, 0]], xy[tri[:, 2]] - xy[tri[:, 0]]
+        area = 0.5 * np.abs(ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0])
+        force = 1e-3 * float(area @ st.pressure_kPa[tri].mean(axis=1))
+        assert force == pytest.approx(st.state_force_N, rel=0.15)
+
+
+def test_the_section_is_pressed_flat_under_the_plate(info):
+    ref = info.section_reference_zy_mm
+    assert ref[:, 0].min() == pytest.approx(-ref[:, 0].max())
+    for st in info.states:
+        sec = st.section_zy_mm
+        assert sec.shape == ref.shape
+        assert sec[:, 1].max() == pytest.approx(st.plate_position_mm, abs=1e-3)
+        assert len(st.interfaces_zy_mm) == 1  # two layers
+        assert st.interfaces_zy_mm[0][:, 1].max() < st.plate_position_mm - 0.5
+
+
+def test_write_result_draws_the_pad(tap, tmp_path):
+    out = write_result(tap, tmp_path / "run", OPTS_3D)
+    assert (out / "figures" / "pad.png").stat().st_size > 10_000
+    assert (out / "figures" / "tapping.png").exists()
+    assert (out / "deformed_tapping_4N.vtu").exists()
+
+
+def test_the_pad_figure_needs_a_3d_result():
+    from types import SimpleNamespace
+
+    with pytest.raises(ValueError, match="3D result"):
+        pad_figure_info(SimpleNamespace(discretization=None, fields={}, curves={}))
+
+
+# ----------------------------------------------------------------------------- curves
+def test_the_force_labels_name_the_model(tap):
+    three = curve_plot_data(tap)["tapping"]
+    assert three["ylabel"] == "force on the whole pad (N)" and "3D" in three["title"]
+    assert "L =" not in three["title"] + three["ylabel"]
+    # a 2D result: the section's force times its length, per protocol
+    from types import SimpleNamespace
+
+    curves = {
+        "tapping": {"displacement_mm": [0, 1], "force_N": [0, 1]},
+        "plate": {"displacement_mm": [0, 1], "force_N": [0, 1]},
+        "wedge": {"time_s": [0, 1], "force_N": [0, 1]},
+    }
+    two = curve_plot_data(SimpleNamespace(curves=curves, metrics={}))
+    assert "L = 10 mm" in two["tapping"]["ylabel"] and "L = 10 mm" in two["wedge"]["ylabel"]
+    assert "L = 22 mm" in two["plate"]["title"] and "L = 22 mm" in two["plate"]["ylabel"]
+    # without the discretisation, the options or the metrics tell the model
+    assert "L =" not in curve_plot_data(SimpleNamespace(curves=curves), OPTS_3D)["plate"]["title"]
+    metrics_3d = {"contact_area_at_1N_mm2": 1.0}
+    only = curve_plot_data(SimpleNamespace(curves=curves, metrics=metrics_3d))
+    assert only["wedge"]["ylabel"] == "force on the whole pad (N)"
