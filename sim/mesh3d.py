@@ -65,6 +65,7 @@ from . import _q2
 from .geometry3d import REFERENCE_PAD, PadGeometry, level, unit_radius
 
 __all__ = [
+    "COARSE_MESH_3D",
     "DEFAULT_MESH_3D",
     "MeshOptions3D",
     "PadMesh",
@@ -112,7 +113,8 @@ class MeshOptions3D:
             c = 20 mm: negative Jacobians at 0.7).
 
     The o-grid is structured: the inner box has as many elements along each axis as the
-    surface distributions, so it is finely divided too. The defaults mesh the reference pad
+    surface distributions, so it is finely divided too. The field defaults (not the
+    simulations' ``DEFAULT_MESH_3D``, which is coarser) mesh the reference pad
     (one layer, c = 11 mm) with 1448 elements, 12 967 nodes (38 901 dofs); ``refined(2)`` with
     11 216 elements, 94 995 nodes (284 985 dofs).
     """
@@ -168,7 +170,15 @@ class MeshOptions3D:
         )
 
 
-DEFAULT_MESH_3D = MeshOptions3D()
+#: The simulations' mesh (``SimOptions.mesh3d``): the family of ``studies/mesh3d_convergence.py``
+#: (its coarsest member, below, refined by f) at f = 1.41, about 11 000-12 000 dofs on the
+#: default-size pads. Over f = 1, 1.41, 2 the displacements at 1 N and 4 N moved by at most
+#: 0.7 % on a soft gel and a stiffer silicone pad, so this member is within 1 % on them; the
+#: plate force is within 1.5-3 % of the finest and the contact area at 4 N within 1.3 %, at
+#: 1 N only within 10-15 % (docs/model_3d.md, "Mesh convergence"). The field defaults of
+#: ``MeshOptions3D`` are the finer mesh of the FElupe comparison (``tests/test_fe3d_felupe.py``).
+COARSE_MESH_3D = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
+DEFAULT_MESH_3D = COARSE_MESH_3D.refined(1.41)
 
 
 @dataclass(frozen=True, eq=False)

@@ -21,13 +21,13 @@ from pathlib import Path
 import numpy as np
 
 from sim.design import design_from_dict
-from sim.mesh3d import MeshOptions3D
+from sim.mesh3d import COARSE_MESH_3D
 from sim.options import ModelOptions, SimOptions
 from sim.simulate import simulate
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "mesh3d_convergence.json"
 #: the family's coarsest member; the levels refine it by f
-BASE = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
+BASE = COARSE_MESH_3D
 LEVELS = (1.0, 1.41, 2.0, 2.83)
 METRICS = (
     "disp_at_1N_mm",
