@@ -88,7 +88,7 @@ class OptimizeConfig:
     # the retraining after a round (warm start, ``explore._retrain``): minibatches of 32 (as the
     # sweep's training) for 150 epochs. 128 x 50 is 5 times faster and scored within the noise
     # of a small sample (fine-tuned on the 7 designs of a main job's first round, scored on
-    # the 8 of its later rounds, scripts/retrain_study.py: hysteresis median 9.7 against 8.4 %,
+    # the 8 of its later rounds, studies/retrain_study.py: hysteresis median 9.7 against 8.4 %,
     # displacements 2.1-2.7 against 1.9-2.3 %), but in the main job (solver 2.3, quiet, same
     # seed) its rounds found worse designs (best FE score per round 0.413 / 0.487 / 0.440
     # against 0.413 / 0.443 / 0.402) for 24 s less (retraining 6 against 30 s; 141 against
@@ -99,7 +99,7 @@ class OptimizeConfig:
     # training sweep drawn afresh (``surrogate.fine_tune``'s ``replay``), not the whole sweep,
     # so the retraining's cost does not grow with the sweep. With the solver-2.3 surrogate
     # (1434 training designs) and the main job's defaults, seeds 0, 1, 2
-    # (scripts/seed_study.py): best FE score of the
+    # (studies/seed_study.py): best FE score of the
     # run 0.398 / 0.397 / 0.391 against 0.411 / 0.385 / 0.391 over the whole sweep, retraining
     # 12-22 s against 45-72 s (the machine's speed varied by a third between those runs)
     retrain_replay: int = 256

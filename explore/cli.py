@@ -318,7 +318,7 @@ def _add_sweep(p: argparse.ArgumentParser) -> None:
         type=int,
         default=0,
         help="first design of the sample to run (default 0): --start 4096 --n 6144 runs designs "
-        "4096-6143 of the Sobol sample, a segment that scripts/merge_sweeps.py joins to others",
+        "4096-6143 of the Sobol sample, a segment that fingertip merge-sweeps joins to others",
     )
     p.add_argument("--retry-failed", action="store_true", help="run failed designs again")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -329,6 +329,10 @@ def _add_sweep(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    if args.seeds is not None:
+        return _train_seeds(args)
+    if getattr(args, "jobs_given", False):
+        raise UsageError("--jobs: the trainings at once of --seeds; give --seeds too")
     from surrogate import train_surrogate
 
     ckpt = train_surrogate(
@@ -364,22 +368,86 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train_seeds(args: argparse.Namespace) -> int:
+    """``fingertip train SWEEP --seeds ...``: one training per seed and the spread table."""
+    from sim.sweep import default_workers
+
+    if getattr(args, "seed_given", False):
+        raise UsageError("--seed and --seeds: give one of them (--seeds trains once per seed)")
+    if args.out is None:
+        raise UsageError(
+            "--seeds: give --out, the folder of the trainings (OUT/seed<S> and OUT/spread.md)"
+        )
+    from surrogate._spread import train_seeds, write_spread
+
+    jobs = args.jobs if args.jobs is not None else min(len(args.seeds), default_workers())
+    reports = train_seeds(
+        args.sweep,
+        args.out,
+        args.seeds,
+        jobs=jobs,
+        members=args.members,
+        max_epochs=args.max_epochs,
+        include_untrusted=args.include_untrusted,
+    )
+    command = " ".join(
+        [
+            f"fingertip train {args.sweep.as_posix()} --seeds",
+            *map(str, args.seeds),
+            *(["--members", str(args.members)] if args.members != 5 else []),
+            *(["--max-epochs", str(args.max_epochs)] if args.max_epochs is not None else []),
+            *(["--include-untrusted"] if args.include_untrusted else []),
+            f"--out {args.out.as_posix()}",
+        ]
+    )
+    path = write_spread(reports, args.out, command)
+    print(path.read_text(), end="")
+    for seed in args.seeds:
+        print(f"checkpoint (seed {seed}): {args.out / f'seed{seed}' / 'model.safetensors'}")
+    print(f"spread: {path}")
+    return 0
+
+
 def _add_train(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
     p.description = (
         "Train the neural surrogate (a deep ensemble) on a sweep. Input: a sweep folder of "
         "fingertip sweep (the dataset: table.csv and config.json); --out a new training run "
-        "folder (its model.safetensors is the checkpoint)."
+        "folder (its model.safetensors is the checkpoint). With --seeds, one training per seed "
+        "into OUT/seed<S> and OUT/spread.md: the accuracy targets met by each seed's held-out "
+        "designs and by the mean over the seeds."
     )
     p.add_argument("sweep", type=Path, help="sweep folder (runs/NAME with table.csv)")
-    p.add_argument("--out", type=Path, help="run folder (default: runs/<sweep>-surrogate)")
+    p.add_argument(
+        "--out",
+        type=Path,
+        help="run folder (default: runs/<sweep>-surrogate); with --seeds the folder of the "
+        "trainings (required; the same command resumes it)",
+    )
     p.add_argument(
         "--seed",
         type=int,
         default=0,
+        action=_Given,
         help="seed of the train/validation/test split, the initial weights and the minibatch "
         "order (default 0): the same seed gives the same surrogate",
+    )
+    p.add_argument(
+        "--seeds",
+        type=int,
+        nargs="+",
+        metavar="SEED",
+        help="train once per seed (other splits, weights and minibatch orders) and tabulate the "
+        "accuracy targets per seed and over the seeds, e.g. --seeds 0 1 2; a seed already "
+        "trained in --out is not trained again",
+    )
+    p.add_argument(
+        "--jobs",
+        type=int,
+        action=_Given,
+        help="with --seeds: trainings at once, one process and one torch thread each (default: "
+        "one per usable core, at most one per seed)",
     )
     p.add_argument("--members", type=int, default=5, help="ensemble members (default 5)")
     p.add_argument("--max-epochs", type=int, help="cap on epochs (early stopping decides)")
@@ -834,6 +902,171 @@ def _add_fit_material(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=_cmd_fit_material)
 
 
+def _cmd_merge_sweeps(args: argparse.Namespace) -> int:
+    from sim.sweep import merge_sweeps
+
+    rows, n = merge_sweeps(args.sweeps, args.out)
+    print(f"{args.out}: {rows} designs from {n} sweep folders")
+    return 0
+
+
+def _add_merge_sweeps(p: argparse.ArgumentParser) -> None:
+    from pathlib import Path
+
+    p.description = (
+        "Join segments of one sweep sample (fingertip sweep --start S --n N, the same space, "
+        "seed, sampler, options, solver version and catalogues, not overlapping) into one sweep "
+        "folder that fingertip train reads. Inputs: two or more sweep folders (segments); --out "
+        "the new merged folder (config.json, meta.json and table.csv: no records; resume a "
+        "segment in its own folder, then merge again)."
+    )
+    p.add_argument("sweeps", type=Path, nargs="+", metavar="SWEEP", help="sweep folders")
+    p.add_argument("--out", type=Path, required=True, help="the new, merged sweep folder")
+    p.set_defaults(func=_cmd_merge_sweeps)
+
+
+def _cmd_migrate_sweep(args: argparse.Namespace) -> int:
+    from sim._migrate import VERIFY_RTOL, migrate, resume_command, verify
+    from sim.metrics import SOLVER_VERSION
+
+    if args.verify < 0:
+        raise UsageError(f"--verify: must be >= 0, got {args.verify}")
+    kept, keys, config = migrate(args.source, args.target)
+    total = len(set(keys))
+    print(
+        f"{len(kept)} of {total} designs carried over to {args.target} (solver "
+        f"{SOLVER_VERSION}); {total - len(kept)} left for the resumed sweep"
+    )
+    for key, worst, where in verify(args.target, kept, config, args.verify, args.seed):
+        if worst > VERIFY_RTOL:
+            print(
+                f"fingertip: verify: {key}: {where} differs from the carried record by "
+                f"{worst:.2g} (more than {VERIFY_RTOL:g})",
+                file=sys.stderr,
+            )
+            return 1
+        text = "identical" if worst == 0.0 else f"equal to {worst:.1e} relative (at {where})"
+        print(f"verify: {key}: metrics, diagnostics and curves {text}", flush=True)
+    print(f"resume: {resume_command(args.target, config)}")
+    return 0
+
+
+def _add_migrate_sweep(p: argparse.ArgumentParser) -> None:
+    from pathlib import Path
+
+    p.description = (
+        "Carry a sweep of an earlier solver version (one whose results this solver reproduces, "
+        "sim.metrics.SAME_METRICS_AS) over to this one: the designs that completed within the "
+        "validity limits are kept as they are, the others are left for the resumed sweep. "
+        "Inputs: SOURCE, the earlier sweep folder; TARGET, the new sweep folder to write."
+    )
+    p.add_argument(
+        "source", type=Path, metavar="SOURCE", help="sweep folder of an earlier solver version"
+    )
+    p.add_argument(
+        "target", type=Path, metavar="TARGET", help="the new sweep folder (must not exist)"
+    )
+    p.add_argument(
+        "--verify",
+        type=int,
+        default=0,
+        metavar="K",
+        help="re-simulate K carried designs and fail unless they equal their records "
+        "(default 0: none)",
+    )
+    p.add_argument(
+        "--seed", type=int, default=0, help="seed of the designs --verify draws (default 0)"
+    )
+    p.set_defaults(func=_cmd_migrate_sweep)
+
+
+#: ``fingertip learning-curve``'s default sizes (training + validation designs)
+LEARNING_CURVE_SIZES = (128, 256, 512, 1024, 4096)
+
+
+def _cmd_learning_curve(args: argparse.Namespace) -> int:
+    if args.out.suffix != ".md":
+        raise UsageError(f"--out: a Markdown file (.md), got {args.out}")
+    if args.out.is_dir():
+        raise UsageError(f"--out: {args.out} is a folder; give the Markdown file to write")
+    from surrogate._learning_curve import CHECKED, learning_curve, write_learning_curve
+
+    def show(row: dict) -> None:
+        summary = ", ".join(
+            f"{m}: R2 {row[m]['r2']:.3f} med {100 * row[m]['median_rel_error']:.1f} %"
+            for m in CHECKED
+            if row.get(m, {}).get("r2") is not None and row[m].get("median_rel_error") is not None
+        )
+        print(
+            f"n = {row['n_designs']:5d} ({row['train_seconds']:.0f} s per fit): {summary}",
+            flush=True,
+        )
+
+    sizes = sorted(args.sizes)
+    result = learning_curve(
+        args.sweep,
+        sizes,
+        seed=args.seed,
+        repeats=args.repeats,
+        jobs=args.jobs,
+        members=args.members,
+        max_epochs=args.max_epochs,
+        on_size=show,
+    )
+    command = " ".join(
+        [
+            f"fingertip learning-curve {args.sweep.as_posix()} --sizes",
+            *map(str, sizes),
+            f"--seed {args.seed} --repeats {args.repeats}",
+            *(["--members", str(args.members)] if args.members != 5 else []),
+            *(["--max-epochs", str(args.max_epochs)] if args.max_epochs is not None else []),
+            f"--out {args.out.as_posix()}",
+        ]
+    )
+    paths = write_learning_curve(result, args.out, command)
+    print("written: " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _add_learning_curve(p: argparse.ArgumentParser) -> None:
+    from pathlib import Path
+
+    p.description = (
+        "The surrogate's test error against the number of FE designs it is trained on: one "
+        "fixed test set (15 % of the sweep's designs), ensembles trained on nested subsets of "
+        "the others, and a power law extrapolated to the accuracy targets. Input: a sweep "
+        "folder (a dataset of fingertip sweep or merge-sweeps); --out the Markdown file to "
+        "write, with its JSON beside it and figures/<name>.png (docs/learning_curve.md is the "
+        "default sweep's)."
+    )
+    p.add_argument("sweep", type=Path, help="sweep folder (runs/NAME with table.csv)")
+    p.add_argument(
+        "--out", type=Path, required=True, metavar="FILE.md", help="Markdown file to write"
+    )
+    p.add_argument(
+        "--sizes",
+        type=int,
+        nargs="+",
+        default=list(LEARNING_CURVE_SIZES),
+        help="training + validation designs of each point (default "
+        f"{' '.join(map(str, LEARNING_CURVE_SIZES))}; above the designs left beside the test "
+        "set: all of them)",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of the test set; repeat r draws its subset and trains with seed + r (default 0)",
+    )
+    p.add_argument("--repeats", type=int, default=3, help="trainings per size, averaged (3)")
+    p.add_argument(
+        "--jobs", type=int, default=1, help="trainings at once, one process each (default 1)"
+    )
+    p.add_argument("--members", type=int, default=5, help="ensemble members (default 5)")
+    p.add_argument("--max-epochs", type=int, help="cap on epochs (early stopping decides)")
+    p.set_defaults(func=_cmd_learning_curve)
+
+
 #: the subcommands: name -> (one-line help, the function that adds its arguments); only the
 #: command being run gets its arguments, so that `fingertip simulate` does not import what the
 #: other commands' options need (issue 15: instant start)
@@ -848,6 +1081,15 @@ _SUBCOMMANDS: dict[str, tuple[str, Callable[[argparse.ArgumentParser], None]]] =
     "fit-material": (
         "fit a catalogue entry to test data (Abaqus' nominal stress-strain conventions)",
         _add_fit_material,
+    ),
+    "merge-sweeps": ("join segments of one sweep sample into one sweep folder", _add_merge_sweeps),
+    "migrate-sweep": (
+        "carry a sweep of an earlier solver version over to this one",
+        _add_migrate_sweep,
+    ),
+    "learning-curve": (
+        "the surrogate's test error against the number of FE designs it is trained on",
+        _add_learning_curve,
     ),
 }
 

@@ -15,6 +15,11 @@ class DesignError(ValueError):
         self.field = field
         self.message = message
 
+    def __reduce__(self) -> tuple[type[DesignError], tuple[str, str]]:
+        """Pickled as (field, message): raised in a worker process, it reaches the parent
+        whole (the default pickles the one joined text, which ``__init__`` cannot take)."""
+        return type(self), (self.field, self.message)
+
 
 class SimulationError(RuntimeError):
     """A protocol that did not converge even after step cutting.

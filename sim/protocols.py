@@ -543,7 +543,7 @@ class _Taps:
         self.s_rest = self.t_load + _rest_times(opts, _shortest_relaxation_time(body))
         self.steps = 0
         #: per tap and phase (loaded, rest): steps, factorisations and residual evaluations,
-        #: counts that do not depend on the machine's load (scripts/fe_time_study.py)
+        #: counts that do not depend on the machine's load (studies/fe_time_study.py)
         self.cost: list[dict[str, int]] = []
         self.replay_load, self.replay_rest = _Replay(), _Replay()
         self.recorder = _Recorder(body, self.top0, lambda f: f / scale)

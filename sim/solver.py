@@ -82,7 +82,7 @@ class NewtonOptions:
     # about a third of all factorisations went into steps that then failed at `max_iterations`,
     # creeping down between jumps as surface nodes enter and leave contact. (6, 8) saved 14-27 %
     # of the factorisations and 29-38 % of the residual evaluations on three samples; (4, 6)
-    # cost more than it saved (docs/fe_speed.md, "Newton"; scripts/newton_study.py).
+    # cost more than it saved (docs/fe_speed.md, "Newton"; studies/newton_study.py).
     stall_window: int = 6
     stall_from: int = 8
     stall_reduction: float = 0.5

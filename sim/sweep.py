@@ -153,7 +153,7 @@ def sweep_config(
     space: DesignSpace, n: int, seed: int, sampler: str, options: SimOptions, start: int = 0
 ) -> dict:
     """A sweep folder's ``config.json``: what its records depend on (``run_sweep`` refuses to
-    resume a folder whose config differs, and ``scripts/migrate_sweep.py`` writes a new one).
+    resume a folder whose config differs, and ``fingertip migrate-sweep`` writes a new one).
     ``start`` > 0 (a segment: the sample's designs ``start`` to ``n - 1``) is recorded; a whole
     sample's config has no ``start``, as before segments existed."""
     config = {
@@ -196,7 +196,7 @@ def _check_config(folder: Path, config: dict) -> None:
     if "segments" in old:
         raise DesignError(
             "--out",
-            f"{folder} is a merge of sweep folders (scripts/merge_sweeps.py): resume the "
+            f"{folder} is a merge of sweep folders (fingertip merge-sweeps): resume the "
             "segments in their own folders, then merge them again",
         )
     for field, words in _FIELD_WORDS.items():
@@ -250,7 +250,7 @@ def run_sweep(
 
     ``start`` > 0: a segment, the Sobol sample's designs ``start`` to ``n - 1`` only (their
     ``index`` in table.csv is their position in the sample), so that a large sweep can be made
-    in pieces, in several folders or sessions, and joined by ``scripts/merge_sweeps.py``.
+    in pieces, in several folders or sessions, and joined by ``fingertip merge-sweeps``.
 
     ``catalogues``: the user's ``--catalogue`` files, recorded (path, sha256) in config.json; a
     resume with other files is refused. The user materials the space names travel with it

@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 from sim.design import load_design
+from sim.mesh3d import COARSE_MESH_3D as BASE  # studies/mesh3d_convergence.py's mesh family
 from sim.options import ModelOptions, SimOptions
 from sim.simulate import simulate
 from sim.targets import load_targets
@@ -28,8 +29,6 @@ SHOWN = (*READ, "sag_mm", "contact_area_at_1N_mm2", "contact_area_at_4N_mm2", "w
 
 
 def main() -> None:
-    from mesh3d_convergence import BASE  # the studied mesh family (this folder)
-
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("run", type=Path, help="a search run folder with answers/*.toml")
     ap.add_argument("--refine", type=float, default=1.41)

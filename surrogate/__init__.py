@@ -8,6 +8,8 @@ Public API::
     load_checkpoint(path, allow_solver_mismatch=False) -> Surrogate
     Surrogate.predict(points | table) -> Prediction(mean, std, lower_90, upper_90, in_domain)
     read_points(path, space) / check_point(space, point)   # TOML / CSV design points
+    train_seeds(sweep_dir, out_dir, seeds, jobs=1, ...) -> {seed: report}   # one per seed
+    learning_curve(sweep_dir, sizes, seed=0, repeats=3, ...) -> dict  # error vs FE designs
     CheckpointError                                        # a refused checkpoint file
 
 Importing this package is cheap; torch is imported on first use of a name that needs it.
@@ -29,7 +31,9 @@ if TYPE_CHECKING:
     from ._encoding import Encoder
     from ._evaluate import Report, Speed
     from ._io import SweepData, check_point, read_points, read_sweep
+    from ._learning_curve import learning_curve
     from ._run import train_surrogate
+    from ._spread import train_seeds
     from ._surrogate import Prediction, Surrogate
     from ._train import TrainConfig, fine_tune
 
@@ -45,10 +49,12 @@ __all__ = [
     "TrainConfig",
     "check_point",
     "fine_tune",
+    "learning_curve",
     "load_checkpoint",
     "read_points",
     "read_sweep",
     "save_checkpoint",
+    "train_seeds",
     "train_surrogate",
 ]
 
@@ -63,10 +69,12 @@ _LAZY = {
     "TrainConfig": "_train",
     "check_point": "_io",
     "fine_tune": "_train",
+    "learning_curve": "_learning_curve",
     "load_checkpoint": "_checkpoint",
     "read_points": "_io",
     "read_sweep": "_io",
     "save_checkpoint": "_checkpoint",
+    "train_seeds": "_spread",
     "train_surrogate": "_run",
 }
 

@@ -504,7 +504,7 @@ _DESCRIPTOR_NAMES = (
 #: the log loss tangents enter as (log10(max(tan d, floor)) - log10(floor)) / decades: 1e-5 -> 0,
 #: 1 -> 1 (the shipped sweep's largest is 0.82). The floor is below every relaxing layer of
 #: the shipped sweep (smallest nonzero tan d 2.5e-5; every design whose hysteresis the
-#: evaluation scores has a layer at 4.9e-4 or more: ``python scripts/hysteresis_tail.py``); an
+#: evaluation scores has a layer at 4.9e-4 or more: ``python studies/hysteresis_tail.py``); an
 #: elastic layer sits on it
 _LOG_TAN_FLOOR, _LOG_TAN_DECADES = 1e-5, 5.0
 

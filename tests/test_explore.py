@@ -430,8 +430,10 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     study = optuna.load_study(study_name=names[0], storage=open_storage(cfg["storage"]))
     assert len(study.trials) == SearchSettings().screen_keep + 60  # the screen's seeds first
     assert study.trials[0].user_attrs["source"] == "screen"
-    # the README's answer block is made from a run folder by scripts/readme_answer.py
-    block = _readme_answer().render(out)
+    # the README's answer block is made from a run folder (studies/readme_answer.py)
+    from explore._readme_answer import render
+
+    block = render(out)
     assert f"{len(confs)} designs confirmed with full FE" in block
     assert "(6 144 a round: 2 048 for each of 3 studies)" in block  # 2 rounds, --screen 2048
     assert block.count("\n| best ") == 4
@@ -630,23 +632,13 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
         assert [(t.params, t.values) for t in ta] == [(t.params, t.values) for t in tb]
 
 
-def _readme_answer():
-    """scripts/readme_answer.py as a module (scripts/ is not a package)."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(
-        "readme_answer", REPO / "scripts" / "readme_answer.py"
-    )
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_the_readme_answer_block_has_its_markers():
+    from explore._readme_answer import replace_block
+
     text = (REPO / "README.md").read_text()
     block = text.split("<!-- answer:start -->\n", 1)[1].split("<!-- answer:end -->", 1)[0]
     assert "| best credible |" in block and "fingertip run --out" in block
-    assert _readme_answer().replace_block(text, block) == text  # the block round-trips
+    assert replace_block(text, block) == text  # the block round-trips
 
 
 def test_the_screened_count_is_the_screen_times_the_studies():

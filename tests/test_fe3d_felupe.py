@@ -1,5 +1,6 @@
 """The 3D model (``sim.fe3d`` + ``sim.solver``) against an independent code, FElupe
-(``scripts/felupe_pad.py``): a rigid frictionless plate pressed onto the elastic quarter pad.
+(``sim._felupe_pad``, which ``studies/felupe_pad.py`` runs on finer meshes): a rigid
+frictionless plate pressed onto the elastic quarter pad.
 
 Two kinds of comparison:
 
@@ -18,8 +19,6 @@ the force compared is the quarter model's (N).
 from __future__ import annotations
 
 import os
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -32,13 +31,12 @@ from sim.mesh3d import MeshOptions3D, build_pad_mesh
 from sim.solver import Body, Control, NewtonOptions
 
 fem = pytest.importorskip("felupe")
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
 
-from felupe_pad import bulk_modulus, felupe_plate_force, q1_subcells  # noqa: E402
+from sim._felupe_pad import bulk_modulus, felupe_plate_force, q1_subcells  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
-MU, NU = 0.05, 0.49  # the script's defaults: a soft, nearly incompressible skin
+MU, NU = 0.05, 0.49  # the study's defaults: a soft, nearly incompressible skin
 K = bulk_modulus(MU, NU)
 PAD = PadGeometry()  # the reference pad: 5.84 x 5.48 mm section, n = 1.5, c = 11 mm, m = 2
 #: 76 elements (2421 dofs): seconds per run in either code

@@ -2,7 +2,7 @@
 energy; FElupe's own assembly, Newton solver and rigid-plane contact.
 
 FElupe 11.3.0's six-node triangle has a wrong shape-function gradient (see
-``fe_verification.felupe_p2_element``); the comparison uses the corrected derivative of FElupe's
+``sim._verification.felupe_p2_element``); the comparison uses the corrected derivative of FElupe's
 own shape functions, and the stock element only where stated.
 """
 
@@ -10,15 +10,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from fe_verification import (
+
+from sim import REFERENCE_GEOMETRY
+from sim._reactions import internal_forces
+from sim._verification import (
     felupe_internal_forces,
     felupe_p2_element,
     felupe_plate_comparison,
     shape_gradient_error,
 )
-
-from sim import REFERENCE_GEOMETRY
-from sim._reactions import internal_forces
 from sim.fe import Discretization
 from sim.materials import Material, NeoHookean
 from sim.mesh import DEFAULT_MESH, build_mesh

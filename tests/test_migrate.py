@@ -1,20 +1,20 @@
-"""scripts/migrate_sweep.py: a sweep of the previous solver carried over to this one."""
+"""``fingertip migrate-sweep`` (``sim._migrate``): a sweep of the previous solver carried over to
+this one."""
 
 from __future__ import annotations
 
+import csv
 import json
-import sys
 from pathlib import Path
 
 import pytest
 from sweep_fixtures import FAST, TINY
 
 import explore.cli
-from sim.metrics import SAME_METRICS_AS
+from sim._migrate import carried, migrate
+from sim.errors import DesignError
+from sim.metrics import SAME_METRICS_AS, SOLVER_VERSION
 from sim.sweep_folder import SweepStore, read_config, write_config
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-import migrate_sweep
 
 #: a strict strain limit, so that some of the tiny designs are beyond it (their tapping strains
 #: are 0.31-0.49 with the FAST options)
@@ -48,27 +48,71 @@ def test_valid_records_carry_over_and_the_resumed_sweep_computes_the_rest(tmp_pa
     _sweep(space, old, "--set", "validity.stop_at_violation=false")  # as the old solver ran
     _as_previous_solver(old)
     before = SweepStore(old).load()
-    valid = {k for k, r in before.items() if migrate_sweep.carried(r)}
+    valid = {k for k, r in before.items() if carried(r)}
     assert 0 < len(valid) < len(before), "the sample needs designs on both sides of the limit"
-    kept, keys, config = migrate_sweep.migrate(old, new)
-    assert len(kept) == len(valid)
+    capsys.readouterr()
+    assert explore.cli.main(["migrate-sweep", str(old), str(new), "--verify", "1"]) == 0
+    out = capsys.readouterr().out
+    assert f"{len(valid)} of 6 designs carried over to {new}" in out
+    assert "metrics, diagnostics and curves identical" in out  # --verify 1: re-simulated
+    assert f"resume: fingertip sweep --n 6 --out {new} --seed 0" in out
     after = SweepStore(new).load()
-    assert set(after) == set(kept) <= set(keys)
+    kept = list(after)
+    assert len(kept) == len(valid)
     for key in kept:
         rec = after[key]
         src = before[rec["migrated"]["key"]]
         assert rec["metrics"] == src["metrics"] and rec["curves"] == src["curves"]
         assert rec["diagnostics"] == {**src["diagnostics"], "stopped": ""}
         assert rec["solver_version"] == SAME_METRICS_AS[0]  # the solver that computed it
-    migrate_sweep.verify(new, kept, config, 1, seed=0)  # exits on a difference
-    assert "identical" in capsys.readouterr().out
+        assert rec["migrated"]["by"] == "fingertip migrate-sweep"
     # the same command as a fresh sweep of this solver resumes it: only the rest is computed
     capsys.readouterr()
     _sweep(space, new)
     final = SweepStore(new).load()
-    assert set(final) == set(keys)
+    with (new / "table.csv").open() as fh:
+        keys = [row["key"] for row in csv.DictReader(fh)]  # every design of the sample
+    assert len(set(keys)) == 6 and set(final) == set(keys) >= set(kept)
     assert all(final[k] == after[k] for k in kept)  # left as they were
     stopped = [r for r in final.values() if r["diagnostics"].get("stopped")]
     assert stopped and all(not r["diagnostics"]["valid"] for r in stopped)
-    with pytest.raises(SystemExit, match="exists"):
-        migrate_sweep.migrate(old, new)
+    with pytest.raises(DesignError, match=r"TARGET: .* exists"):
+        migrate(old, new)
+
+
+def _previous_solver_config(folder: Path, space: Path) -> None:
+    """A sweep folder of the previous solver with no records (no FE run)."""
+    from sim.options import SimOptions
+    from sim.space import load_space
+    from sim.sweep import sweep_config
+
+    config = sweep_config(load_space(space), 6, 0, "sobol", SimOptions())
+    config["solver_version"] = SAME_METRICS_AS[0]
+    del config["options"]["validity"]["stop_at_violation"]
+    folder.mkdir()
+    write_config(folder, config)
+
+
+def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
+    space = tmp_path / "space.toml"
+    space.write_text(TINY)
+    old = tmp_path / "old"
+    _previous_solver_config(old, space)
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "config.json").write_text(json.dumps({"solver_version": "1.3"}))
+    (tmp_path / "taken").mkdir()
+    for argv, words in (
+        ([tmp_path / "none", tmp_path / "new"], "SOURCE: "),
+        (
+            [other, tmp_path / "new"],
+            f"SOURCE: {other} is a sweep of solver 1.3; only one of "
+            f"{', '.join(SAME_METRICS_AS)} is carried over to {SOLVER_VERSION}",
+        ),
+        ([old, tmp_path / "taken"], f"TARGET: {tmp_path / 'taken'} exists"),
+        ([old, tmp_path / "new", "--verify", "-1"], "--verify: must be >= 0"),
+    ):
+        assert explore.cli.main(["migrate-sweep", *map(str, argv)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"fingertip: error: {words}"), err
+    assert not (tmp_path / "new").exists() and not any((tmp_path / "taken").iterdir())

@@ -48,7 +48,7 @@ def test_shipped_checkpoint_matches_its_data_and_the_solver(model):
 
 
 def test_the_shipped_spread_names_this_checkpoint_and_meets_the_targets_on_the_mean(model):
-    """spread.md (scripts/split_spread.py, shipped with --spread): the same sweep trained with
+    """spread.md (`fingertip train --seeds`, shipped with --spread): the same sweep trained with
     seeds 0, 1 and 2; the shipped checkpoint is seed 0's, its row is the shipped report's, and
     the mean over the seeds meets every target of issue 12 item 4."""
     text = (SHIPPED / "spread.md").read_text()

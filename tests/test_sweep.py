@@ -313,9 +313,7 @@ def test_run_sweep_api_in_process(tiny_space, tmp_path):
 @pytest.mark.slow
 def test_default_space_brackets_every_human_value():
     """FE runs of a few points of the shipped space land below and above each human target."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "scripts"))
-    from bracket_human import bracket
-
+    from sim._bracket import bracket
     from sim.targets import load_targets
 
     _, results = bracket()
@@ -434,3 +432,37 @@ def test_cli_sweep_start_out_of_range_is_one_line(tiny_space, tmp_path):
     p = _cli("sweep", tiny_space, "--n", 3, "--start", 3, "--out", tmp_path / "s")
     assert p.returncode == 2 and "--start" in p.stderr and "Traceback" not in p.stderr
     assert len(p.stderr.strip().splitlines()) == 1 and not (tmp_path / "s").exists()
+
+
+def test_cli_merge_sweeps_joins_segments_and_refuses_bad_input_in_one_line(
+    tiny_space, tmp_path, monkeypatch, capsys
+):
+    """``fingertip merge-sweeps`` (``sim.sweep.merge_sweeps``): segments [0, 3) and [3, 6) of
+    one sample give the table of one sweep of 6; one folder, an existing --out, a folder that is
+    no sweep or segments of other seeds are one line naming the field, and write nothing."""
+    import sim.sweep as sweep_mod
+    from explore.cli import main
+
+    monkeypatch.setattr(sweep_mod, "evaluate_point", _fake_fe)
+    space = load_space(tiny_space)
+    kw = {"workers": 1, "progress": False}
+    run_sweep(space, 6, tmp_path / "whole", **kw)
+    run_sweep(space, 3, tmp_path / "a", **kw)
+    run_sweep(space, 6, tmp_path / "b", start=3, **kw)
+    run_sweep(space, 6, tmp_path / "s7", start=3, seed=7, **kw)
+    capsys.readouterr()
+    ab = tmp_path / "ab"
+    assert main(["merge-sweeps", str(tmp_path / "a"), str(tmp_path / "b"), "--out", str(ab)]) == 0
+    assert capsys.readouterr().out == f"{ab}: 6 designs from 2 sweep folders\n"
+    assert _table(ab) == _table(tmp_path / "whole")
+    (tmp_path / "empty").mkdir()
+    for argv, words in (
+        ([tmp_path / "a", "--out", tmp_path / "x"], "SWEEPS: give at least two sweep folders"),
+        ([tmp_path / "a", tmp_path / "b", "--out", ab], f"--out: {ab} exists"),
+        ([tmp_path / "a", tmp_path / "empty", "--out", tmp_path / "x"], "SWEEPS: "),
+        ([tmp_path / "a", tmp_path / "s7", "--out", tmp_path / "x"], "another --seed"),
+    ):
+        assert main(["merge-sweeps", *map(str, argv)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("fingertip: error: ") and words in err[0], err
+    assert not (tmp_path / "x").exists() and not any((tmp_path / "empty").iterdir())

@@ -1,7 +1,7 @@
 """Verification of the FE code against closed forms: every law in homogeneous modes, plane-strain
 Hertz contact, a manufactured solution with convergence rates, global equilibrium.
 
-The machinery lives in ``tests/fe_verification.py`` (shared with ``scripts/verify_fe.py``, which
+The machinery lives in ``sim/_verification.py`` (shared with ``studies/verify_fe.py``, which
 runs the longer versions and writes ``docs/verification.md``).
 
 What ``tests/test_materials.py`` already covers and is not repeated here: stress and tangent vs
@@ -19,7 +19,10 @@ import dataclasses
 
 import numpy as np
 import pytest
-from fe_verification import (
+
+from sim import MeshOptions, PlateOptions, homogeneous_design
+from sim._reactions import internal_forces
+from sim._verification import (
     MODES,
     ManufacturedSolution,
     balance,
@@ -29,9 +32,6 @@ from fe_verification import (
     mms_case,
     sweep,
 )
-
-from sim import MeshOptions, PlateOptions, homogeneous_design
-from sim._reactions import internal_forces
 from sim.contact import Plate
 from sim.fe import Discretization
 from sim.materials import CATALOGUE, MooneyRivlin

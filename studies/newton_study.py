@@ -1,6 +1,7 @@
-"""What Newton's stall rule saves, and that it leaves the metrics where they were.
+"""For docs/fe_speed.md ("Newton"): what Newton's stall rule saves, and that it leaves the
+metrics where they were.
 
-    python scripts/newton_study.py --n 12 --seed 1 [--variants 6,8 5,7 8,10]
+    python studies/newton_study.py --n 12 --seed 1 [--variants 6,8 5,7 8,10]
 
 Runs ``n`` designs of the default space (a scrambled Sobol sample, ``sim.sweep.sample_points``)
 once with the stall rule switched off (``NewtonOptions.stall_from`` beyond ``max_iterations``:

@@ -1,6 +1,7 @@
-"""The main job over several seeds and retraining rehearsals: how much of an answer is the seed's.
+"""For docs/benchmarks.md: the main job over several seeds and retraining rehearsals, how much
+of an answer is the seed's.
 
-    python scripts/seed_study.py --seeds 0 1 2 --replay 0 256 --out runs/replay_study
+    python studies/seed_study.py --seeds 0 1 2 --replay 0 256 --out runs/replay_study
 
 Runs ``explore.run`` (the main job's defaults, the Python API: no figures) once per (replay,
 seed) into ``OUT/r<replay>_s<seed>`` (a finished folder is read, not re-run) and prints one JSON

@@ -1,6 +1,5 @@
-"""Carry a sweep over to this solver version, keeping every record it would reproduce bit for bit.
-
-    python scripts/migrate_sweep.py runs/sweep_v22 runs/sweep_v23 --verify 4
+"""Carry a sweep over to this solver version, keeping every record it would reproduce bit for bit
+(``fingertip migrate-sweep SOURCE TARGET [--verify K]``).
 
 A record is keyed by its design, the simulation options and the solver version
 (``sim.sweep.record_key``), so a new solver version starts a sweep from nothing. Solver 2.3
@@ -17,9 +16,9 @@ record is carried over under its new key, unchanged but for
 
 Every other record (a failed protocol, or a design beyond the limits, whose 2.3 result stops
 early and has no metrics) is left out: resuming the sweep in the new folder with its command
-(printed at the end) computes it with this solver. ``--verify K`` re-simulates K carried-over
-designs (drawn with ``--seed``) and stops with an error unless their metrics, diagnostics and
-curves equal the carried records to ``VERIFY_RTOL``.
+(:func:`resume_command`) computes it with this solver. :func:`verify` re-simulates K
+carried-over designs (drawn with a seed) and gives each one's largest difference from its
+record, which must stay within ``VERIFY_RTOL``.
 
 Only a source made with options that differ from the new ones in ``stop_at_violation`` alone,
 by a solver in ``sim.metrics.SAME_METRICS_AS``, is accepted.
@@ -27,21 +26,29 @@ by a solver in ``sim.metrics.SAME_METRICS_AS``, is accepted.
 
 from __future__ import annotations
 
-import argparse
-import dataclasses
+import json
 import math
 import random
-import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from sim.metrics import SAME_METRICS_AS, SOLVER_VERSION
-from sim.options import options_from_dict
-from sim.provenance import json_safe, provenance
-from sim.space import space_from_dict
-from sim.sweep import evaluate_point, record_key, sample_points, sweep_config
-from sim.sweep_folder import SweepStore, read_config, write_config, write_meta
+from .errors import DesignError
+from .metrics import SAME_METRICS_AS, SOLVER_VERSION
+from .options import options_from_dict
+from .provenance import json_safe, provenance
+from .space import space_from_dict
+from .sweep import evaluate_point, record_key, sample_points, sweep_config
+from .sweep_folder import SweepStore, read_config, write_config, write_meta
+
+__all__ = [
+    "VERIFY_RTOL",
+    "carried",
+    "largest_difference",
+    "migrate",
+    "resume_command",
+    "verify",
+]
 
 #: how close a re-simulated carried design must come to its record. Records computed before FE
 #: ran every BLAS call on one thread (commit 2c735c2; the sweep's worker processes then summed
@@ -65,16 +72,29 @@ def carried(record: dict) -> bool:
     return record.get("status") == "ok" and diag.get("valid") is True
 
 
-def migrate(source: Path, target: Path) -> tuple[list[str], list[str], dict]:
-    """Write ``target``; returns (carried keys, the sweep's keys in order, its config)."""
-    old = read_config(source)
+def migrate(source: str | Path, target: str | Path) -> tuple[list[str], list[str], dict]:
+    """Write the sweep folder ``target`` from ``source``'s carried records; returns (carried
+    keys, the sweep's keys in order, its config). A ``DesignError`` naming SOURCE or TARGET when
+    the source is no sweep this solver reproduces or the target exists, before anything is
+    written."""
+    source, target = Path(source), Path(target)
+    try:
+        old = read_config(source)
+    except (OSError, ValueError) as exc:
+        raise DesignError("SOURCE", f"{source} is not a sweep folder ({exc})") from None
     if old.get("solver_version") not in SAME_METRICS_AS:
-        sys.exit(f"{source}: solver {old.get('solver_version')} is not in {SAME_METRICS_AS}")
+        raise DesignError(
+            "SOURCE",
+            f"{source} is a sweep of solver {old.get('solver_version')}; only one of "
+            f"{', '.join(SAME_METRICS_AS)} is carried over to {SOLVER_VERSION}",
+        )
     options = options_from_dict(old["options"])
-    if _comparable(dataclasses.asdict(options)) != _comparable(old["options"]):
-        sys.exit(f"{source}: its options differ from this solver's in more than the stop")
+    # the sections the model reads, in JSON form: those a sweep's config.json records
+    if _comparable(json.loads(json.dumps(options.as_dict()))) != _comparable(old["options"]):
+        raise DesignError("SOURCE", f"{source}: its options differ from this solver's in more "
+                          "than the validity stop")  # fmt: skip
     if target.exists():
-        sys.exit(f"{target} exists; choose a new folder")
+        raise DesignError("TARGET", f"{target} exists; choose a new folder")
     space = space_from_dict(old["space"])
     config = sweep_config(space, old["n"], old["seed"], old["sampler"], options)
     if "catalogues" in old:
@@ -82,14 +102,14 @@ def migrate(source: Path, target: Path) -> tuple[list[str], list[str], dict]:
     points = sample_points(space, old["n"], old["seed"], old["sampler"])
     keys = [record_key(p, options, space.catalogue) for p in points]
     wanted = set(keys)
-    store = SweepStore(target)
-    kept = []
+    carry = []
     for old_key, rec in sorted(SweepStore(source).load().items()):
         if not carried(rec):
             continue
         key = record_key(rec["params"], options, space.catalogue)
         if key not in wanted:
-            sys.exit(f"{source}: record {old_key} is not a design of the sweep's sample")
+            raise DesignError("SOURCE", f"{source}: record {old_key} is not a design of the "
+                              "sweep's sample")  # fmt: skip
         rec = dict(rec)
         rec.pop("key", None)
         rec["diagnostics"] = {**rec["diagnostics"], "stopped": ""}
@@ -97,16 +117,24 @@ def migrate(source: Path, target: Path) -> tuple[list[str], list[str], dict]:
             "from": str(source),
             "key": old_key,
             "solver_version": rec.get("solver_version"),
-            "by": "scripts/migrate_sweep.py",
+            "by": "fingertip migrate-sweep",
         }
+        carry.append((key, rec))
+    store = SweepStore(target)
+    for key, rec in carry:
         store.write(key, rec)
-        kept.append(key)
     write_config(target, config)
     meta = provenance(config, old["seed"], kind="sweep")
     meta["migrated_from"] = {"folder": str(source), "solver_version": old["solver_version"]}
     write_meta(target, meta)
     store.consolidate(keys, space.names)
-    return kept, keys, config
+    return [key for key, _ in carry], keys, config
+
+
+def resume_command(target: str | Path, config: dict) -> str:
+    """The ``fingertip sweep`` command that computes the designs left out of ``target``."""
+    sampler = f" --sampler {config['sampler']}" if config["sampler"] != "sobol" else ""
+    return f"fingertip sweep --n {config['n']} --out {target} --seed {config['seed']}{sampler}"
 
 
 def _numbers(tree: Any, path: str = "") -> Iterator[tuple[str, Any]]:
@@ -139,40 +167,17 @@ def largest_difference(a: dict, b: dict) -> tuple[float, str]:
     return worst, where
 
 
-def verify(target: Path, kept: list[str], config: dict, k: int, seed: int) -> None:
-    """Re-simulate ``k`` carried designs; exit with an error unless each equals its record to
-    ``VERIFY_RTOL`` (bit for bit for records computed since FE runs BLAS on one thread)."""
-    records = SweepStore(target).load()
+def verify(
+    target: str | Path, kept: list[str], config: dict, k: int, seed: int = 0
+) -> list[tuple[str, float, str]]:
+    """Re-simulate ``k`` of the carried designs ``kept`` (drawn with ``seed``); per design
+    (key, the largest relative difference from its record, where). Each must stay within
+    ``VERIFY_RTOL`` (0.0: bit for bit, as for records computed since FE runs BLAS on one
+    thread)."""
+    records = SweepStore(Path(target)).load()
+    out = []
     for key in random.Random(seed).sample(kept, min(k, len(kept))):
         rec = records[key]
         new = json_safe(evaluate_point(rec["params"], config["options"]))
-        worst, where = largest_difference(new, rec)
-        if worst > VERIFY_RTOL:
-            sys.exit(f"verify: {key}: {where} differs from the carried record by {worst:.2g}")
-        text = "identical" if worst == 0.0 else f"equal to {worst:.1e} relative (at {where})"
-        print(f"verify: {key}: metrics, diagnostics and curves {text}", flush=True)
-
-
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("source", type=Path)
-    ap.add_argument("target", type=Path)
-    ap.add_argument("--verify", type=int, default=0, metavar="K")
-    ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args()
-    kept, keys, config = migrate(args.source, args.target)
-    total = len(set(keys))
-    print(
-        f"{len(kept)} of {total} designs carried over to {args.target} (solver "
-        f"{SOLVER_VERSION}); {total - len(kept)} left for the resumed sweep"
-    )
-    if args.verify:
-        verify(args.target, kept, config, args.verify, args.seed)
-    print(
-        f"resume: fingertip sweep --n {config['n']} --out {args.target} --seed {config['seed']}"
-        + (f" --sampler {config['sampler']}" if config["sampler"] != "sobol" else "")
-    )
-
-
-if __name__ == "__main__":
-    main()
+        out.append((key, *largest_difference(new, rec)))
+    return out

@@ -1,6 +1,7 @@
-"""What a coarser mesh would buy and cost: FE work and the metrics' change on default-space designs.
+"""For docs/fe_speed.md: what a coarser mesh would buy and cost, FE work and the metrics' change
+on default-space designs.
 
-    python scripts/mesh_speed_study.py --n 8 --seed 1 --factors 1.41 1.0 0.7
+    python studies/mesh_speed_study.py --n 8 --seed 1 --factors 1.41 1.0 0.7
 
 Simulates ``n`` designs of the default space (``sim.sweep.sample_points``, all three protocols)
 on meshes whose element sizes are divided by each factor (``SimOptions.with_mesh_refined``; 1.0

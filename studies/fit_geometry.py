@@ -1,6 +1,7 @@
-"""Reconstruct the paper's fingertip outline: fit the superellipse (a, b, n) to Table 2.
+"""For docs/validation.md: reconstruct the paper's fingertip outline, the superellipse (a, b, n)
+fitted to Table 2.
 
-    python scripts/fit_geometry.py --out runs/fit_geometry [--start 5.84 5.48 1.5] [--evals 60]
+    python studies/fit_geometry.py --out runs/fit_geometry [--start 5.84 5.48 1.5] [--evals 60]
 
 For each candidate outline both catalogue materials are tapped to the quasi-steady state
 (displacements read from the undeformed top, Table 1 moduli as Abaqus long-term moduli) and

@@ -1,6 +1,6 @@
-"""Verify the FE code against closed forms and an independent code; write docs/verification.md.
+"""Regenerates docs/verification.md: the FE code against closed forms and an independent code.
 
-    python scripts/verify_fe.py [--out docs] [--quick]
+    python studies/verify_fe.py [--out docs] [--quick]
 
 Runs the longer versions of the checks in tests/test_verification.py and tests/test_felupe.py:
 every law in uniaxial/equibiaxial/shear against hand-derived closed forms, plane-strain Hertz
@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import sys
 import time
 import warnings
 from datetime import UTC, datetime
@@ -23,19 +22,17 @@ from pathlib import Path
 
 import numpy as np
 
+import sim._verification as fv
+from sim import MeshOptions, PlateOptions, WedgeOptions, homogeneous_design
+from sim.contact import Plate, Wedge
+from sim.fe import Discretization
+from sim.materials import CATALOGUE, Material, MooneyRivlin, NeoHookean
+from sim.mesh import build_mesh
+from sim.protocols import run_plate, run_wedge
+from sim.provenance import git_commit
+from sim.solver import Body, Control
+
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-
-import fe_verification as fv  # noqa: E402
-
-from sim import MeshOptions, PlateOptions, WedgeOptions, homogeneous_design  # noqa: E402
-from sim.contact import Plate, Wedge  # noqa: E402
-from sim.fe import Discretization  # noqa: E402
-from sim.materials import CATALOGUE, Material, MooneyRivlin, NeoHookean  # noqa: E402
-from sim.mesh import build_mesh  # noqa: E402
-from sim.protocols import run_plate, run_wedge  # noqa: E402
-from sim.provenance import git_commit  # noqa: E402
-from sim.solver import Body, Control  # noqa: E402
 
 
 def _pct(x: float) -> str:
@@ -52,7 +49,7 @@ def laws_section(lines: list[str], n: int) -> float:
         "## 1. Every law against closed forms",
         "",
         "Plane strain (F33 = 1). The closed forms are derived by hand from the energies, in "
-        "`tests/fe_verification.py`, and use nothing of `sim.materials` but the parameters:",
+        "`sim/_verification.py`, and use nothing of `sim.materials` but the parameters:",
         "",
         "- principal Cauchy stresses sigma_a = (lambda_a / J) dU/dlambda_a. Invariant laws "
         "(Abaqus form U = U_iso(I1b, I2b) + K/2 (J - 1)^2): lambda_a dI1b/dlambda_a = "
@@ -332,7 +329,7 @@ def felupe_section(lines: list[str], quick: bool) -> float:
         "points, so the stock element does not reproduce a quadratic field. With it, the "
         "internal forces at a smooth displacement differ from ours by "
         f"{100 * stock_diff:.1f} % of their maximum; with the gradient replaced by the exact "
-        "derivative of FElupe's own shape functions (`fe_verification.felupe_p2_element`) "
+        "derivative of FElupe's own shape functions (`sim._verification.felupe_p2_element`) "
         f"they agree to **{fixed_diff:.1e}**. The comparison below uses the corrected element.",
         "",
         "| plate displacement (mm) | ours (N/mm) | FElupe (N/mm) | difference |",
@@ -395,7 +392,7 @@ def main() -> None:
     worst_hertz = max(abs(v) for r in hertz for k, v in r.errors.items() if k != "p_apex")
     apex_fine = max(abs(r.errors["p_apex"]) for r in hertz if r.a_over_h >= 50)
     apex_coarse = max(abs(r.errors["p_apex"]) for r in hertz)
-    command = "python scripts/verify_fe.py" + (" --quick" if args.quick else "")
+    command = "python studies/verify_fe.py" + (" --quick" if args.quick else "")
     versions = ", ".join(
         f"{p} {metadata.version(p)}" for p in ("numpy", "scipy", "scikit-fem", "felupe", "sympy")
     )
@@ -407,7 +404,7 @@ def main() -> None:
         f"{time.perf_counter() - t0:.0f} s ({versions}). Do not edit by hand.",
         "",
         "The fast versions of these checks are in `tests/test_verification.py` and "
-        "`tests/test_felupe.py` (shared machinery: `tests/fe_verification.py`).",
+        "`tests/test_felupe.py` (shared machinery: `sim/_verification.py`).",
         "",
         "| check | result |",
         "|---|---|",

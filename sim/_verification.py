@@ -1,7 +1,8 @@
 """Verification machinery shared by ``tests/test_verification.py``, ``tests/test_felupe.py`` and
-``scripts/verify_fe.py``: closed-form stresses of every law in homogeneous modes, plane-strain
-Hertz contact, a manufactured solution on the curved P2 mesh, global equilibrium, and the
-comparison with FElupe.
+``studies/verify_fe.py`` (which regenerates ``docs/verification.md``): closed-form stresses of
+every law in homogeneous modes, plane-strain Hertz contact, a manufactured solution on the curved
+P2 mesh, global equilibrium, and the comparison with FElupe (imported on first use: the ``test``
+extra).
 
 The closed forms here are derived by hand from the energies (see each docstring); they use no
 code from ``sim.materials`` other than reading the laws' parameters.

@@ -1,6 +1,7 @@
-"""Copy a trained surrogate and its training data into ``surrogate/pretrained/default``.
+"""Regenerates surrogate/pretrained/default/ (and its README.md): a trained surrogate and its
+training data copied into the shipped folder.
 
-    python scripts/ship_pretrained.py runs/default_surrogate runs/default_sweep
+    python studies/ship_pretrained.py runs/default_surrogate runs/default_sweep
 
 The shipped folder is what ``fingertip run`` starts from: ``model.safetensors`` (the
 checkpoint), ``table.csv.gz`` + ``config.json`` (the training sweep without its curves,
@@ -16,10 +17,9 @@ import json
 import shutil
 from pathlib import Path
 
-from split_spread import SPREAD_MD  # scripts/, this script's folder
-
 from sim.sweep_folder import TABLE, TABLE_GZ, table_path, table_sha256, write_table_gz
 from surrogate import load_checkpoint
+from surrogate._spread import SPREAD_MD
 
 DEST = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained" / "default"
 
@@ -31,13 +31,13 @@ def main() -> None:
     ap.add_argument(
         "--spread",
         type=Path,
-        help="scripts/split_spread.py's folder for this sweep: its spread.md (the targets over "
-        "other seeds' splits) is shipped beside the report",
+        help="the folder of `fingertip train SWEEP --seeds ... --out FOLDER` for this sweep: its "
+        "spread.md (the targets over other seeds' splits) is shipped beside the report",
     )
     args = ap.parse_args()
     spread = args.spread / SPREAD_MD if args.spread else None
     if spread is not None and not spread.is_file():  # before anything is copied
-        raise SystemExit(f"--spread: {spread} not found (run scripts/split_spread.py first)")
+        raise SystemExit(f"--spread: {spread} not found (run fingertip train --seeds first)")
     model = load_checkpoint(args.run / "model.safetensors")
     table = table_path(args.sweep)
     digest = table_sha256(table)
@@ -70,10 +70,10 @@ def main() -> None:
         "How it was made (on the 2-core development machine):",
         "",
         "```bash",
-        *(f"python scripts/migrate_sweep.py {src} {sweep}" for src in sorted(migrated)),
+        *(f"fingertip migrate-sweep {src} {sweep}" for src in sorted(migrated)),
         *_sweep_commands(sweep, sweep_cfg),
         f"fingertip train {sweep} --out {run} --seed {header['training']['seed']}",
-        f"python scripts/ship_pretrained.py {run} {sweep}"
+        f"python studies/ship_pretrained.py {run} {sweep}"
         + (f" --spread {args.spread.as_posix()}" if spread else ""),
         "```",
         "",
@@ -124,7 +124,7 @@ def _sweep_commands(sweep: str, cfg: dict) -> list[str]:
             f"--workers 2 --seed {seed}  # kept as {seg['folder']}"
         )
     folders = " ".join(seg["folder"] for seg in segments)
-    lines.append(f"python scripts/merge_sweeps.py {folders} --out {sweep}")
+    lines.append(f"fingertip merge-sweeps {folders} --out {sweep}")
     return lines
 
 
@@ -142,7 +142,7 @@ def _segments_note(cfg: dict) -> list[str]:
 
 
 def _migrated(sweep: Path) -> dict[str, int]:
-    """Source folder -> how many of the sweep's records ``scripts/migrate_sweep.py`` carried."""
+    """Source folder -> how many of the sweep's records ``fingertip migrate-sweep`` carried."""
     out: dict[str, int] = {}
     for path in (sweep / "records").glob("*.json"):
         src = json.loads(path.read_text()).get("migrated", {}).get("from")

@@ -1,7 +1,5 @@
-"""Force-indentation curve of a rigid flat plate on the elastic quarter pad, computed by FElupe.
-
-    python scripts/felupe_pad.py --out docs/felupe_pad.json [--refine 1 1.5] [--mu 0.05]
-        [--nu 0.49] [--depth 1.0] [--step 0.1] [--also 0.25] [--formulation q1p0]
+"""Force-indentation curve of a rigid flat plate on the elastic quarter pad, computed by FElupe
+(``studies/felupe_pad.py`` regenerates ``docs/felupe_pad.json`` with it).
 
 An independent reference for the 3D model (``sim.fe3d`` + ``sim.solver``): the same pad and the
 same neo-Hookean energy, but FElupe's own elements, volumetric treatment, quadrature, assembly,
@@ -43,7 +41,7 @@ Formulation (``--formulation``):
 
 Material. The project's ``neo_hookean`` law (``sim.materials.NeoHookean``) is
 U = mu/2 (I1b - 3) + K/2 (J - 1)^2, I1b = J^(-2/3) I1, K = 2 mu (1 + nu) / (3 (1 - 2 nu)).
-FElupe's ``NeoHooke(mu, bulk=K)`` is the same energy (``tests/fe_verification.felupe_model``);
+FElupe's ``NeoHooke(mu, bulk=K)`` is the same energy (``sim._verification.felupe_model``);
 the mixed forms use ``NeoHooke(mu)`` for the isochoric part and K/2 (J-bar - 1)^2 for the
 volumetric part, the same energy with J replaced by the mixed field J-bar (= J in the limit).
 Defaults mu = 0.05 MPa, nu = 0.49: mu is mid-range of the project's soft skins (the catalogue's
@@ -97,26 +95,20 @@ refined(1.5) 1057 s / 1240 s (55, 19 s); ``q2-mixed`` refined(1) 1019 s / 765 s 
 
 from __future__ import annotations
 
-import argparse
 import functools
-import json
 import math
 import os
-import sys
 import time
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
-
-from sim._q2 import REFERENCE_POINTS  # noqa: E402
-from sim.geometry3d import PadGeometry  # noqa: E402
-from sim.materials import NeoHookean  # noqa: E402
-from sim.mesh3d import MeshOptions3D, PadMesh, build_pad_mesh  # noqa: E402
+from ._q2 import REFERENCE_POINTS
+from .geometry3d import PadGeometry
+from .materials import NeoHookean
+from .mesh3d import MeshOptions3D, PadMesh, build_pad_mesh
 
 __all__ = [
     "FORMULATIONS",
@@ -170,7 +162,7 @@ def bulk_modulus(mu_MPa: float, nu: float) -> float:
     return float(NeoHookean(mu_MPa=mu_MPa, nu=nu).bulk_modulus_MPa)
 
 
-@dataclass
+@dataclass(frozen=True)
 class PlateResult:
     """FElupe's plate indentation of the quarter pad.
 
@@ -272,7 +264,7 @@ def solve_plate(
     pmesh: PadMesh,
     mu_MPa: float,
     bulk_MPa: float,
-    depths_mm,
+    depths_mm: Sequence[float] | np.ndarray,
     *,
     formulation: str = "q1p0",
     step_mm: float = 0.1,
@@ -392,8 +384,8 @@ def felupe_plate_force(
     options: MeshOptions3D,
     mu: float,
     K: float,
-    depths,
-    **kwargs,
+    depths: Sequence[float] | np.ndarray,
+    **kwargs: Any,
 ) -> list[float]:
     """FElupe's plate force (N) on the QUARTER pad (one layer, neo-Hookean ``mu``, ``K`` in
     MPa) at the plate displacements ``depths`` (mm, ascending) from first touch, on
@@ -402,118 +394,3 @@ def felupe_plate_force(
     pmesh = build_pad_mesh(geometry, (), options)
     kwargs.setdefault("h_apex_mm", options.h_apex_mm)
     return solve_plate(pmesh, mu, K, depths, **kwargs).force_quarter_N
-
-
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--out", type=Path, required=True, help="JSON file to write")
-    p.add_argument(
-        "--refine",
-        type=float,
-        nargs="+",
-        default=[1.0],
-        help="MeshOptions3D().refined(F) for each F (default: 1, the default mesh)",
-    )
-    p.add_argument("--mu", type=float, default=DEFAULT_MU_MPA, help="shear modulus, MPa")
-    p.add_argument("--nu", type=float, default=DEFAULT_NU, help="Poisson's ratio (sets K)")
-    p.add_argument("--depth", type=float, default=1.0, help="deepest plate displacement, mm")
-    p.add_argument("--step", type=float, default=0.1, help="plate increment (and output), mm")
-    p.add_argument(
-        "--also",
-        type=float,
-        nargs="*",
-        default=[0.25],
-        help="further output depths, mm (default 0.25: the comparison tables' depths are "
-        "0.25, 0.5 and 1 mm)",
-    )
-    p.add_argument("--formulation", choices=FORMULATIONS, default="q1p0")
-    p.add_argument("--penalty", type=float, default=PENALTY_FACTOR, help="x E h_apex, N/mm")
-    args = p.parse_args(argv)
-
-    import felupe as fem
-
-    geometry = PadGeometry()
-    K = bulk_modulus(args.mu, args.nu)
-    n_out = max(1, round(args.depth / args.step))
-    depths = [round(args.step * k, 12) for k in range(1, n_out + 1)]
-    depths[-1] = args.depth
-    depths = sorted(set(depths) | {d for d in args.also if 0 < d < args.depth})
-    runs = []
-    for factor in args.refine:
-        options = MeshOptions3D().refined(factor)
-        pmesh = build_pad_mesh(geometry, (), options)
-        res = solve_plate(
-            pmesh,
-            args.mu,
-            K,
-            depths,
-            formulation=args.formulation,
-            step_mm=args.step,
-            penalty_factor=args.penalty,
-            h_apex_mm=options.h_apex_mm,
-        )
-        runs.append({"refine": factor, "mesh_options": asdict(options), **res.to_dict()})
-        print(
-            f"refine {factor:g}: {res.n_q2_elements} Q2 elements, {res.n_cells} FElupe cells, "
-            f"{res.dofs_total} dofs ({res.dofs_free} free), {res.newton_iterations} Newton "
-            f"iterations, {res.cutbacks} cutbacks, {res.wall_s:.0f} s wall, {res.cpu_s:.0f} s "
-            f"CPU, {res.wall_s / max(1, res.newton_iterations):.2f} s/iteration, "
-            f"max penetration {res.max_penetration_mm:.2e} mm, load {res.load_average}",
-            flush=True,
-        )
-    print()
-    print(
-        "| d (mm) | " + " | ".join(f"F x{r['refine']:g}: quarter, whole (N)" for r in runs) + " |"
-    )
-    print("|---|" + "---|" * len(runs))
-    for k, d in enumerate(depths):
-        cells = [f"{r['force_quarter_N'][k]:.5f}, {r['force_N'][k]:.4f}" for r in runs]
-        print(f"| {d:.2f} | " + " | ".join(cells) + " |")
-    convergence = None
-    if len(runs) >= 2:
-        f0, f1 = runs[-2]["force_N"][-1], runs[-1]["force_N"][-1]
-        convergence = {
-            "refine": [runs[-2]["refine"], runs[-1]["refine"]],
-            "depth_mm": depths[-1],
-            "force_N": [f0, f1],
-            "relative_change": f1 / f0 - 1.0,
-        }
-        print(
-            f"\nforce at {depths[-1]:g} mm: {f0:.5f} N (x{runs[-2]['refine']:g}) -> "
-            f"{f1:.5f} N (x{runs[-1]['refine']:g}), change {100 * (f1 / f0 - 1):+.2f} %"
-        )
-    doc = {
-        "description": "FElupe reference: rigid frictionless flat plate on the elastic quarter "
-        "pad (x >= 0, z >= 0; base bonded, symmetry on x = 0 and z = 0), scripts/felupe_pad.py",
-        "felupe_version": fem.__version__,
-        "command": "python scripts/felupe_pad.py "
-        + " ".join(sys.argv[1:] if argv is None else argv),
-        "geometry": geometry.to_dict(),
-        "layers": 1,
-        "material": {
-            "model": "neo_hookean",
-            "energy": "mu/2 (J^(-2/3) I1 - 3) + K/2 (J - 1)^2",
-            "mu_MPa": args.mu,
-            "nu": args.nu,
-            "K_MPa": K,
-            "E_MPa": 2.0 * args.mu * (1.0 + args.nu),
-        },
-        "formulation": args.formulation,
-        "contact": "felupe.MultiPointContact on every outer-surface node, y only "
-        "(rigid frictionless plane), multiplier = penalty x E x h_apex",
-        "penalty": args.penalty,
-        "newton_tol": NEWTON_TOL,
-        "force_note": "force_quarter_N: the quarter model (compare sim.solver.Body.force); "
-        "force_N: the whole pad (x 4)",
-        "runs": runs,
-        "convergence": convergence,
-        "cpu_count": os.cpu_count(),
-    }
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text(json.dumps(doc, indent=2) + "\n")
-    print(f"wrote {args.out}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

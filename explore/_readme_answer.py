@@ -1,7 +1,5 @@
-"""Regenerate the README's answer table from a run folder of the main job.
-
-    python scripts/readme_answer.py runs/main            # print the block
-    python scripts/readme_answer.py runs/main --write    # and replace it in README.md
+"""The README's answer block, made from a run folder of the main job (``studies/readme_answer.py``
+writes it into README.md).
 
 The block between ``<!-- answer:start -->`` and ``<!-- answer:end -->`` in README.md is the
 output of :func:`render` on the run folder's ``summary.json`` and ``confirmations.json``: the
@@ -14,22 +12,16 @@ changes.
 
 from __future__ import annotations
 
-import argparse
 import json
-import sys
 from pathlib import Path
 
-from explore._run_folder import (
-    read_config,
-    read_studies,
-    read_summary,
-    read_trials,
-    screened_designs,
-)
 from sim.options import options_from_dict
 from sim.protocols import shown_hysteresis
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+from ._run_folder import read_config, read_studies, read_summary, read_trials, screened_designs
+
+__all__ = ["END", "LABELS", "START", "describe", "render", "replace_block"]
+
 START, END = "<!-- answer:start -->", "<!-- answer:end -->"
 LABELS = {
     "best": "best credible",
@@ -102,8 +94,9 @@ def _none_credible(summary: dict) -> str:
     )
 
 
-def render(folder: Path) -> str:
+def render(folder: str | Path) -> str:
     """The README block for the run folder ``folder``."""
+    folder = Path(folder)
     summary = read_summary(folder)
     options = options_from_dict((read_config(folder) or {}).get("sim_options") or {})
     confirmations = json.loads((folder / "confirmations.json").read_text())
@@ -145,18 +138,3 @@ def replace_block(text: str, block: str) -> str:
     head, rest = text.split(START, 1)
     _, tail = rest.split(END, 1)
     return f"{head}{START}\n{block}{END}{tail}"
-
-
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("run", type=Path, help="a run folder of fingertip run / optimize")
-    ap.add_argument("--write", action="store_true", help="replace the block in README.md")
-    args = ap.parse_args()
-    block = render(args.run)
-    sys.stdout.write(block)
-    if args.write:
-        README.write_text(replace_block(README.read_text(), block))
-
-
-if __name__ == "__main__":
-    main()

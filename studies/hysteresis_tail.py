@@ -1,6 +1,7 @@
-"""Where a checkpoint's hysteresis errors are, and how small the loss tangents get.
+"""For docs/surrogate_accuracy.md: where a checkpoint's hysteresis errors are, and how small
+the loss tangents get.
 
-    python scripts/hysteresis_tail.py [CKPT] [SWEEP]
+    python studies/hysteresis_tail.py [CKPT] [SWEEP]
 
 (default: the shipped checkpoint and its table). Prints, on the checkpoint's own held-out test
 designs that are settled and valid, the median and 95th-percentile relative error of the

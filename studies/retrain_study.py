@@ -1,7 +1,8 @@
-"""How many epochs the main job's retraining needs: fine-tune on one round, score the next ones.
+"""For docs/benchmarks.md: how many epochs the main job's retraining needs (fine-tune on one
+round, score the next ones).
 
-    python scripts/retrain_study.py runs/main --dataset runs/sweep --epochs 0 25 50 100 150
-    python scripts/retrain_study.py runs/main --epochs 150 --replay 0 256 512
+    python studies/retrain_study.py runs/main --dataset runs/sweep --epochs 0 25 50 100 150
+    python studies/retrain_study.py runs/main --epochs 150 --replay 0 256 512
 
 A run of ``fingertip run`` retrains its surrogate after each round on the training sweep plus
 the designs FE-confirmed so far (``explore._retrain.retrain``, ``--retrain-epochs``, every epoch

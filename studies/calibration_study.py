@@ -1,6 +1,7 @@
-"""What the calibration of the 90 % intervals does on a trained checkpoint's own test designs.
+"""For docs/surrogate_accuracy.md: what calibrating the 90 % intervals does on a checkpoint's
+own test designs.
 
-    python scripts/calibration_study.py CHECKPOINT SWEEP
+    python studies/calibration_study.py CHECKPOINT SWEEP
 
 ``CHECKPOINT``: a ``fingertip train`` checkpoint (calibrated or not); ``SWEEP``: the sweep it
 was trained on. The checkpoint records its train / validation / test designs by table index.

@@ -1,19 +1,19 @@
-"""Surrogate accuracy experiments on one sweep (``docs/surrogate_accuracy.md``).
+"""For docs/surrogate_accuracy.md: the surrogate accuracy experiments on one sweep.
 
-    python scripts/accuracy_study.py SWEEP [--n 10000] [--repeats 0 1 2] [--groups NAME]
+    python studies/accuracy_study.py SWEEP [--n 10000] [--repeats 0 1 2] [--groups NAME]
         [--old-trust] [--config '{"hidden": [128, 128, 128]}'] [--cv K] [--json OUT]
-    python scripts/accuracy_study.py SWEEP --rebuild-table
+    python studies/accuracy_study.py SWEEP --rebuild-table
 
-Fixed-split mode (default): the fixed test split of ``scripts/learning_curve.py`` (15 % of the
-sweep's designs, drawn with seed 0) scores ensembles trained on the first ``--n`` designs of
-each repeat's order of the others (repeat r: order and training seed r; 15 % of them for early
-stopping), exactly as ``learning_curve.train_one`` does, with the ``TrainConfig`` overrides of
+Fixed-split mode (default): the fixed test split of ``fingertip learning-curve`` (15 % of the
+sweep's designs, drawn with seed 0) scores ensembles trained on the first ``--n`` designs of each
+repeat's order of the others (repeat r: order and training seed r; 15 % of them for early stopping),
+exactly as ``surrogate._learning_curve.train_one`` does, with the ``TrainConfig`` overrides of
 ``--groups`` and ``--config``. ``--cv K``: K-fold cross-validation over all designs instead
 (out-of-fold predictions of every design; fold f trained with seed 10 f). Either way the scores
-(median and 95th-percentile relative error, coverage of the 90 % interval) are taken on the
-designs trusted whole (settled and valid: ``SweepData.scored_targets``), and the credibility
-prediction's ``TrustScore`` is printed. ``--old-trust``: train on the FE metrics of the designs
-trusted whole only (``read_sweep(per_protocol=False)``, the rule before the per-protocol trust).
+(median and 95th-percentile relative error, coverage of the 90 % interval) are taken on the designs
+trusted whole (settled and valid: ``SweepData.scored_targets``), and the credibility prediction's
+``TrustScore`` is printed. ``--old-trust``: train on the FE metrics of the designs trusted whole
+only (``read_sweep(per_protocol=False)``, the rule before the per-protocol trust).
 
 ``--rebuild-table``: write ``table.csv`` of an interrupted sweep folder from its records (a
 sweep writes it at the end of an invocation), matching the records to the folder's Sobol sample
@@ -25,14 +25,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from learning_curve import CHECKED, SCORE_KEYS, _test_and_pool
+from surrogate._learning_curve import CHECKED, SCORE_KEYS, held_out_and_pool
 
 
 def rebuild_table(folder: Path) -> None:
@@ -78,7 +75,7 @@ def _scores(surrogate, points, targets) -> tuple[dict, object]:
 def fixed_split(args, data, config) -> list[dict]:
     from surrogate._train import Split, fit
 
-    test, pool = _test_and_pool(data, 0)
+    test, pool = held_out_and_pool(data, 0)
     scored = data.scored_targets()
     runs = []
     for r in args.repeats:

@@ -1,8 +1,9 @@
-"""Where the FE time of default-space designs goes: protocols, taps and phases, in counts.
+"""For docs/fe_speed.md: where the FE time of default-space designs goes (protocols, taps and
+phases), in counts.
 
-    python scripts/fe_time_study.py --n 12 --seed 1
-    python scripts/fe_time_study.py --sweep runs/sweep_v22
-    python scripts/fe_time_study.py --breakdown --n 64 --seed 0
+    python studies/fe_time_study.py --n 12 --seed 1
+    python studies/fe_time_study.py --sweep runs/sweep_v22
+    python studies/fe_time_study.py --breakdown --n 64 --seed 0
 
 Simulates ``n`` designs of the default space (a scrambled Sobol sample,
 ``sim.sweep.sample_points``) with every protocol and prints, summed over the designs:
