@@ -104,9 +104,12 @@ def record_key(
     point: dict[str, Any], options: SimOptions, catalogue: Mapping[str, Material] | None = None
 ) -> str:
     """Hash of the design (as built; a user material by its whole table, not its name), the
-    simulation options and the solver version."""
-    design = point_to_design(point, catalogue).to_dict()
-    payload = {"design": design, "options": options.as_dict(), "solver": SOLVER_VERSION}
+    simulation options and the solver version; for the 3D model also the pad as simulated
+    (its length and side profile, defaults included, so a new default re-keys the records)."""
+    built = point_to_design(point, catalogue)
+    payload = {"design": built.to_dict(), "options": options.as_dict(), "solver": SOLVER_VERSION}
+    if options.dimension == "3d":
+        payload["pad"] = built.pad.to_dict()
     return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
 
 

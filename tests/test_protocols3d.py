@@ -165,3 +165,23 @@ def test_the_cli_simulates_in_3d_and_refuses_2d_options(tmp_path, capsys):
     assert err == [
         "fingertip: error: mesh.h_apex_mm: applies to the 2d model only, not to --model 3d"
     ]
+
+
+def test_a_3d_sweep_keys_and_tables_its_own_results(tmp_path):
+    """A 3D record's key differs from the 2D one of the same design (and includes the pad as
+    simulated); a 3D sweep's table has the contact patch columns, a 2D one has not."""
+    from sim.space import load_space
+    from sim.sweep import record_key, sample_points
+    from sim.sweep_folder import SweepStore, table_header
+
+    point = sample_points(load_space(), 1, 0)[0]
+    assert record_key(point, SimOptions()) != record_key(point, OPTS_3D)
+    assert set(METRICS_3D) <= set(table_header(["x"], "3d"))
+    assert set(METRICS_3D).isdisjoint(table_header(["x"], "2d"))
+    store = SweepStore(tmp_path)
+    store.write(
+        "k", {"status": "ok", "params": {"x": 1.0}, "metrics": {"contact_area_at_1N_mm2": 50.0}}
+    )
+    store.consolidate(["k"], ["x"], dimension="3d")
+    header, row = (tmp_path / "table.csv").read_text().splitlines()[:2]
+    assert row.split(",")[header.split(",").index("contact_area_at_1N_mm2")] == "50.0"
