@@ -132,3 +132,29 @@ def test_the_command_check_catches_what_it_should() -> None:
         with pytest.raises(AssertionError):
             check_command(argv)
     check_command(["simulate", "d.toml", "--protocol", "plate", "--set", "wedge.hold_s=50"])
+
+
+DOC_PAGES = [
+    *sorted((ROOT / "docs").glob("*.md")),
+    ROOT / "datasets/README.md",
+    ROOT / "surrogate/README.md",
+]
+
+
+@pytest.mark.parametrize("page", DOC_PAGES, ids=lambda p: str(p.relative_to(ROOT)))
+def test_doc_commands_are_real_with_real_options_and_files(page: Path) -> None:
+    """Every ``fingertip`` command in a page's shell blocks parses with the CLI's own parser;
+    each ``--set SECTION.FIELD=VALUE`` names a real option; each repository file it names
+    (``docs/...``, ``sim/...``, ``datasets/...``, ``surrogate/...``) exists."""
+    from sim.options import option_names
+
+    known = set(option_names())
+    for argv in fingertip_commands(page.read_text()):
+        check_command(argv)
+        for flag, value in zip(argv, [*argv[1:], ""], strict=True):
+            if flag == "--set":
+                name = value.split("=", 1)[0]
+                assert name in known, f"{page.name}: fingertip {' '.join(argv)}: no option {name}"
+        for word in argv:
+            if word.startswith(("docs/", "sim/", "datasets/", "surrogate/")) and "*" not in word:
+                assert (ROOT / word).exists(), f"{page.name}: {word} does not exist"
