@@ -90,14 +90,19 @@ def test_stop_workers_ends_a_busy_worker_at_once():
 
 
 INTERRUPTED = """
-import sys, time
+import os, sys, time
 from explore.cli import _terminate_as_interrupt
 from sim.pool import process_pool
 restore = _terminate_as_interrupt()  # what `fingertip` does
 try:
     with process_pool(2, spawn=True) as pool:  # spawned: its queues' semaphores are tracked
+        # both workers up (each has answered), whatever the load: a signal that reaches a
+        # worker still importing is another case than the one tested here
+        seen, deadline = set(), time.monotonic() + 120
+        while len(seen) < 2 and time.monotonic() < deadline:
+            seen.update(f.result() for f in [pool.submit(os.getpid) for _ in range(4)])
         futures = [pool.submit(time.sleep, 60) for _ in range(4)]
-        time.sleep(3)  # the workers have started and sleep
+        time.sleep(1)  # the workers have taken their sleeps
         print(" ".join(map(str, pool._processes)), flush=True)
         futures[0].result()
 except KeyboardInterrupt as exc:
