@@ -19,7 +19,7 @@ Systems:
 
 - ``2d``: the FE's own free-dof tangent (P2 plane strain, the reference design of one layer
   of ``silicone_gls40`` at rest; ``2d-x2``: the mesh refined twice).
-- ``pad``: the 3D model's own tangent (``sim.fe3d``: the reference pad, the default 3D mesh,
+- ``pad``: the 3D model's own tangent (``sim.fe.fe3d``: the reference pad, the default 3D mesh,
   one layer of ``silicone_gls40`` at rest).
 - ``3d-N``: a nearly incompressible 3D elastic block (nu = 0.499, fixed base) of
   ``N x N x N`` triquadratic (27-node) hexahedra, assembled by scikit-fem: the pattern and
@@ -62,7 +62,7 @@ def system(name: str):
     if name.startswith("2d"):
         from sim import SimOptions, homogeneous_design
         from sim.fe import Discretization
-        from sim.mesh import build_mesh
+        from sim.geometry import build_mesh
 
         design = homogeneous_design("silicone_gls40")
         options = SimOptions()
@@ -74,9 +74,8 @@ def system(name: str):
         return sp.csc_matrix(disc.pattern_matrix(ev.tangent()))
     if name == "pad":
         from sim import homogeneous_design
-        from sim.fe3d import Discretization3D
-        from sim.geometry3d import PadGeometry
-        from sim.mesh3d import build_pad_mesh
+        from sim.fe import Discretization3D
+        from sim.geometry import PadGeometry, build_pad_mesh
 
         mat = homogeneous_design("silicone_gls40").materials[0]
         disc = Discretization3D(build_pad_mesh(PadGeometry()), [mat])

@@ -32,8 +32,7 @@ import torch  # noqa: E402
 
 from explore._config import DEFAULT_CHECKPOINT  # noqa: E402
 from explore._search import SearchSettings, create_study, run_study  # noqa: E402
-from sim.space import load_space  # noqa: E402
-from sim.targets import load_targets  # noqa: E402
+from sim.design import load_space, load_targets  # noqa: E402
 from surrogate import load_checkpoint  # noqa: E402
 
 MARKS_S = (5.0, 10.0, 20.0, 30.0)

@@ -20,7 +20,7 @@ import csv  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from sim.space import load_space  # noqa: E402
+from sim.design import load_space  # noqa: E402
 from sim.sweep import run_sweep  # noqa: E402
 
 

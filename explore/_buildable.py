@@ -31,13 +31,19 @@ from typing import Any
 
 import numpy as np
 
-from sim.families import is_family
+from sim.design import (
+    LAYER_ROLES,
+    DesignSpace,
+    Parameter,
+    Targets,
+    active_roles,
+    is_family,
+    mask_inactive,
+)
 from sim.materials import CATALOGUE, Material, material_tables
 from sim.metrics import METRICS
 from sim.options import SimOptions
 from sim.provenance import atomic_write, json_text, write_if_changed
-from sim.space import LAYER_ROLES, DesignSpace, Parameter, active_roles, mask_inactive
-from sim.targets import Targets
 
 from ._confirm import confirm, record_path
 from ._types import Candidate, Confirmation

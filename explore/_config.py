@@ -15,12 +15,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from sim.design import Targets, load_space, load_targets
 from sim.errors import DesignError, check_seed
 from sim.options import SimOptions
 from sim.provenance import check_folder_kind
-from sim.space import load_space
 from sim.sweep import default_workers
-from sim.targets import Targets, load_targets
 
 from ._buildable import DEFAULT_FE_BUDGET
 from ._run_folder import read_config
@@ -52,7 +51,7 @@ class OptimizeConfig:
     (|surrogate - FE| / FE on the tapping metrics, together with an FE-confirmed design within
     it of every tapping target) and the closeness counted as "within" a target;
     ``max_disagreement``: the trust guard's limit on the ensemble's std/|mean|; ``workers``: FE
-    processes (``sim.sweep.default_workers``: one per usable core), which never change the
+    processes (``sim.sweep.run.default_workers``: one per usable core), which never change the
     answer, so a run may be resumed with another number of them; ``catalogues``: the user's
     ``--catalogue`` files (recorded with their sha256; a resume with others is refused);
     ``buildable_fe``: buildable stacks of the merged catalogue simulated by FE only, for the
@@ -218,7 +217,7 @@ def check_inputs(config: OptimizeConfig, out: str | Path) -> Targets:
 def _not_a_sweep(folder: str | Path) -> str:
     """Why ``folder`` is not a sweep folder a surrogate can retrain on ("" when it is one):
     it must hold the sweep's config.json and its table (``table.csv`` or ``table.csv.gz``)."""
-    from sim import sweep_folder
+    from sim.sweep import folder as sweep_folder
 
     folder = Path(folder)
     if not folder.is_dir():
@@ -234,7 +233,7 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     """The surrogate's training sweep: --dataset, the checkpoint's folder (a shipped checkpoint
     carries its table, gzipped), or the sweep named in its header, whichever holds the table whose
     sha256 the header records."""
-    from sim import sweep_folder
+    from sim.sweep import folder as sweep_folder
 
     want = surrogate.header.get("training_data", {}).get("table_sha256")
     places = [config.dataset, str(Path(config.surrogate).parent),
@@ -251,7 +250,7 @@ def _sim_options(dataset: Path | None) -> SimOptions:
     """The FE options of the surrogate's training sweep (so FE confirms like with like), else
     the defaults."""
     from sim.options import options_from_dict
-    from sim.sweep_folder import read_config as read_sweep_config
+    from sim.sweep import read_config as read_sweep_config
 
     if dataset is None:
         return SimOptions()

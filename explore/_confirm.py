@@ -2,7 +2,7 @@
 surrogate's predictions.
 
 Each candidate's FE record is written atomically to ``fe/records/<key>.json`` (the key of
-``sim.sweep.record_key``: design + options + solver version), so a killed run recomputes
+``sim.sweep.run.record_key``: design + options + solver version), so a killed run recomputes
 nothing it already has. References (the paper's silicone and polyurethane on the reference
 geometry) go to ``fe/references/<name>.json`` for the plots.
 """
@@ -16,15 +16,14 @@ from concurrent.futures import as_completed
 from pathlib import Path
 from typing import Any
 
+from sim.design import Targets, with_every_layer
 from sim.geometry import REFERENCE_GEOMETRY
 from sim.materials import Material
 from sim.metrics import METRICS
 from sim.options import SimOptions
 from sim.pool import process_pool
 from sim.provenance import write_json
-from sim.space import with_every_layer
 from sim.sweep import evaluate_point, record_key
-from sim.targets import Targets
 
 from ._objective import closeness
 from ._types import Candidate, Confirmation
@@ -48,7 +47,7 @@ def reference_point(material: str) -> dict[str, Any]:
 
 def _full_point(point: dict[str, Any]) -> dict[str, Any]:
     """A point with every missing layer entry set inactive (references name only what they
-    use): ``sim.space.with_every_layer``."""
+    use): ``sim.design.space.with_every_layer``."""
     return with_every_layer(point)
 
 
@@ -64,7 +63,7 @@ def run_fe(
     """Simulate each (record path, point) whose record does not exist yet; returns every
     record by path. Records are written as they finish (a kill loses only running designs).
     ``materials``: the user catalogue materials the points may name, as tables, handed to every
-    worker process explicitly (``sim.sweep.evaluate_point``)."""
+    worker process explicitly (``sim.sweep.run.evaluate_point``)."""
     from tqdm import tqdm
 
     out: dict[Path, dict] = {}

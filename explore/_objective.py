@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.targets import Targets
-from sim.trust import TRUST_OUTPUTS
+from sim.design import Targets
+from sim.protocols import TRUST_OUTPUTS
 
 TRUST_NAMES = tuple(TRUST_OUTPUTS)
 
@@ -98,13 +98,13 @@ def infeasibility(
     """How far predicted designs are from credible, and why: ``(penalty, why)``.
 
     A credible design is one whose FE result can be an answer: it settles, stays within the
-    validity limits (``sim.trust.trust_flags`` on the predicted trust outputs) and recovers
-    between taps (``sag_mm`` within ``targets.max_sag_mm``). ``penalty`` is 0 for a credible
-    design and ``1 + excess`` otherwise, ``excess`` summing how far each limit is passed
-    (relative: strain / limit - 1, limit J / J - 1, sag / limit - 1, and 1 per failed yes/no
-    limit), so that a search ranks every credible design first and still sees the way back
-    towards the credible ones. Outputs the predictor does not have are not judged."""
-    from sim.trust import trust_flags
+    validity limits (``sim.protocols.trust.trust_flags`` on the predicted trust outputs) and
+    recovers between taps (``sag_mm`` within ``targets.max_sag_mm``). ``penalty`` is 0 for a
+    credible design and ``1 + excess`` otherwise, ``excess`` summing how far each limit is passed
+    (relative: strain / limit - 1, limit J / J - 1, sag / limit - 1, and 1 per failed yes/no limit),
+    so that a search ranks every credible design first and still sees the way back towards the
+    credible ones. Outputs the predictor does not have are not judged."""
+    from sim.protocols import trust_flags
 
     n = len(np.atleast_1d(next(iter(values.values())))) if values else 0
     excess = np.zeros(n)

@@ -214,7 +214,7 @@ def run(
     sweep; a resumed run finds its sweep and its surrogate done."""
     if from_scratch is None:
         return optimize(config, out, progress=progress)
-    from sim.space import load_space
+    from sim.design import load_space
     from sim.sweep import run_sweep
     from surrogate import CHECKPOINT_NAME, train_surrogate
 

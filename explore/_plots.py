@@ -31,10 +31,10 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
 
+from sim.design import READINGS, Targets, load_targets, loading_curve
 from sim.options import SimOptions
 from sim.protocols import shown_hysteresis
 from sim.provenance import write_if_changed
-from sim.targets import READINGS, Targets, load_targets, loading_curve
 
 from ._objective import TAPPING, closeness, objectives
 from ._run_folder import (
@@ -823,7 +823,7 @@ class LoopsInfo:
     hysteresis (N mm) in ``Curve.value``; ``missing``: the answer kinds without a loop (no
     answer, or no record). The human target points ((disp_at_1N_mm, 1 N), (disp_at_4N_mm,
     4 N)) and hysteresis (None: no targets); ``human``: the loading curve through the points
-    (``sim.targets.loading_curve``, derived, not a published fit), from 0 to the tap's peak
+    (``sim.design.targets.loading_curve``, derived, not a published fit), from 0 to the tap's peak
     force, with ``human_fit`` = (B in N, k in 1/mm) of F = B (exp(k d) - 1); ``human_is_finger``:
     the targets are the shipped human ones (else a user's own)."""
 
@@ -1363,7 +1363,7 @@ def render_wedge(info: WedgeInfo) -> Figure:
         ax.set_ylabel("surface deflection, downward [mm]")
         ax.set_title(f"surface profile after {when}", fontsize=8)
         # the surface drawn as it goes: deflection downward, as in `fingertip simulate --out`'s
-        # figure (sim.output) and the paper's profiles
+        # figure (sim.output.result) and the paper's profiles
         ax.invert_yaxis()
         if not curves:
             ax.text(0.5, 0.5, f"not reached (a wedge hold shorter than {when})", ha="center",

@@ -20,11 +20,10 @@ from typing import Any
 
 import numpy as np
 
+from sim.design import Targets
 from sim.options import SimOptions
-from sim.protocols import shown_hysteresis
+from sim.protocols import ValidityOptions, shown_hysteresis
 from sim.provenance import nan_if_none, write_if_changed
-from sim.targets import Targets
-from sim.validity import ValidityOptions
 
 from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
 from ._plots import FIGURES, RunData, load_run, run_options, run_targets, write_figures

@@ -47,7 +47,7 @@ CONFIRMED_DIGITS = 5
 #: 250 000 or more to round apart and move a value by at most 5 %, a tenth of their median
 #: held-out error (41 % and 54 %): the surrogate learns their order of magnitude, no more.
 CONVERGENCE_DIGITS = 2
-#: the tapping's periodic-state residual and estimated error (``sim.trust``)
+#: the tapping's periodic-state residual and estimated error (``sim.protocols.trust``)
 CONVERGENCE = ("tapping_residual", "tapping_max_estimated_error")
 
 
@@ -68,7 +68,7 @@ def training_rows(
     of ``metric_names``; NaN: not learnt; rounded by ``reproducible``). An unsettled or invalid
     result teaches no metric, but it does teach what made it so (the trust outputs, when the
     surrogate learns them), as in ``surrogate.read_sweep``."""
-    from sim.trust import TRUST_OUTPUTS, trust_censoring, trust_values
+    from sim.protocols import TRUST_OUTPUTS, trust_censoring, trust_values
 
     learns_trust = set(TRUST_OUTPUTS) <= set(metric_names)
     ok = [c for c in confirmed if c.trusted or (learns_trust and c.status == "ok")]

@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.targets import Targets
+from sim.design import Targets
 
 from ._buildable import fe_screen, predictable_materials, screen_jobs
 from ._config import OptimizeConfig, Setup

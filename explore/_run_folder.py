@@ -43,7 +43,7 @@ that the search writes and the report reads, with its form, written and read her
   it by name (``fingertip simulate RUN --answer NAME``).
 - ``answers/<name>.toml`` (:func:`write_answers`, :func:`answer_path`): each answer of
   summary.json that exists ("best", "gel", "foam", "buildable") as a design file
-  (``sim.design.design_to_toml``, the text from ``explore._summary.answer_file_text``), which
+  (``sim.design.skin.design_to_toml``, the text from ``explore._summary.answer_file_text``), which
   ``fingertip simulate`` and ``fingertip predict`` read as it is.
 
 Every file is written atomically (``sim.provenance``), and only when its content changes.

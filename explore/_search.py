@@ -25,11 +25,9 @@ from typing import Any
 
 import numpy as np
 
-from sim.families import is_family
+from sim.design import DesignSpace, Parameter, Targets, is_family
+from sim.protocols import TRUST_OUTPUTS
 from sim.provenance import finite_or_none
-from sim.space import DesignSpace, Parameter
-from sim.targets import Targets
-from sim.trust import TRUST_OUTPUTS
 
 from ._objective import OBJECTIVE_NAMES, closeness, infeasibility, objectives
 from ._types import Candidate
@@ -146,7 +144,7 @@ def family_space(space: DesignSpace, family: str) -> DesignSpace | None:
     outside the core). A layer that cannot be of the family is left out by restricting the
     layer counts to those without it (a space whose skin is a catalogue material has one-layer
     gel designs)."""
-    from sim.space import active_roles
+    from sim.design import active_roles
 
     allowed: dict[str, tuple] = {}
     for p in space.parameters:
@@ -177,7 +175,7 @@ def family_space(space: DesignSpace, family: str) -> DesignSpace | None:
 def design_family(point: dict[str, Any]) -> str:
     """The family a design belongs to: "gel" (every layer a gel), "foam" (a foam core),
     "catalogue" (catalogue materials only) or "mixed"."""
-    from sim.space import active_roles
+    from sim.design import active_roles
 
     mats = [point.get(f"{r}.material") for r in active_roles(point["layers.count"])]
     if all(m == "gel" for m in mats):

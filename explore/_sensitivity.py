@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from sim.targets import Targets
+from sim.design import Targets
 
 from ._objective import TAPPING, closeness
 

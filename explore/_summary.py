@@ -15,11 +15,16 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from sim.design import design_to_toml
-from sim.families import FAMILIES, is_family
+from sim.design import (
+    FAMILIES,
+    READINGS,
+    Targets,
+    active_roles,
+    design_to_toml,
+    is_family,
+    point_to_design,
+)
 from sim.provenance import nan_if_none
-from sim.space import active_roles, point_to_design
-from sim.targets import READINGS, Targets
 
 from ._buildable import FE_SEARCH, material_notes
 from ._objective import TAPPING, closeness
@@ -254,8 +259,8 @@ def _rel(v: float | None, target: float) -> float:
 class LayerMaterial:
     """Where the material of an answer's layer comes from: ``role`` ("skin", "middle",
     "core"); ``family``: the design-space family the search drew it from ("gel", "foam", ...,
-    ``sim.families``), None for a catalogue material; ``name``: its catalogue name (None for a
-    family member); ``parameters``: the family parameters it was drawn with (``mu0_MPa``,
+    ``sim.design.families``), None for a catalogue material; ``name``: its catalogue name (None for
+    a family member); ``parameters``: the family parameters it was drawn with (``mu0_MPa``,
     ``alpha``, ``nu``, ``g_total``, ``tau_s``: those the family uses), from the answer's point."""
 
     role: str
@@ -273,7 +278,7 @@ class LayerMaterial:
 
     @property
     def description(self) -> str:
-        """What the family is (``sim.families.Family.description``; "" for a catalogue
+        """What the family is (``sim.design.families.Family.description``; "" for a catalogue
         material)."""
         fam = FAMILIES.get(self.family) if self.family is not None else None
         return fam.description if fam is not None else ""

@@ -259,7 +259,7 @@ def _add_simulate(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from sim.space import load_space
+    from sim.design import load_space
     from sim.sweep import run_sweep
 
     user, catalogue = _user_catalogues(args)
@@ -466,7 +466,7 @@ def _cmd_predict(args: argparse.Namespace) -> int:
 
     model = load_checkpoint(args.checkpoint, allow_solver_mismatch=args.allow_solver_mismatch)
     if args.answer is not None:
-        from sim.space import point_from_design
+        from sim.design import point_from_design
         from surrogate import check_point
 
         design = design_from_dict(_answer_design(args.designs, args.answer), model.space.catalogue)
@@ -811,7 +811,8 @@ def _add_report(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_fit_material(args: argparse.Namespace) -> int:
-    from sim.fit import (
+    from sim.materials import CATALOGUE
+    from sim.materials.fit import (
         MODES,
         STABILITY_STRAIN_RANGE,
         fit_material,
@@ -819,7 +820,6 @@ def _cmd_fit_material(args: argparse.Namespace) -> int:
         read_relaxation,
         write_fit,
     )
-    from sim.materials import CATALOGUE
 
     if args.name in CATALOGUE:
         raise DesignError(
@@ -864,7 +864,7 @@ def _cmd_fit_material(args: argparse.Namespace) -> int:
 def _add_fit_material(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
-    from sim.fit import FIT_MODELS, MODES
+    from sim.materials.fit import FIT_MODELS, MODES
 
     p.description = (
         "Fit a catalogue entry to test data. Inputs: CSV files of uniaxial, biaxial, planar or "
@@ -926,8 +926,8 @@ def _add_merge_sweeps(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_migrate_sweep(args: argparse.Namespace) -> int:
-    from sim._migrate import VERIFY_RTOL, migrate, resume_command, verify
     from sim.metrics import SOLVER_VERSION
+    from sim.sweep._migrate import VERIFY_RTOL, migrate, resume_command, verify
 
     if args.verify < 0:
         raise UsageError(f"--verify: must be >= 0, got {args.verify}")

@@ -7,13 +7,11 @@ and the error types. ``sim`` never imports torch.
 
 from .design import Design, Layer, design_from_dict, homogeneous_design, load_design
 from .errors import DesignError, SimulationError
-from .geometry import REFERENCE_GEOMETRY, Geometry
-from .mesh import DEFAULT_MESH, MeshOptions
+from .geometry import DEFAULT_MESH, REFERENCE_GEOMETRY, Geometry, MeshOptions
 from .metrics import METRICS, PROTOCOLS, SOLVER_VERSION
 from .options import SimOptions
-from .protocols import PlateOptions, TappingOptions, WedgeOptions
+from .protocols import PlateOptions, TappingOptions, ValidityOptions, WedgeOptions
 from .simulate import SimResult, simulate
-from .validity import ValidityOptions
 
 __all__ = [
     "DEFAULT_MESH",

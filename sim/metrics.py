@@ -34,9 +34,9 @@ SAME_METRICS_AS = ("2.2", "2.1")
 #      same tolerances; metrics within 0.1 % of 2.1 but for hysteresis values below 1e-3 N mm
 #      (numerical noise of nearly elastic designs; docs/fe_speed.md, "Newton")
 # 2.1: sag_mm metric (the displacement at the start of the measured tap); catalogue silicones at
-#      nu = 0.499 (was 0.49); material families gel/foam (sim.families)
-# 2.0: tapping to the periodic state on a residual (sim.periodic), rest steps from the shortest
-#      relaxation time, 48 loaded steps, Newton started from the previous tap's increment,
+#      nu = 0.499 (was 0.49); material families gel/foam (sim.design.families)
+# 2.0: tapping to the periodic state on a residual (sim.protocols.periodic), rest steps from the
+#      shortest relaxation time, 48 loaded steps, Newton started from the previous tap's increment,
 #      separate shear/bulk relaxation, validity and settling recorded
 # 1.3: profile summary = area to 2 mm (was half-width)
 

@@ -10,11 +10,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from .errors import DesignError
-from .mesh import DEFAULT_MESH, MeshOptions
-from .mesh3d import DEFAULT_MESH_3D, MeshOptions3D
-from .protocols import PlateOptions, TappingOptions, WedgeOptions
-from .solver import NewtonOptions
-from .validity import ValidityOptions
+from .fe import NewtonOptions
+from .geometry import DEFAULT_MESH, DEFAULT_MESH_3D, MeshOptions, MeshOptions3D
+from .protocols import PlateOptions, TappingOptions, ValidityOptions, WedgeOptions
 
 __all__ = [
     "MODELS",
@@ -28,7 +26,8 @@ __all__ = [
 
 
 #: The models a design can be simulated with: the paper's plane-strain section ("2d",
-#: ``sim.fe``) and the pad swept along the finger ("3d", ``sim.fe3d``, ``sim.geometry3d``).
+#: ``sim.fe.fe2d``) and the pad swept along the finger ("3d", ``sim.fe.fe3d``,
+#: ``sim.geometry.pad``).
 MODELS = ("2d", "3d")
 
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from .design import Design
 from .errors import SimulationError
-from .fe import Discretization
+from .fe import Body, Discretization
 from .metrics import (
     DIAGNOSTIC_KEYS,
     METRICS,
@@ -28,9 +28,8 @@ from .metrics import (
 )
 from .options import SimOptions
 from .protocols import REGISTRY, Protocol, ProtocolResult
+from .protocols.validity import ValidityOptions, ValidityStop, Violation, check
 from .provenance import finite_or_none
-from .solver import Body
-from .validity import ValidityOptions, ValidityStop, Violation, check
 
 __all__ = [
     "DIAGNOSTIC_KEYS",
@@ -79,7 +78,8 @@ class SimResult:
         return not self.failures
 
     def validity_summaries(self) -> dict[str, dict[str, Any]]:
-        """Each completed protocol's deformation summary (``sim.validity.DeformationTracker``)."""
+        """Each completed protocol's deformation summary
+        (``sim.protocols.validity.DeformationTracker``)."""
         return {name: fig["validity"] for name, fig in self.protocols.items() if "validity" in fig}
 
     def violations(self) -> list[tuple[str, Violation]]:
@@ -129,7 +129,7 @@ class SimResult:
             summary = validity["protocols"].get(name, {})
             for key, source in DIAGNOSTIC_KEYS.items():
                 out[f"{name}_{key}"] = summary.get(source)
-        if "tapping" in self.protocols:  # the periodic state (sim.periodic)
+        if "tapping" in self.protocols:  # the periodic state (sim.protocols.periodic)
             tap = self.protocols["tapping"]
             for key in SETTLE_KEYS:
                 out[f"tapping_{key}"] = tap.get(key)
@@ -162,7 +162,7 @@ def simulate(
     """Run ``protocols`` on ``design``. A protocol that fails is recorded, never raised.
 
     ``keep_fields``: keep the discretisation and each completed protocol's final displacements
-    in the result (``discretization``, ``fields``: what ``sim.output.write_vtu`` draws), with
+    in the result (``discretization``, ``fields``: what ``sim.output.result.write_vtu`` draws), with
     the tapping's states at 1 N and 4 N (``tapping_1N``, ``tapping_4N``); by default the result
     holds figures only.
 
@@ -219,19 +219,19 @@ def _simulate(
 
 def discretize(design: Design, options: SimOptions = SimOptions()) -> Any:
     """The design's discretisation for the model of ``options``: the 2D section
-    (``sim.fe.Discretization`` on ``sim.mesh``) or the 3D quarter pad
-    (``sim.fe3d.Discretization3D`` on ``sim.mesh3d``); ``DesignError`` when the layers leave
-    no core in the pad."""
+    (``sim.fe.fe2d.Discretization`` on ``sim.geometry.mesh2d``) or the 3D quarter pad
+    (``sim.fe.fe3d.Discretization3D`` on ``sim.geometry.mesh3d``); ``DesignError`` when the layers
+    leave no core in the pad."""
     if options.dimension == "3d":
-        from .fe3d import Discretization3D
-        from .mesh3d import build_pad_mesh
+        from .fe import Discretization3D
+        from .geometry import build_pad_mesh
 
         pad = design.pad
         pad.check_layers(design.thicknesses_mm)
         return Discretization3D(
             build_pad_mesh(pad, design.thicknesses_mm, options.mesh3d), design.materials
         )
-    from .mesh import build_mesh
+    from .geometry import build_mesh
 
     fmesh = build_mesh(design.geometry, design.thicknesses_mm, options.mesh)
     return Discretization(fmesh, design.materials)

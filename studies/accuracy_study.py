@@ -34,10 +34,9 @@ from surrogate._learning_curve import CHECKED, SCORE_KEYS, held_out_and_pool
 
 def rebuild_table(folder: Path) -> None:
     """table.csv of ``folder`` from its records, in the order of its Sobol sample."""
+    from sim.design import space_from_dict
     from sim.provenance import json_safe
-    from sim.space import space_from_dict
-    from sim.sweep import sample_points
-    from sim.sweep_folder import SweepStore, read_config
+    from sim.sweep import SweepStore, read_config, sample_points
 
     config = read_config(folder)
     space = space_from_dict(config["space"])

@@ -5,7 +5,7 @@
     python studies/answers3d.py runs/main --refine 1  # the coarser mesh of the family
 
 Each answer design is simulated with all three protocols in 2D (the run's model) and in 3D
-(the pad's default length, ``sim.geometry3d``; the mesh ``studies/mesh3d_convergence.py``'s
+(the pad's default length, ``sim.geometry.pad``; the mesh ``studies/mesh3d_convergence.py``'s
 family at ``--refine``), run to the end beyond the validity limits too (the violations are
 recorded beside the metrics), and the tapping metrics read from touch are set against the human
 targets (``sim/data/human_targets.toml``). Results are written after each design (resumes)."""
@@ -17,11 +17,10 @@ import json
 import time
 from pathlib import Path
 
-from sim.design import load_design
-from sim.mesh3d import COARSE_MESH_3D as BASE  # studies/mesh3d_convergence.py's mesh family
+from sim.design import load_design, load_targets
+from sim.geometry import COARSE_MESH_3D as BASE  # studies/mesh3d_convergence.py's mesh family
 from sim.options import ModelOptions, SimOptions
 from sim.simulate import simulate
-from sim.targets import load_targets
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "answers3d.json"
 READ = ("disp_at_1N_from_touch_mm", "disp_at_4N_from_touch_mm", "hysteresis_Nmm")

@@ -3,7 +3,7 @@ every human target value, and the bounds of the space with their sources.
 
     python studies/bracket_human.py [--out docs/design_space.md]
 
-Evaluates the hand-picked points of the shipped design space of ``sim._bracket`` (each checked
+Evaluates the hand-picked points of the shipped design space of ``sim.sweep._bracket`` (each checked
 by ``DesignSpace.check``): the paper's silicone and polyurethane (far stiffer and less
 dissipative than a finger), a gel skin over a soft gel core, a gel skin over a foam core and very
 soft, dissipative gel cores. Prints the tapping metrics in both readings (from the undeformed
@@ -20,11 +20,9 @@ from pathlib import Path
 from typing import Any
 
 from sim import SOLVER_VERSION
-from sim._bracket import bracket, describe_point, evaluate
-from sim.families import GEL_NU
+from sim.design import GEL_NU, load_space, load_targets
 from sim.provenance import git_commit
-from sim.space import load_space
-from sim.targets import load_targets
+from sim.sweep._bracket import bracket, describe_point, evaluate
 
 
 def _verdict(results: dict[str, dict[str, float]], evaluated: dict[str, dict[str, Any]]) -> list:
@@ -58,7 +56,7 @@ INTRO = """\
 
 `sim/data/default_space.toml` is the space `fingertip sweep` samples and `fingertip run` searches:
 one or two layers (a skin over a core) on a superellipse outline, each layer a catalogue material
-or a continuous family of `sim/families.py`:
+or a continuous family of `sim/design/families.py`:
 
 - `gel`: a solid silicone gel or elastomer: one-term decoupled Ogden law, nu = {gel_nu}
   (nearly incompressible), relaxing in shear only (the bulk modulus stays elastic), three Prony
@@ -81,7 +79,7 @@ point of `sim/data/default_space.toml` (checked by `DesignSpace.check`). Displac
 in both readings: from the undeformed top (as the paper reads its simulations) and from the first
 touch of the measured tap (as the human values are compared, `sim/data/human_targets.toml`, see
 "Like with like"); sag is the displacement already present at that touch. "valid": within the
-validity limits of `sim/validity.py` (local compressive log strain <= 0.60, J >= 0.55, the
+validity limits of `sim/protocols/validity.py` (local compressive log strain <= 0.60, J >= 0.55, the
 surface neither on the base beside the bone nor folded); "settled": the taps reached their
 periodic state.
 """
@@ -279,7 +277,7 @@ So the space now has two realisable families instead: the `gel` (decoupled Ogden
 `foam` core (hyperfoam, nu 0-0.3, whole-stress relaxation, physical for a foam), both with Prony
 terms spread over two decades (tau/10 to 10 tau, a gel's spectrum is broad). `param` is kept
 only so that run folders, sweeps and checkpoints made with it still load
-(`sim/families.py`).
+(`sim/design/families.py`).
 """
 
 

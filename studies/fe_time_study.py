@@ -6,14 +6,14 @@ phases), in counts.
     python studies/fe_time_study.py --breakdown --n 64 --seed 0
 
 Simulates ``n`` designs of the default space (a scrambled Sobol sample,
-``sim.sweep.sample_points``) with every protocol and prints, summed over the designs:
+``sim.sweep.run.sample_points``) with every protocol and prints, summed over the designs:
 
 - the steps, LDL^T factorisations and residual evaluations of the plate, the wedge and the
   tapping, the tapping split by tap (the first, the second, the later ones) and phase (plate
   in contact, rest) from its ``cost`` log, and the factorisations per step of each. Counts,
   not seconds: they do not depend on the machine's load;
 - how many of those factorisations came after the protocol's first step beyond the default
-  validity limits (``sim.validity.check`` after every recorded step): the work a protocol
+  validity limits (``sim.protocols.validity.check`` after every recorded step): the work a protocol
   stopped at its first violation would not do (its metrics are untrusted from there on);
 - the solver's own timings (``timings_s``) per factorisation and per evaluation, and the wall
   time per design: seconds, meaningful on a quiet machine only.
@@ -39,12 +39,11 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-import sim.validity as validity
+import sim.protocols.validity as validity
 from sim import SimOptions, simulate
-from sim.contact import Wedge
-from sim.space import load_space, point_to_design
-from sim.sweep import sample_points
-from sim.sweep_folder import open_table, table_path
+from sim.design import load_space, point_to_design
+from sim.fe import Wedge
+from sim.sweep import open_table, sample_points, table_path
 
 COUNTS = ("steps", "factorizations", "evaluations")
 
@@ -58,7 +57,8 @@ def tap_group(tap: int) -> str:
 def watch_violations() -> None:
     """Make every ``DeformationTracker`` note the body's factorisation count at the first
     recorded step beyond the default limits (``first_violation``). The wedge is judged
-    without the strain limit, as ``sim.validity`` does by default; tapping and the plate with."""
+    without the strain limit, as ``sim.protocols.validity`` does by default; tapping and the plate
+    with."""
     limits = validity.ValidityOptions()
     observe = validity.DeformationTracker.observe
 
@@ -73,7 +73,7 @@ def watch_violations() -> None:
 
 
 def study(n: int, seed: int) -> None:
-    from sim.protocols import _Recorder
+    from sim.protocols.loading import _Recorder
 
     watch_violations()
     info = _Recorder.info
@@ -140,7 +140,7 @@ def study(n: int, seed: int) -> None:
 
 
 def breakdown(n: int, seed: int) -> None:
-    from sim.solver import TIMED
+    from sim.fe.solver import TIMED
 
     seconds = dict.fromkeys(TIMED, 0.0)
     counts = dict.fromkeys(("factorizations", "evaluations", "newton_iterations"), 0)

@@ -4,7 +4,7 @@ independent reference of the 3D model (``docs/model_3d.md``).
     python studies/felupe_pad.py --out docs/felupe_pad.json [--refine 1 1.5] [--mu 0.05]
         [--nu 0.49] [--depth 1.0] [--step 0.1] [--also 0.25] [--formulation q1p0]
 
-The method, the formulations and the figures measured are in ``sim/_felupe_pad.py``
+The method, the formulations and the figures measured are in ``sim/verification/felupe_pad.py``
 (``solve_plate``; ``tests/test_fe3d_felupe.py`` runs it on coarse meshes). Needs the ``test``
 extra (FElupe). Minutes to tens of minutes per mesh.
 """
@@ -18,7 +18,8 @@ import sys
 from dataclasses import asdict
 from pathlib import Path
 
-from sim._felupe_pad import (
+from sim.geometry import MeshOptions3D, PadGeometry, build_pad_mesh
+from sim.verification.felupe_pad import (
     DEFAULT_MU_MPA,
     DEFAULT_NU,
     FORMULATIONS,
@@ -27,8 +28,6 @@ from sim._felupe_pad import (
     bulk_modulus,
     solve_plate,
 )
-from sim.geometry3d import PadGeometry
-from sim.mesh3d import MeshOptions3D, build_pad_mesh
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -130,7 +129,7 @@ def main(argv: list[str] | None = None) -> int:
         "(rigid frictionless plane), multiplier = penalty x E x h_apex",
         "penalty": args.penalty,
         "newton_tol": NEWTON_TOL,
-        "force_note": "force_quarter_N: the quarter model (compare sim.solver.Body.force); "
+        "force_note": "force_quarter_N: the quarter model (compare sim.fe.solver.Body.force); "
         "force_N: the whole pad (x 4)",
         "runs": runs,
         "convergence": convergence,

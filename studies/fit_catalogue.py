@@ -13,13 +13,13 @@ Get the data, then fit::
 
 ``--srmd`` is a clone (work tree or bare/mirror git directory); the files are read at the commit
 ``--commit`` (default: the one the shipped entries were fitted to), so the result does not depend
-on what the clone has checked out.  Each file is fitted with ``sim.fit.fit_material`` (the code
-of ``fingertip fit-material``): the engineering strain and stress columns, the points up to a
-nominal strain of ``--max-strain`` (1.0: beyond what a fingertip skin sees in tension, well
-inside the stability check's range), without the points of the starting toe whose stress is not
-positive (the strain comes from the crosshead: slack), as a uniaxial test at the file's crosshead
-speed over the 33 mm gauge length.  Elastic only (the database has no relaxation data),
-compression extrapolated from tension, nu = 0.499 assumed: each entry says so.
+on what the clone has checked out.  Each file is fitted with ``sim.materials.fit.fit_material`` (the
+code of ``fingertip fit-material``): the engineering strain and stress columns, the points up to a
+nominal strain of ``--max-strain`` (1.0: beyond what a fingertip skin sees in tension, well inside
+the stability check's range), without the points of the starting toe whose stress is not positive
+(the strain comes from the crosshead: slack), as a uniaxial test at the file's crosshead speed over
+the 33 mm gauge length.  Elastic only (the database has no relaxation data), compression
+extrapolated from tension, nu = 0.499 assumed: each entry says so.
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.fit import entry_toml, fit_material, read_curve, write_fit
 from sim.materials import CATALOGUE_PATH
+from sim.materials.fit import entry_toml, fit_material, read_curve, write_fit
 
 REPOSITORY = "github.com/LucMarechal/Soft-Robotics-Materials-Database"
 COMMIT = "8ff66c3bdc17bd226eabe83b778e13ea1e2ef8ce"

@@ -20,14 +20,10 @@ import time
 
 import numpy as np
 
-from sim.contact import Plate
-from sim.fe3d import Discretization3D
-from sim.geometry import Geometry
-from sim.geometry3d import PadGeometry
+from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate
+from sim.geometry import Geometry, MeshOptions3D, PadGeometry, build_pad_mesh
 from sim.materials._material import material_from_table
-from sim.mesh3d import MeshOptions3D, build_pad_mesh
 from sim.protocols import contact_patch
-from sim.solver import Body, Control, NewtonOptions
 
 R_MM, MU_MPA, NU = 10.0, 0.1, 0.3
 

@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.design import design_from_dict
-from sim.mesh3d import COARSE_MESH_3D
+from sim.geometry import COARSE_MESH_3D
 from sim.options import ModelOptions, SimOptions
 from sim.simulate import simulate
 

@@ -3,7 +3,7 @@ on default-space designs.
 
     python studies/mesh_speed_study.py --n 8 --seed 1 --factors 1.41 1.0 0.7
 
-Simulates ``n`` designs of the default space (``sim.sweep.sample_points``, all three protocols)
+Simulates ``n`` designs of the default space (``sim.sweep.run.sample_points``, all three protocols)
 on meshes whose element sizes are divided by each factor (``SimOptions.with_mesh_refined``; 1.0
 is the default mesh, below 1 coarser) and prints, per factor, the free dofs, the LDL^T
 factorisations and residual evaluations summed over the designs (counts: they do not depend on
@@ -24,7 +24,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import time  # noqa: E402
 
 from sim import SimOptions, simulate  # noqa: E402
-from sim.space import load_space, point_to_design  # noqa: E402
+from sim.design import load_space, point_to_design  # noqa: E402
 from sim.sweep import sample_points  # noqa: E402
 
 METRICS = (

@@ -3,7 +3,7 @@ metrics where they were.
 
     python studies/newton_study.py --n 12 --seed 1 [--variants 6,8 5,7 8,10]
 
-Runs ``n`` designs of the default space (a scrambled Sobol sample, ``sim.sweep.sample_points``)
+Runs ``n`` designs of the default space (a scrambled Sobol sample, ``sim.sweep.run.sample_points``)
 once with the stall rule switched off (``NewtonOptions.stall_from`` beyond ``max_iterations``:
 a step is pursued to the iteration limit, as solver 2.1 did) and once per variant
 ``window,from`` of ``NewtonOptions.stall_window`` / ``stall_from``. Prints per variant the
@@ -20,8 +20,8 @@ import dataclasses
 import math
 
 from sim import SimOptions, simulate
-from sim.solver import NewtonOptions
-from sim.space import load_space, point_to_design
+from sim.design import load_space, point_to_design
+from sim.fe import NewtonOptions
 from sim.sweep import sample_points
 
 

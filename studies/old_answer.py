@@ -29,13 +29,10 @@ from pathlib import Path
 from typing import Any
 
 from sim import SOLVER_VERSION, SimOptions, simulate
-from sim.design import Design, Layer
-from sim.families import GEL_NU, family_material
+from sim.design import GEL_NU, Design, Layer, family_material, load_space, load_targets
 from sim.geometry import Geometry
 from sim.materials import CATALOGUE
 from sim.provenance import git_commit
-from sim.space import load_space
-from sim.targets import load_targets
 
 #: the README's answer (commit 69eea32, "What the main job finds"), as printed there
 GEOMETRY = Geometry(half_width_mm=5.63, height_mm=6.12, exponent=2.27)
@@ -228,7 +225,8 @@ def page(results: dict[str, dict[str, Any]]) -> str:
             f"The human values are read from first touch (`sim/data/human_targets.toml`), with "
             f"a sag limit of {targets.max_sag_mm} mm. A result is valid when the local "
             "compressive log strain stays <= 0.60 (tapping and plate), J >= 0.55 and the "
-            "surface neither reaches the base beside the bone nor folds (`sim/validity.py`).",
+            "surface neither reaches the base beside the bone nor folds "
+            "(`sim/protocols/validity.py`).",
             "",
             *table,
             "",

@@ -17,7 +17,7 @@ import json
 import shutil
 from pathlib import Path
 
-from sim.sweep_folder import TABLE, TABLE_GZ, table_path, table_sha256, write_table_gz
+from sim.sweep import TABLE, TABLE_GZ, table_path, table_sha256, write_table_gz
 from surrogate import load_checkpoint
 from surrogate._spread import SPREAD_MD
 
@@ -134,7 +134,7 @@ def _segments_note(cfg: dict) -> list[str]:
     return [
         "The sweep was made in segments of the same Sobol sample (designs `start` to `n - 1`"
         " each), whose tables were kept where each command's comment says, and merged"
-        " (`sim.sweep.merge_sweeps`). A segment kept as `surrogate/pretrained/default` is the"
+        " (`sim.sweep.run.merge_sweeps`). A segment kept as `surrogate/pretrained/default` is the"
         " table shipped before this one; the `datasets/` copies are removed once shipped: both"
         " stay in the git history.",
         "",

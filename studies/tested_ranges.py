@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.fit import nominal_stress
 from sim.materials import CATALOGUE
+from sim.materials.fit import nominal_stress
 
 COMMIT = "52b1271f0f8a966c168e5ddc0886190f12c6551f"
 TOLERANCE = 0.10

@@ -288,7 +288,8 @@ def time_steps(lines: list[str]) -> None:
             )
     lines += [
         "",
-        "The periodic state reached by each run (`sim.periodic`: residual of the Prony state and "
+        "The periodic state reached by each run (`sim.protocols.periodic`: residual of the Prony "
+        "state and "
         "the largest estimated relative error of a tapping metric at the last tap) and the "
         "tapping's Newton iterations (run times: `benchmarks/bench_sweep.py`):",
         "",

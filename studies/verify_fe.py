@@ -22,15 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-import sim._verification as fv
+import sim.verification as fv
 from sim import MeshOptions, PlateOptions, WedgeOptions, homogeneous_design
-from sim.contact import Plate, Wedge
-from sim.fe import Discretization
+from sim.fe import Body, Control, Discretization, Plate, Wedge
+from sim.geometry import build_mesh
 from sim.materials import CATALOGUE, Material, MooneyRivlin, NeoHookean
-from sim.mesh import build_mesh
 from sim.protocols import run_plate, run_wedge
 from sim.provenance import git_commit
-from sim.solver import Body, Control
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -49,7 +47,7 @@ def laws_section(lines: list[str], n: int) -> float:
         "## 1. Every law against closed forms",
         "",
         "Plane strain (F33 = 1). The closed forms are derived by hand from the energies, in "
-        "`sim/_verification.py`, and use nothing of `sim.materials` but the parameters:",
+        "`sim/verification/cases.py`, and use nothing of `sim.materials` but the parameters:",
         "",
         "- principal Cauchy stresses sigma_a = (lambda_a / J) dU/dlambda_a. Invariant laws "
         "(Abaqus form U = U_iso(I1b, I2b) + K/2 (J - 1)^2): lambda_a dI1b/dlambda_a = "
@@ -148,7 +146,8 @@ def hertz_section(lines: list[str], quick: bool) -> list[fv.HertzResult]:
         f"a/R = {finest_R} (a/h = 25, 50, ...): p_apex {apex}.",
         "- The penalty's penetration is ~1e-4 of the approach a^2/R (last column): negligible.",
         "- Meshes finer than h ~ 4e-4 R are not used: the outline is sampled from a 4000-point "
-        "polyline (`sim.geometry.sample_curve`), whose spacing (4e-4 R for a half-disc) then "
+        "polyline (`sim.geometry.section.sample_curve`), whose spacing (4e-4 R for a half-disc) "
+        "then "
         "exceeds the element size and leaves uneven node spacing at the apex.",
         "",
         "The test suite runs a/R = 0.025, a/h = 50 and asserts a_fit, p0_fit and p_apex within "
@@ -245,7 +244,7 @@ def equilibrium_section(lines: list[str]) -> float:
         "Reference fingertip, default mesh and solver tolerance (Newton stops when every free "
         "residual is below 1e-6 E0 L). The base reaction is the internal force on the "
         "constrained dofs, assembled from the element forces with the committed stress "
-        "(`sim/_reactions.py`); contact forces are kappa_i x penetration x normal. Forces per "
+        "(`sim/fe/_reactions.py`); contact forces are kappa_i x penetration x normal. Forces per "
         "unit thickness of the half model. Residuals: the sums of all external forces "
         "(supports, plate or wedge, rigid base) and their moment about the origin, relative to "
         "the indenter force (moment: to force x 5.84 mm).",
@@ -298,7 +297,7 @@ def felupe_section(lines: list[str], quick: bool) -> float:
     u = np.column_stack(
         [0.1 * np.sin(0.8 * X[:, 0]) * X[:, 1] / 5, -0.08 * X[:, 1] + 0.01 * X[:, 0] ** 2]
     )
-    from sim._reactions import internal_forces
+    from sim.fe._reactions import internal_forces
 
     ours = internal_forces(disc, u, disc.initial_states())
     scale = np.abs(ours).max()
@@ -329,7 +328,7 @@ def felupe_section(lines: list[str], quick: bool) -> float:
         "points, so the stock element does not reproduce a quadratic field. With it, the "
         "internal forces at a smooth displacement differ from ours by "
         f"{100 * stock_diff:.1f} % of their maximum; with the gradient replaced by the exact "
-        "derivative of FElupe's own shape functions (`sim._verification.felupe_p2_element`) "
+        "derivative of FElupe's own shape functions (`sim.verification.cases.felupe_p2_element`) "
         f"they agree to **{fixed_diff:.1e}**. The comparison below uses the corrected element.",
         "",
         "| plate displacement (mm) | ours (N/mm) | FElupe (N/mm) | difference |",
@@ -404,7 +403,7 @@ def main() -> None:
         f"{time.perf_counter() - t0:.0f} s ({versions}). Do not edit by hand.",
         "",
         "The fast versions of these checks are in `tests/test_verification.py` and "
-        "`tests/test_felupe.py` (shared machinery: `sim/_verification.py`).",
+        "`tests/test_felupe.py` (shared machinery: `sim/verification/cases.py`).",
         "",
         "| check | result |",
         "|---|---|",

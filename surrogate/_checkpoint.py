@@ -20,9 +20,9 @@ from typing import Any
 
 import numpy as np
 
+from sim.design import space_from_dict
 from sim.metrics import METRICS, SOLVER_VERSION, same_metrics
 from sim.provenance import json_safe, json_text, replacing
-from sim.space import space_from_dict
 
 from ._encoding import (
     ELASTIC_FEATURE,

@@ -13,9 +13,9 @@ Then physical descriptors that put every material, catalogue or family, on the s
 loss tangent of its Prony series around the tap's frequency; and one flag, ``design:elastic``,
 set when no active material relaxes (such a design dissipates nothing in a closed cycle).
 
-Points are flat dicts ``name -> value`` (``sim.space``); tables are ``name -> column``. Both are
-masked like ``sim.space.mask_inactive`` before encoding, so values of parameters a design does
-not use never reach the network.
+Points are flat dicts ``name -> value`` (``sim.design.space``); tables are ``name -> column``. Both
+are masked like ``sim.design.space.mask_inactive`` before encoding, so values of parameters a design
+does not use never reach the network.
 """
 
 from __future__ import annotations
@@ -28,17 +28,18 @@ from typing import Any
 
 import numpy as np
 
-from sim.errors import DesignError
-from sim.families import FAMILIES, is_family
-from sim.materials import CATALOGUE
-from sim.protocols import TappingOptions
-from sim.provenance import finite_or_none, nan_if_none
-from sim.space import (
+from sim.design import (
+    FAMILIES,
     LAYER_ROLES,
     PARAM_MATERIAL_KEYS,
     DesignSpace,
     Parameter,
+    is_family,
 )
+from sim.errors import DesignError
+from sim.materials import CATALOGUE
+from sim.protocols import TappingOptions
+from sim.provenance import finite_or_none, nan_if_none
 
 __all__ = [
     "DESCRIPTOR_OMEGA_RAD_S",
@@ -472,7 +473,7 @@ class Encoder:
     # ------------------------------------------------------------------ decoding
     def decode(self, features: np.ndarray) -> list[dict[str, Any]]:
         """Points from features (the inverse of ``encode`` on valid points)."""
-        from sim.space import mask_inactive
+        from sim.design import mask_inactive
 
         features = np.asarray(features, dtype=float)
         points: list[dict[str, Any]] = [{} for _ in range(len(features))]

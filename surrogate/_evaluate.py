@@ -102,12 +102,12 @@ class Speed:
 
 @dataclass(frozen=True)
 class TrustScore:
-    """How well the surrogate's trust outputs (``sim.trust``) tell a credible FE result from
-    one that is not, on the ``n`` test designs where FE says either: ``accuracy`` of the
-    predicted flag (valid and settled, the default limits), the fraction of FE-untrusted
-    designs predicted trusted (``false_trusted``: the costly mistake, a search would go there)
-    and of FE-trusted ones predicted untrusted (``false_untrusted``: the search would miss
-    them), and the FE-untrusted fraction (``untrusted_fraction``)."""
+    """How well the surrogate's trust outputs (``sim.protocols.trust``) tell a credible FE result
+    from one that is not, on the ``n`` test designs where FE says either: ``accuracy`` of the
+    predicted flag (valid and settled, the default limits), the fraction of FE-untrusted designs
+    predicted trusted (``false_trusted``: the costly mistake, a search would go there) and of
+    FE-trusted ones predicted untrusted (``false_untrusted``: the search would miss them), and the
+    FE-untrusted fraction (``untrusted_fraction``)."""
 
     n: int
     accuracy: float
@@ -233,9 +233,7 @@ def parity_data(
 
 def trust_score(parity: Sequence[ParityData]) -> TrustScore | None:
     """The ``TrustScore`` of the trust outputs' parity data (None without trust outputs)."""
-    from sim.protocols import TappingOptions
-    from sim.trust import TRUST_OUTPUTS, trust_flags
-    from sim.validity import ValidityOptions
+    from sim.protocols import TRUST_OUTPUTS, TappingOptions, ValidityOptions, trust_flags
 
     by_name = {p.metric: p for p in parity if p.metric in TRUST_OUTPUTS}
     if not by_name:

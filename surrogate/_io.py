@@ -12,11 +12,12 @@ from typing import Any
 
 import numpy as np
 
+from sim.design import DesignSpace, space_from_dict
 from sim.errors import DesignError, read_toml
 from sim.metrics import METRICS, PROTOCOLS, diagnostic_names
+from sim.protocols import TRUST_OUTPUTS, trust_censoring, trust_values
 from sim.provenance import KINDS, folder_kind, sha256_file
-from sim.space import DesignSpace, space_from_dict
-from sim.sweep_folder import (
+from sim.sweep import (
     CONFIG,
     DAMAGED_GZIP,
     open_table,
@@ -24,7 +25,6 @@ from sim.sweep_folder import (
     table_path,
     table_sha256,
 )
-from sim.trust import TRUST_OUTPUTS, trust_censoring, trust_values
 
 __all__ = ["SweepData", "check_point", "read_points", "read_sweep", "sha256_file"]
 
@@ -122,8 +122,7 @@ def read_points(path: str | Path, space: DesignSpace) -> list[dict[str, Any]]:
 
 def _design_point(data: Mapping[str, Any], space: DesignSpace) -> dict[str, Any]:
     """The point of a design file (``[geometry]``, ``[[layers]]``) in ``space``."""
-    from sim.design import design_from_dict
-    from sim.space import point_from_design
+    from sim.design import design_from_dict, point_from_design
 
     return point_from_design(design_from_dict(data, space.catalogue), space)
 
@@ -132,7 +131,7 @@ def check_point(space: DesignSpace, point: Mapping[str, Any]) -> dict[str, Any]:
     """A hand-written point checked against ``space`` (names known, active values present and
     inside the bounds or choices, a buildable design); returns it masked. Values of parameters
     the design does not use are dropped (masked), as in a sweep."""
-    from sim.space import mask_inactive
+    from sim.design import mask_inactive
 
     for name in point:
         if name not in space.names:
@@ -165,9 +164,9 @@ class SweepData:
     """The usable designs of a sweep folder.
 
     ``points``: design points; ``targets`` (n, n_metrics): FE metrics in their units (NaN when
-    a protocol failed or did not reach the metric), then the trust outputs of ``sim.trust``
-    when the table has its diagnostic columns (``metric_names`` says which); ``index``: the
-    table's design index; ``table_sha256``: hash of table.csv (the training data).
+    a protocol failed or did not reach the metric), then the trust outputs of
+    ``sim.protocols.trust`` when the table has its diagnostic columns (``metric_names`` says which);
+    ``index``: the table's design index; ``table_sha256``: hash of table.csv (the training data).
     """
 
     folder: Path
@@ -207,7 +206,7 @@ class SweepData:
     tapping_frequency_Hz: float = 0.5
     #: (n, n_metrics) int8, like ``targets``: +1 where a value is only a lower bound, -1 an
     #: upper bound (the trust figures of a protocol stopped at its first violation,
-    #: ``sim.trust.trust_censoring``), 0 exact; None: all exact
+    #: ``sim.protocols.trust.trust_censoring``), 0 exact; None: all exact
     censored: np.ndarray | None = None
 
     def with_rows(self, points: list[dict[str, Any]], targets: np.ndarray) -> SweepData:
@@ -266,12 +265,12 @@ def _untrusted(row: dict[str, str]) -> str | None:
 def _trusted_protocols(row: dict[str, str], validity: Any) -> frozenset[str]:
     """The protocols whose FE result of an untrusted design (``_untrusted``) is trusted on its
     own. The protocols run one after another, each from the undeformed design (``sim.simulate``),
-    so one that stayed within the validity limits (``sim.validity.check`` of its own figures,
-    with the sweep's ``ValidityOptions``) and, for the taps, reached the periodic state, gave a
-    credible result whatever the others did. A protocol without figures (it failed) is not
-    trusted. None at all when the figures do not show why the design is untrusted (the table's
-    flags and figures disagree)."""
-    from sim.validity import check
+    so one that stayed within the validity limits (``sim.protocols.validity.check`` of its own
+    figures, with the sweep's ``ValidityOptions``) and, for the taps, reached the periodic state,
+    gave a credible result whatever the others did. A protocol without figures (it failed) is not
+    trusted. None at all when the figures do not show why the design is untrusted (the table's flags
+    and figures disagree)."""
+    from sim.protocols.validity import check
 
     kept, blamed = set(), False
     for protocol in PROTOCOLS:
@@ -297,7 +296,7 @@ def _trusted_protocols(row: dict[str, str], validity: Any) -> frozenset[str]:
     return frozenset(kept) if blamed else frozenset()
 
 
-#: the per-protocol figures of a table row that ``sim.validity.check`` judges
+#: the per-protocol figures of a table row that ``sim.protocols.validity.check`` judges
 _DIAGNOSED = ("max_compressive_log_strain", "min_J", "reached_base", "folded")
 
 
@@ -351,7 +350,7 @@ def read_sweep(
             reader = csv.DictReader(fh)
             header = reader.fieldnames or []
             # the metrics the table has (a table from before a metric was added lacks it), then
-            # the trust outputs (sim.trust) when it has the diagnostic columns
+            # the trust outputs (sim.protocols.trust) when it has the diagnostic columns
             metric_names = tuple(m for m in METRICS if m in header)
             n_fe = len(metric_names)
             learns_trust = "valid" in header
@@ -424,7 +423,7 @@ def _validity_options(config: Mapping[str, Any]) -> Any:
     the same rule as ``sim.options.options_from_dict``)."""
     import dataclasses
 
-    from sim.validity import ValidityOptions
+    from sim.protocols import ValidityOptions
 
     given = (config.get("options") or {}).get("validity") or {}
     known = {f.name for f in dataclasses.fields(ValidityOptions)}

@@ -9,10 +9,10 @@ from typing import Any
 import numpy as np
 import torch
 
+from sim.design import DesignSpace
 from sim.metrics import METRICS
+from sim.protocols import PROBABILITY_OUTPUTS
 from sim.provenance import finite_or_none
-from sim.space import DesignSpace
-from sim.trust import PROBABILITY_OUTPUTS
 
 from ._encoding import ELASTIC_FEATURE, Encoder
 from ._model import EnsembleMLP, FrozenEnsemble
@@ -28,7 +28,7 @@ ZERO_IF_ELASTIC = frozenset({"hysteresis_Nmm"})
 
 
 def clip_probabilities(out: Mapping[str, np.ndarray], metric_names: Sequence[str]) -> None:
-    """Keep the predictions of the 0/1 outputs (``sim.trust.PROBABILITY_OUTPUTS``, read as
+    """Keep the predictions of the 0/1 outputs (``sim.protocols.trust.PROBABILITY_OUTPUTS``, read as
     probabilities) in [0, 1], in place: their point predictions and 90 % interval (a Gaussian
     fitted to 0/1 values reaches below 0 and above 1: "-0.12 to 0.31" is "0 to 0.31"); their
     std is left as it is."""

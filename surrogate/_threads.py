@@ -46,7 +46,7 @@ MAX_TRAINING_THREADS = 1
 
 def torch_threads(fe_workers: int = 0, *, cores: int | None = None, most: int | None = None) -> int:
     """torch's intra-op threads for a training: the cores this process may use (``cores``;
-    default: its CPU affinity, ``os.sched_getaffinity(0)``, as ``sim.sweep.default_workers``)
+    default: its CPU affinity, ``os.sched_getaffinity(0)``, as ``sim.sweep.run.default_workers``)
     less the ``fe_workers`` FE processes that run at the same time (one core each), at least 1
     and at most ``most`` (default :data:`MAX_TRAINING_THREADS`)."""
     if cores is None:

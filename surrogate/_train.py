@@ -22,8 +22,8 @@ import numpy as np
 import torch
 
 from sim.metrics import METRICS
+from sim.protocols import TRUST_OUTPUTS
 from sim.provenance import finite_or_none, git_commit
-from sim.trust import TRUST_OUTPUTS
 
 from ._encoding import Encoder
 from ._io import SweepData

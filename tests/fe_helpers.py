@@ -5,10 +5,9 @@ from __future__ import annotations
 import numpy as np
 from skfem import MeshTri
 
-from sim.fe import Discretization
+from sim.fe import Body, Control, Discretization, NewtonOptions
+from sim.geometry import FingertipMesh
 from sim.materials import Material
-from sim.mesh import FingertipMesh
-from sim.solver import Body, Control, NewtonOptions
 
 
 def square_mesh(n: int = 4) -> FingertipMesh:

@@ -22,9 +22,8 @@ from explore._run_folder import answer_path
 from explore._summary import ANSWER_KINDS, layer_materials
 from explore._types import Candidate, Confirmation
 from explore.cli import ANSWER_NAMES, build_parser, main
-from sim.design import design_from_dict, design_to_toml, load_design
+from sim.design import design_from_dict, design_to_toml, load_design, load_space, point_to_design
 from sim.materials import CATALOGUE
-from sim.space import load_space, point_to_design
 
 ERROR_PREFIX = "fingertip: error: "
 TARGETS = {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
@@ -422,7 +421,7 @@ def test_every_help_names_every_kind_of_input(command: str) -> None:
 def test_the_answers_of_the_space_are_the_run_s(run: Path) -> None:
     """The written files are designs of the space the search used: the shipped one here."""
     write_answer_files(run)
-    from sim.space import point_from_design
+    from sim.design import point_from_design
 
     space = load_space()
     for kind, point in (("best", BEST), ("foam", FOAM), ("buildable", BUILDABLE)):

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from sim import DesignError, SimOptions
+from sim.design import space_from_dict
 from sim.materials import (
     CATALOGUE,
     CATALOGUE_PATH,
@@ -29,7 +30,6 @@ from sim.materials import (
     material_from_spec,
     material_tables,
 )
-from sim.space import space_from_dict
 from sim.sweep import record_key
 
 HUMAN_TARGETS_PATH = CATALOGUE_PATH.with_name("human_targets.toml")
@@ -175,7 +175,7 @@ def test_fitted_entries_cite_data_fit_and_limits(name: str) -> None:
     """Each entry names the paper, the repository and commit, the file, the licence notice, the
     rate, the fitted range and error, and says it is elastic only with compression extrapolated
     from tension; its Drucker ranges are those of its constants."""
-    from sim.fit import drucker_stable_ranges
+    from sim.materials.fit import drucker_stable_ranges
 
     raw, mat = RAW[name], CATALOGUE[name]
     source = raw["source"]

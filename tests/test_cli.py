@@ -345,12 +345,12 @@ def test_out_is_checked_before_any_computing(
 def test_an_elastic_design_s_hysteresis_is_shown_as_0_never_negative(capsys) -> None:
     """Issue 31, item 6a: an elastic design dissipates nothing; its FE loop area is the noise
     of the solver's tolerances, of either sign (-2.8e-05 N mm was printed). Below the
-    resolution those tolerances give (``sim.protocols.hysteresis_resolution_Nmm``) it is shown
-    as 0, in `fingertip simulate` and in the report; a larger value is shown as it is."""
+    resolution those tolerances give (``sim.protocols.loading.hysteresis_resolution_Nmm``) it is
+    shown as 0, in `fingertip simulate` and in the report; a larger value is shown as it is."""
     from explore._report import _answer_rows
+    from sim.design import load_targets
     from sim.options import SimOptions
     from sim.protocols import hysteresis_resolution_Nmm, shown_hysteresis
-    from sim.targets import load_targets
 
     design = homogeneous_design("dragon_skin_30_marechal")  # no relaxation: elastic
     metrics = {"hysteresis_Nmm": -2.8e-05, "disp_at_4N_from_touch_mm": 0.69}

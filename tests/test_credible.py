@@ -1,7 +1,7 @@
-"""Credible answers: what the surrogate learns of an FE result's trust (sim.trust), how the
-search keeps away from designs predicted not credible (explore._objective.infeasibility), which
-FE results may be answers (explore._summary.credible, per family) and the sensitivities that
-say what would close a missed target (explore._sensitivity)."""
+"""Credible answers: what the surrogate learns of an FE result's trust (sim.protocols.trust), how
+the search keeps away from designs predicted not credible (explore._objective.infeasibility), which
+FE results may be answers (explore._summary.credible, per family) and the sensitivities that say
+what would close a missed target (explore._sensitivity)."""
 
 from __future__ import annotations
 
@@ -16,17 +16,14 @@ from explore._search import design_family, family_space, predict_rows
 from explore._sensitivity import STEP, sensitivities, sensitivity_notes
 from explore._summary import credible, summarise
 from explore._types import Candidate, Confirmation
-from sim.protocols import TappingOptions
-from sim.space import load_space, point_to_design
-from sim.targets import Targets
-from sim.trust import TRUST_OUTPUTS, trust_flags, trust_values
-from sim.validity import ValidityOptions
+from sim.design import Targets, load_space, point_to_design
+from sim.protocols import TRUST_OUTPUTS, TappingOptions, ValidityOptions, trust_flags, trust_values
 
 HUMAN = {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
 TARGETS = Targets(dict(HUMAN), reading="from_first_touch", max_sag_mm=0.37)
 
 
-# ----------------------------------------------------------------------------- sim.trust
+# ----------------------------------------------------------------------------- sim.protocols.trust
 def test_trust_values_read_diagnostics_and_table_cells():
     diag = {
         "tapping_max_compressive_log_strain": 0.4,
@@ -233,7 +230,7 @@ def test_answers_are_credible_per_family_with_both_readings():
 
 
 def test_a_family_space_drops_the_layers_that_cannot_be_of_the_family():
-    from sim.space import space_from_dict
+    from sim.design import space_from_dict
 
     space = space_from_dict(
         {

@@ -1,4 +1,4 @@
-"""Design files (sim.design): round trips, the documented layout, defaults and validation.
+"""Design files (sim.design.skin): round trips, the documented layout, defaults and validation.
 
 Every invalid input must raise ``DesignError`` whose ``field`` is the dotted path of the offending
 key, so that the CLI can print one line naming it.
@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-import sim.design
+import sim.design.skin
 from sim import (
     REFERENCE_GEOMETRY,
     Design,
@@ -201,7 +201,7 @@ def test_round_trip_inline_material_named_like_the_catalogue() -> None:
 
 # --- the documented layout and defaults ----------------------------------------------------------
 def test_module_docstring_example_loads(tmp_path: Path) -> None:
-    doc = sim.design.__doc__
+    doc = sim.design.skin.__doc__
     assert doc is not None
     example = doc.split("A design file::", 1)[1].split("Every validation failure", 1)[0]
     design = load_design(write(tmp_path, example))

@@ -37,12 +37,9 @@ from explore._search import (
 from explore._storage import open_storage
 from explore._types import Candidate, Confirmation
 from sim import METRICS, SimOptions
-from sim.design import load_design
-from sim.families import is_family
-from sim.space import load_space, space_from_dict
+from sim.design import is_family, load_design, load_space, load_targets, space_from_dict
+from sim.protocols import TRUST_OUTPUTS
 from sim.sweep import record_key
-from sim.targets import load_targets
-from sim.trust import TRUST_OUTPUTS
 
 REPO = Path(explore.cli.__file__).resolve().parents[1]
 
@@ -814,9 +811,9 @@ def test_the_screen_stacks_run_ahead_are_those_the_fe_only_screen_takes(tmp_path
     screen reads for its random stacks: the first half of its budget, whatever the nearest
     stacks are."""
     from explore._buildable import _choose, screen_jobs, screen_space
+    from sim.design import load_space, with_every_layer
     from sim.materials import CATALOGUE
     from sim.options import SimOptions
-    from sim.space import load_space, with_every_layer
     from sim.sweep import record_key
 
     space, options = load_space(), SimOptions()

@@ -1,5 +1,5 @@
-"""The realisable material families of the design spaces (sim.families) and the spaces that use
-them: what each family's material is, which parameters it uses, and that the shipped spaces hold
+"""The realisable material families of the design spaces (sim.design.families) and the spaces that
+use them: what each family's material is, which parameters it uses, and that the shipped spaces hold
 no compressible "gel"."""
 
 from __future__ import annotations
@@ -9,10 +9,19 @@ import math
 import numpy as np
 import pytest
 
+from sim.design import (
+    DEFAULT_SPACE_PATH,
+    FAMILIES,
+    GEL_NU,
+    family_material,
+    family_uses,
+    is_family,
+    load_space,
+    mask_inactive,
+    space_from_dict,
+)
 from sim.errors import DesignError
-from sim.families import FAMILIES, GEL_NU, family_material, family_uses, is_family
 from sim.materials import CATALOGUE
-from sim.space import DEFAULT_SPACE_PATH, load_space, mask_inactive, space_from_dict
 from surrogate._encoding import material_descriptors
 
 WIDE = DEFAULT_SPACE_PATH.with_name("wide_space.toml")
@@ -134,7 +143,7 @@ def test_every_bound_of_the_default_space_is_argued_in_the_docs():
 def test_a_design_maps_back_to_its_point(path):
     """point_from_design inverts point_to_design on the space's own samples (catalogue names and
     family members alike), so a design file names one point of the space."""
-    from sim.space import point_from_design, point_to_design
+    from sim.design import point_from_design, point_to_design
 
     space = load_space(path)
     rng = np.random.default_rng(3)
@@ -150,8 +159,7 @@ def test_a_design_maps_back_to_its_point(path):
 
 
 def test_a_material_outside_the_families_is_named():
-    from sim.design import Design, Layer
-    from sim.space import point_from_design
+    from sim.design import Design, Layer, point_from_design
 
     compressible = family_material("param", {**FOAM, "nu": 0.45})  # the old "gel"
     with pytest.raises(DesignError) as exc:

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from sim.space import load_space
+from sim.design import load_space
 from sim.sweep import sample_points
 from surrogate import _surrogate, load_checkpoint, read_points
 from surrogate._encoding import Encoder, _per_value

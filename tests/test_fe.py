@@ -13,12 +13,10 @@ from skfem import Basis, BilinearForm, ElementTriP2, ElementVector, LinearForm, 
 from skfem.helpers import grad
 
 from sim import MeshOptions, SimOptions, homogeneous_design, simulate
-from sim.contact import Plate, Wedge
-from sim.fe import Discretization
+from sim.fe import Body, Control, Discretization, Plate, Wedge
+from sim.geometry import build_mesh
 from sim.materials import CATALOGUE, LAWS, Material
-from sim.mesh import build_mesh
 from sim.protocols import WedgeOptions, run_wedge
-from sim.solver import Body, Control
 
 ELASTIC = {
     "silicone_gls40": CATALOGUE["silicone_gls40"].law,
@@ -306,7 +304,7 @@ def test_rigid_base_contact_supports_the_body():
     contact tangent matches finite differences."""
     import numpy as np
 
-    from sim.mesh import FingertipMesh
+    from sim.geometry import FingertipMesh
 
     mesh = MeshTri.init_tensor(np.linspace(0.0, 1.0, 7), np.linspace(0.0, 0.5, 4))
     x, y = mesh.p
@@ -467,7 +465,7 @@ def test_mesh_size_distance_matches_a_kd_tree():
     force) is the KD-tree's it replaced, to round-off, without importing scipy.spatial."""
     from scipy.spatial import cKDTree
 
-    from sim.mesh import _nearest_distance
+    from sim.geometry.mesh2d import _nearest_distance
 
     rng = np.random.default_rng(3)
     theta = np.linspace(0.0, np.pi / 2, 600)

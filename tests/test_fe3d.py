@@ -1,4 +1,4 @@
-"""The 3D discretisation (``sim.fe3d``) on the pad's Q2 mesh: a patch test, the consistent
+"""The 3D discretisation (``sim.fe.fe3d``) on the pad's Q2 mesh: a patch test, the consistent
 viscoelastic tangent against finite differences of the residual (two layers, shear and bulk
 relaxing apart), the shared ``Body``'s contact in 3D (its tangent, and global equilibrium of a
 plate press: the base's reaction carries the plate's force), and the linear solvers agreeing.
@@ -9,13 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim.contact import Plate
-from sim.fe3d import Discretization3D
-from sim.geometry import Geometry
-from sim.geometry3d import PadGeometry
+from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate
+from sim.geometry import Geometry, MeshOptions3D, PadGeometry, build_pad_mesh
 from sim.materials._material import material_from_table
-from sim.mesh3d import MeshOptions3D, build_pad_mesh
-from sim.solver import Body, Control, NewtonOptions
 
 #: a coarse mesh: a few hundred elements, seconds per test
 COARSE = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
@@ -181,7 +177,7 @@ def test_a_script_using_pardiso_exits_without_noise():
 
     code = (
         "import scipy.sparse as sp, numpy as np\n"
-        "from sim._linear import make_solver\n"
+        "from sim.fe._linear import make_solver\n"
         "s = make_solver('pardiso')\n"
         "s.factor(sp.triu(sp.diags([4.0] * 50) + sp.eye(50, k=1) + sp.eye(50, k=-1)).tocsc())\n"
         "print(s.solve(np.ones(50))[0])\n"

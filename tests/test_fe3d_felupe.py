@@ -1,5 +1,5 @@
-"""The 3D model (``sim.fe3d`` + ``sim.solver``) against an independent code, FElupe
-(``sim._felupe_pad``, which ``studies/felupe_pad.py`` runs on finer meshes): a rigid
+"""The 3D model (``sim.fe.fe3d`` + ``sim.fe.solver``) against an independent code, FElupe
+(``sim.verification.felupe_pad``, which ``studies/felupe_pad.py`` runs on finer meshes): a rigid
 frictionless plate pressed onto the elastic quarter pad.
 
 Two kinds of comparison:
@@ -12,8 +12,8 @@ Two kinds of comparison:
   refinement. On the coarse meshes the difference is several per cent; on the default mesh
   it is within 1 % (the issue's target; the slow test).
 
-The plate moves down in increments like ``sim.protocols.run_plate``'s (0.1 mm per step there);
-the force compared is the quarter model's (N).
+The plate moves down in increments like ``sim.protocols.loading.run_plate``'s (0.1 mm per step
+there); the force compared is the quarter model's (N).
 """
 
 from __future__ import annotations
@@ -23,16 +23,13 @@ import os
 import numpy as np
 import pytest
 
-from sim.contact import Plate
-from sim.fe3d import Discretization3D
-from sim.geometry3d import PadGeometry
+from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate
+from sim.geometry import MeshOptions3D, PadGeometry, build_pad_mesh
 from sim.materials._material import material_from_table
-from sim.mesh3d import MeshOptions3D, build_pad_mesh
-from sim.solver import Body, Control, NewtonOptions
 
 fem = pytest.importorskip("felupe")
 
-from sim._felupe_pad import bulk_modulus, felupe_plate_force, q1_subcells  # noqa: E402
+from sim.verification import bulk_modulus, felupe_plate_force, q1_subcells  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
@@ -78,7 +75,7 @@ def test_the_trilinear_split_fills_each_element():
     """The 8 trilinear cells of each 27-node hexahedron (``q1_subcells``): positive volumes in
     FElupe, each Q2 element's 27 nodes used, and their total volume that of the Q2 mesh up to
     the faceting of the curved surface (relative O(h^2))."""
-    from sim.mesh3d import element_volumes
+    from sim.geometry.mesh3d import element_volumes
 
     pmesh = build_pad_mesh(PAD, (), COARSE)
     cells = q1_subcells(pmesh.hexes)

@@ -2,8 +2,8 @@
 energy; FElupe's own assembly, Newton solver and rigid-plane contact.
 
 FElupe 11.3.0's six-node triangle has a wrong shape-function gradient (see
-``sim._verification.felupe_p2_element``); the comparison uses the corrected derivative of FElupe's
-own shape functions, and the stock element only where stated.
+``sim.verification.cases.felupe_p2_element``); the comparison uses the corrected derivative of
+FElupe's own shape functions, and the stock element only where stated.
 """
 
 from __future__ import annotations
@@ -12,16 +12,16 @@ import numpy as np
 import pytest
 
 from sim import REFERENCE_GEOMETRY
-from sim._reactions import internal_forces
-from sim._verification import (
+from sim.fe import Discretization
+from sim.fe._reactions import internal_forces
+from sim.geometry import DEFAULT_MESH, build_mesh
+from sim.materials import Material, NeoHookean
+from sim.verification import (
     felupe_internal_forces,
     felupe_p2_element,
     felupe_plate_comparison,
     shape_gradient_error,
 )
-from sim.fe import Discretization
-from sim.materials import Material, NeoHookean
-from sim.mesh import DEFAULT_MESH, build_mesh
 
 fem = pytest.importorskip("felupe")
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")

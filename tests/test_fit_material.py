@@ -1,7 +1,7 @@
-"""``fingertip fit-material`` (sim.fit): parameter recovery from synthetic tests of every law,
-the closed forms against the solver's laws, the viscoelastic fit against the solver's Prony
-recursion, the Drucker check, one-line errors for bad CSVs, the written entry, and a fitted
-entry used end to end (simulate; a user catalogue through sweep, train and optimize)."""
+"""``fingertip fit-material`` (sim.materials.fit): parameter recovery from synthetic tests of every
+law, the closed forms against the solver's laws, the viscoelastic fit against the solver's Prony
+recursion, the Drucker check, one-line errors for bad CSVs, the written entry, and a fitted entry
+used end to end (simulate; a user catalogue through sweep, train and optimize)."""
 
 from __future__ import annotations
 
@@ -19,7 +19,8 @@ from scipy.optimize import brentq
 from sweep_fixtures import FAST
 
 import explore.cli
-from sim.fit import (
+from sim.materials import LAWS, Material, Prony, read_user_catalogue
+from sim.materials.fit import (
     Curve,
     RelaxationData,
     _ramp,
@@ -29,7 +30,6 @@ from sim.fit import (
     fit_prony,
     nominal_stress,
 )
-from sim.materials import LAWS, Material, Prony, read_user_catalogue
 
 REPO = Path(explore.cli.__file__).resolve().parents[1]
 MODES = ("uniaxial", "compression", "biaxial", "planar")
@@ -184,7 +184,8 @@ def test_an_unstable_mooney_rivlin_fit_is_caught() -> None:
     assert all(r == (-0.8, 2.0) for r in good.values())
     entry = fit.entry()
     assert entry["provenance"]["drucker_stable_uniaxial"] == [lo, hi]
-    # the material carries its limit to the FE (sim.validity flags a layer strained past it):
+    # the material carries its limit to the FE (sim.protocols.validity flags a layer strained
+    # past it):
     # equibiaxial tension to e has a smallest stretch of (1 + e) ** -2
     b_hi = fit.stable_ranges["biaxial"][1]
     limit = fit.material.drucker_limit_log_strain
@@ -500,8 +501,8 @@ def test_notes_name_the_material_a_missed_target_needs() -> None:
     buildable stack misses every target. The notes read the properties off that core and set
     them against the catalogue: nothing in it is as soft, nothing that soft relaxes."""
     from explore._buildable import RELAXATION_TIMES_S, material_notes, material_properties
+    from sim.design import param_material
     from sim.materials import CATALOGUE
-    from sim.space import param_material
 
     core = param_material(0.0015, 4.9, 0.454, 0.68, 0.02)
     best = {
@@ -542,9 +543,8 @@ def test_notes_name_the_material_a_missed_target_needs() -> None:
 
 def test_the_buildable_screen_covers_the_whole_catalogue() -> None:
     from explore._buildable import predictable_materials, screen_space
-    from sim.families import is_family
+    from sim.design import is_family, load_space
     from sim.materials import CATALOGUE
-    from sim.space import load_space
 
     space = load_space()
     known = predictable_materials(space)

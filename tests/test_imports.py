@@ -24,7 +24,7 @@ def test_import_sim_loads_no_heavy_package():
 
 def test_reading_a_design_and_the_default_space_stays_light():
     loaded = _loaded_after(
-        "from sim.space import load_space; from sim import homogeneous_design; "
+        "from sim.design import load_space; from sim import homogeneous_design; "
         "load_space(); homogeneous_design('silicone_gls40')"
     )
     heavy = sorted({m.split(".")[0] for m in loaded} & set(HEAVY))
@@ -102,5 +102,5 @@ def test_simulate_skips_the_modules_it_does_not_need():
     unneeded = ("scipy.spatial", "scipy.sparse.linalg", "scipy.sparse.csgraph")
     assert sorted(m for m in loaded if m.startswith(unneeded) or m.split(".")[0] == "skfem") == []
     # nor what only the other subcommands' options need (the parser builds simulate's alone)
-    others = ("explore._config", "explore._search", "sim.fit", "sim.sweep")
+    others = ("explore._config", "explore._search", "sim.materials.fit", "sim.sweep")
     assert sorted(m for m in loaded if m.startswith(others)) == []

@@ -1,5 +1,5 @@
-"""The compiled assembly kernels (``sim._kernels``) and the shared sparsity pattern
-(``sim._pattern``): in 2D they reproduce the verified numpy assembly of ``sim.fe`` (itself
+"""The compiled assembly kernels (``sim.fe._kernels``) and the shared sparsity pattern
+(``sim.fe._pattern``): in 2D they reproduce the verified numpy assembly of ``sim.fe.fe2d`` (itself
 checked against scikit-fem, ``tests/test_fe.py``); in 3D, on scikit-fem's triquadratic
 hexahedra, the residual is scikit-fem's assembly of the same weak form, the tangent is the
 residual's derivative (central differences), and a homogeneous deformation is a patch test."""
@@ -9,14 +9,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sim import _kernels as K
 from sim import homogeneous_design
-from sim._pattern import build_pattern
 from sim.design import Design, Layer
 from sim.fe import Discretization
-from sim.geometry import Geometry
+from sim.fe import _kernels as K
+from sim.fe._pattern import build_pattern
+from sim.geometry import Geometry, build_mesh
 from sim.materials._material import material_from_table
-from sim.mesh import build_mesh
 
 
 @pytest.fixture(scope="module")

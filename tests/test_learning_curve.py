@@ -14,7 +14,7 @@ import pytest
 from sweep_fixtures import SHIPPED, shipped_table_lines
 
 from explore.cli import main
-from sim.sweep_folder import open_table
+from sim.sweep import open_table
 from surrogate._learning_curve import CHECKED, extrapolate
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -17,7 +17,7 @@ import pytest
 from sim import DesignError
 from sim.materials import CATALOGUE, CATALOGUE_PATH
 from sim.materials import _tests as mt
-from sim.validity import ValidityOptions
+from sim.protocols import ValidityOptions
 
 FAMILIES = ("family.gel", "family.foam")
 RANGES = mt.load_tested_ranges()
@@ -87,7 +87,7 @@ def test_quoted_compression_tests() -> None:
     """The limits read from tests, not argued: 45 % (the paper), 20 mm of 30 mm (Dawood)."""
     for name in ("silicone_gls40", "polyurethane_74_45"):
         assert RANGES[name].max_compressive_log_strain == pytest.approx(-math.log(0.55), abs=1e-4)
-        # the global limit of sim/validity.py is the same tests' strain, rounded
+        # the global limit of sim/protocols/validity.py is the same tests' strain, rounded
         limit = ValidityOptions().max_compressive_log_strain
         assert RANGES[name].max_compressive_log_strain == pytest.approx(limit, abs=0.005)
     for name in ("ecoflex_0010_dawood", "ecoflex_0030_dawood", "ecoflex_0050_dawood"):

@@ -26,8 +26,8 @@ from sim.materials import (
     catalogue_material,
     material_from_spec,
     prony_update,
+    prony_update_split,
 )
-from sim.materials._prony import prony_update_split
 
 SILICONE = CATALOGUE["silicone_gls40"].law
 POLYURETHANE = CATALOGUE["polyurethane_74_45"].law

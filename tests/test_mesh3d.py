@@ -1,5 +1,5 @@
-"""The 3D pad: its geometry (sim.geometry3d), the Q2 reference element (sim._q2) and the
-structured Q2 hexahedral mesh of the quarter pad (sim.mesh3d)."""
+"""The 3D pad: its geometry (sim.geometry.pad), the Q2 reference element (sim.geometry._q2) and the
+structured Q2 hexahedral mesh of the quarter pad (sim.geometry.mesh3d)."""
 
 from __future__ import annotations
 
@@ -9,11 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from sim import _q2
 from sim.errors import DesignError
-from sim.geometry import Geometry
-from sim.geometry3d import REFERENCE_PAD, PadGeometry, half_section_area_mm2, level
-from sim.mesh3d import (
+from sim.geometry import Geometry, _q2
+from sim.geometry.mesh3d import (
     MeshOptions3D,
     boundary_faces,
     build_pad_mesh,
@@ -24,6 +22,7 @@ from sim.mesh3d import (
     surface_weights,
     write_vtu,
 )
+from sim.geometry.pad import REFERENCE_PAD, PadGeometry, half_section_area_mm2, level
 
 #: a coarse mesh for the fast tests; refined(k) divides every size by k
 COARSE = MeshOptions3D(
@@ -36,7 +35,7 @@ COARSE = MeshOptions3D(
 )
 
 #: the field defaults: the finer mesh of the FElupe comparison (the simulations' default,
-#: sim.mesh3d.DEFAULT_MESH_3D, is coarser)
+#: sim.geometry.mesh3d.DEFAULT_MESH_3D, is coarser)
 FINE = MeshOptions3D()
 
 

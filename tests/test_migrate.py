@@ -1,5 +1,5 @@
-"""``fingertip migrate-sweep`` (``sim._migrate``): a sweep of the previous solver carried over to
-this one."""
+"""``fingertip migrate-sweep`` (``sim.sweep._migrate``): a sweep of the previous solver carried over
+to this one."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import pytest
 from sweep_fixtures import FAST, TINY
 
 import explore.cli
-from sim._migrate import carried, migrate
 from sim.errors import DesignError
 from sim.metrics import SAME_METRICS_AS, SOLVER_VERSION
-from sim.sweep_folder import SweepStore, read_config, write_config
+from sim.sweep import SweepStore, read_config, write_config
+from sim.sweep._migrate import carried, migrate
 
 #: a strict strain limit, so that some of the tiny designs are beyond it (their tapping strains
 #: are 0.31-0.49 with the FAST options)
@@ -82,8 +82,8 @@ def test_valid_records_carry_over_and_the_resumed_sweep_computes_the_rest(tmp_pa
 
 def _previous_solver_config(folder: Path, space: Path) -> None:
     """A sweep folder of the previous solver with no records (no FE run)."""
+    from sim.design import load_space
     from sim.options import SimOptions
-    from sim.space import load_space
     from sim.sweep import sweep_config
 
     config = sweep_config(load_space(space), 6, 0, "sobol", SimOptions())

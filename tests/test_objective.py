@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from explore._objective import WEDGE_REFERENCE_N, WEDGE_WEIGHT, closeness, objectives
-from sim.targets import Targets
+from sim.design import Targets
 
 HUMAN = {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
 

@@ -1,6 +1,6 @@
-"""What a person looks at of a 3D result (``sim.output``): the VTU files of the whole pad
+"""What a person looks at of a 3D result (``sim.output.result``): the VTU files of the whole pad
 mirrored from the quarter model, the figure of the deformed pad and its contact patch
-(``sim._pad_figure``: its info object, not its pixels) and the curves' labels. One coarse
+(``sim.output._pad_figure``: its info object, not its pixels) and the curves' labels. One coarse
 elastic tap of a two-layer pad (seconds)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sim.design import design_from_dict
-from sim.mesh3d import MeshOptions3D, element_volumes, jacobian_determinants
+from sim.geometry.mesh3d import MeshOptions3D, element_volumes, jacobian_determinants
 from sim.options import ModelOptions, SimOptions
 from sim.output import curve_plot_data, pad_figure_info, write_result, write_vtu
 from sim.simulate import simulate
@@ -83,8 +83,8 @@ def test_the_vtu_files_hold_the_whole_pad(tap, tmp_path):
 
 
 def test_the_vtu_cells_hold_the_worst_quadrature_point(tap, tmp_path):
-    """Strain and J per cell: the extremes over its Gauss points (``sim.validity``)."""
-    from sim.validity import compressive_log_strain, volume_ratio
+    """Strain and J per cell: the extremes over its Gauss points (``sim.protocols.validity``)."""
+    from sim.protocols.validity import compressive_log_strain, volume_ratio
 
     disc = tap.discretization
     path = next(p for p in write_vtu(tap, tmp_path) if p.stem.endswith("4N"))

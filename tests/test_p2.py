@@ -1,4 +1,4 @@
-"""sim._p2 computes scikit-fem's P2 mesh and basis arrays without importing it: the same
+"""sim.geometry._p2 computes scikit-fem's P2 mesh and basis arrays without importing it: the same
 connectivity exactly, and the same geometry to round-off (two libraries' floating-point
 operations need not give the same bits on every CPU)."""
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from skfem import Basis, ElementTriP2, MeshTri
 
-from sim._p2 import P2Basis, TriMesh
 from sim.geometry import Geometry
-from sim.mesh import _areas, build_mesh
+from sim.geometry._p2 import P2Basis, TriMesh
+from sim.geometry.mesh2d import _areas, build_mesh
 
 
 def _meshes():

@@ -23,11 +23,9 @@ import numpy as np
 import pytest
 from fe_helpers import square_mesh
 
-from sim.contact import Plate
-from sim.fe import Discretization
+from sim.fe import Body, Control, Discretization, NewtonOptions, Plate
 from sim.materials import LAWS, Material, Prony
 from sim.protocols import TappingOptions, run_tapping
-from sim.solver import Body, Control, NewtonOptions
 
 G = (0.3, 0.25)  # a fast and a slow term: g_inf = 0.45 makes the creep 2.2x the elastic step
 TAU_S = (0.08, 0.9)
@@ -202,7 +200,7 @@ def test_force_controlled_creep_follows_the_creep_compliance():
 
 @pytest.mark.parametrize("tau", [0.002, 0.05, 0.9])
 def test_rest_steps_are_geometric_from_the_shortest_relaxation_time(tau):
-    from sim.protocols import _rest_times
+    from sim.protocols.loading import _rest_times
 
     opts = TappingOptions()
     t = _rest_times(opts, tau)
@@ -219,7 +217,7 @@ def test_rest_steps_are_geometric_from_the_shortest_relaxation_time(tau):
 
 
 def test_quartered_steps_quarter_every_step():
-    from sim.protocols import _rest_times
+    from sim.protocols.loading import _rest_times
 
     opts = TappingOptions()
     fine = opts.with_steps_scaled(4)
@@ -235,7 +233,7 @@ def test_a_design_that_cannot_settle_in_time_is_stopped_early():
     """Residual histories of FE runs (docs/designs and the default sweep): one that falls
     steadily is never cut, one that stagnates is cut as soon as it can be judged, one that
     falls too slowly for the tap limit is cut when that becomes clear."""
-    from sim.protocols import _cannot_settle
+    from sim.protocols.loading import _cannot_settle
 
     opts = TappingOptions()
     # settled after 22 taps in the default sweep: never cut on the way

@@ -34,7 +34,7 @@ from explore._plots import (
 from explore._report import write_report
 from explore._storage import open_storage
 from explore._types import Candidate, Confirmation
-from sim.targets import Targets, load_targets, loading_curve
+from sim.design import Targets, load_targets, loading_curve
 
 HUMAN = {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
 F_REF = 2.35  # explore._objective.WEDGE_REFERENCE_N
@@ -398,7 +398,7 @@ def test_loops_show_the_answers_of_summary_json_by_name(run_dir: Path) -> None:
 
 def test_loops_draw_the_human_loading_curve_of_the_sourced_points(run_dir: Path) -> None:
     """The human curve is F = B (exp(k d) - 1) through Serina et al.'s 1 N and 4 N points
-    (sim.targets.LOADING_CURVE_SOURCE); B = 0.1243 N, k = 1.2035 1/mm are the values derived
+    (sim.design.targets.LOADING_CURVE_SOURCE); B = 0.1243 N, k = 1.2035 1/mm are the values derived
     in docs/fingertip_3d.md ("Human force-displacement curve"), checked here at a few points."""
     info = loops_info(load_run(run_dir))
     assert info.human_is_finger and info.human is not None and info.human.role == "human"
@@ -655,7 +655,7 @@ def test_importance_title_fits_the_figure() -> None:
 
 def test_wedge_profiles_point_down_in_the_report_as_in_simulate(run_dir: Path) -> None:
     """The surface-deflection profile is drawn the same way up by `fingertip simulate --out`
-    (sim.output) and by the report: deflection downward."""
+    (sim.output.result) and by the report: deflection downward."""
     from types import SimpleNamespace
 
     from explore._plots import render_wedge, wedge_info

@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from sim import SOLVER_VERSION
+from sim.design import load_space
 from sim.metrics import SAME_METRICS_AS
-from sim.space import load_space
-from sim.sweep_folder import table_sha256
-from sim.trust import PROBABILITY_OUTPUTS
+from sim.protocols import PROBABILITY_OUTPUTS
+from sim.sweep import table_sha256
 from surrogate import load_checkpoint, read_sweep
 from surrogate._evaluate import parity_data, score
 

@@ -13,7 +13,7 @@ import pytest
 
 from sim.design import design_from_dict, homogeneous_design
 from sim.errors import DesignError
-from sim.mesh3d import MeshOptions3D
+from sim.geometry import MeshOptions3D
 from sim.metrics import METRICS, METRICS_3D, metric_registry
 from sim.options import ModelOptions, SimOptions, apply_overrides, options_from_dict
 from sim.protocols import contact_patch
@@ -63,8 +63,7 @@ def test_the_reported_force_is_four_quarters(elastic_tap):
 
 
 def test_the_contact_patch_is_zero_without_contact(elastic_tap):
-    from sim.contact import Plate
-    from sim.solver import Body
+    from sim.fe import Body, Plate
 
     body = Body(elastic_tap.discretization, Plate())
     assert contact_patch(body) == (0.0, 0.0, 0.0)
@@ -170,9 +169,8 @@ def test_the_cli_simulates_in_3d_and_refuses_2d_options(tmp_path, capsys):
 def test_a_3d_sweep_keys_and_tables_its_own_results(tmp_path):
     """A 3D record's key differs from the 2D one of the same design (and includes the pad as
     simulated); a 3D sweep's table has the contact patch columns, a 2D one has not."""
-    from sim.space import load_space
-    from sim.sweep import record_key, sample_points
-    from sim.sweep_folder import SweepStore, table_header
+    from sim.design import load_space
+    from sim.sweep import SweepStore, record_key, sample_points, table_header
 
     point = sample_points(load_space(), 1, 0)[0]
     assert record_key(point, SimOptions()) != record_key(point, OPTS_3D)

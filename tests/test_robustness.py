@@ -12,9 +12,9 @@ from sweep_fixtures import shipped_table_lines
 
 from sim import Design, Layer, SimOptions, homogeneous_design, simulate
 from sim.errors import DesignError
+from sim.fe import NewtonOptions
 from sim.materials import material_from_spec
 from sim.options import apply_overrides, option_names
-from sim.solver import NewtonOptions
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
@@ -222,7 +222,7 @@ def test_a_design_on_the_space_bound_is_inside_the_training_range():
 
 
 def test_newton_abandons_a_stalled_step_but_never_a_converging_one():
-    from sim.solver import NewtonOptions, _stalled
+    from sim.fe.solver import NewtonOptions, _stalled
 
     opts = NewtonOptions()  # not halved over 6 iterations, judged from iteration 8
     quadratic = [1.0, 1e-1, 1e-3, 1e-7]
@@ -319,10 +319,9 @@ def test_every_catalogue_entry_and_space_bound_is_inside_the_moduli_range():
     design space (its families' mu0 bounds), and the families' limit is that range."""
     import tomllib
 
-    from sim.families import FAMILIES
+    from sim.design import FAMILIES, load_space
     from sim.materials import CATALOGUE, CATALOGUE_PATH
     from sim.materials._validate import MU0_MAX_MPA, MU0_MIN_MPA
-    from sim.space import load_space
 
     tables = tomllib.loads(CATALOGUE_PATH.read_text())
     assert set(tables) == set(CATALOGUE) and len(CATALOGUE) >= 20

@@ -28,10 +28,16 @@ from explore._run_folder import (
 )
 from explore._search import TrialRow
 from explore._types import Summary
+from sim.design import (
+    DEFAULT_SPACE_PATH,
+    LAYER_ROLES,
+    PARAM_MATERIAL_KEYS,
+    active_roles,
+    family_uses,
+    load_space,
+)
 from sim.errors import DesignError
-from sim.families import family_uses
 from sim.provenance import atomic_write, json_safe, json_text, write_if_changed, write_json
-from sim.space import DEFAULT_SPACE_PATH, LAYER_ROLES, PARAM_MATERIAL_KEYS, active_roles, load_space
 
 SPACES = {"default": DEFAULT_SPACE_PATH, "wide": DEFAULT_SPACE_PATH.parent / "wide_space.toml"}
 
@@ -265,7 +271,7 @@ def _old_optional(space, name: str) -> bool:
 
 def _old_complete(space, params: dict) -> dict:
     """``explore._search.point_from_params`` before it was ``DesignSpace.complete``."""
-    from sim.space import mask_inactive
+    from sim.design import mask_inactive
 
     full = {}
     for p in space.parameters:

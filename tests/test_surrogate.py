@@ -22,13 +22,12 @@ from sweep_fixtures import FAST, TINY
 
 import explore.cli
 from sim import METRICS, SOLVER_VERSION
+from sim.design import is_family, load_space, param_material
 from sim.errors import DesignError
-from sim.families import is_family
 from sim.materials import CATALOGUE
+from sim.protocols import TRUST_OUTPUTS
 from sim.provenance import sha256_file
-from sim.space import load_space, param_material
 from sim.sweep import sample_points
-from sim.trust import TRUST_OUTPUTS
 from surrogate import (
     CheckpointError,
     Encoder,
@@ -763,12 +762,12 @@ def test_cli_refuses_a_corrupt_checkpoint_with_one_line(ckpt, tmp_path):
 
 
 def test_a_predicted_probability_and_its_interval_lie_in_0_1():
-    """Issue 31, item 6b: the 0/1 trust outputs (``sim.trust.PROBABILITY_OUTPUTS``) are
+    """Issue 31, item 6b: the 0/1 trust outputs (``sim.protocols.trust.PROBABILITY_OUTPUTS``) are
     predicted as probabilities: the shipped surrogate's Gaussian puts their 90 % intervals as
     low as -3 and as high as 3; every prediction of one is now within [0, 1], and only those
     are clipped (the other outputs keep their bits)."""
     from explore._config import DEFAULT_CHECKPOINT
-    from sim.trust import PROBABILITY_OUTPUTS
+    from sim.protocols import PROBABILITY_OUTPUTS
 
     model = load_checkpoint(DEFAULT_CHECKPOINT, allow_solver_mismatch=True)
     space = model.space
@@ -840,9 +839,9 @@ def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
     figure that says why, and one invalid through its wedge's J: their FE metrics are left out
     by default and counted, but those of a protocol whose own result is trusted are kept (the
     unsettled design's plate and wedge, the third design's taps and plate), while what made
-    them untrusted (the trust outputs of ``sim.trust``) is still learnt; ``trusted_only=False``
-    keeps every metric; a table without the flags (a sweep made before they were recorded) is
-    used whole and counted as unchecked, with no trust outputs."""
+    them untrusted (the trust outputs of ``sim.protocols.trust``) is still learnt;
+    ``trusted_only=False`` keeps every metric; a table without the flags (a sweep made before they
+    were recorded) is used whole and counted as unchecked, with no trust outputs."""
     import csv
     import shutil
 
@@ -907,7 +906,7 @@ def test_the_protocols_trusted_on_their_own_follow_the_validity_rules():
     options (the strain limit only where ``strain_limit_protocols`` says), the taps only when
     settled; a failed protocol (no figures) is not kept; when no figure says why the design is
     untrusted, nothing is kept."""
-    from sim.validity import ValidityOptions
+    from sim.protocols import ValidityOptions
     from surrogate._io import _trusted_protocols
 
     def row(**over):
@@ -1018,7 +1017,7 @@ def test_predict_reads_the_design_file_of_simulate(tmp_path, capsys):
     bounds; a material of no family of the space, one line naming the layer."""
     import math
 
-    from sim.space import point_to_design
+    from sim.design import point_to_design
 
     ckpt = REPO / "surrogate" / "pretrained" / "default" / "model.safetensors"
     model = load_checkpoint(ckpt, allow_solver_mismatch=True)
@@ -1121,7 +1120,7 @@ def test_censored_entries_are_tobit_terms():
 
 
 def test_a_stopped_protocols_trust_figures_are_bounds():
-    from sim.trust import trust_censoring, trust_values
+    from sim.protocols import trust_censoring, trust_values
 
     row = {
         "status": "ok",

@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 from sweep_fixtures import FAST, TINY
 
+from sim.design import load_space, param_material, space_from_dict
 from sim.errors import DesignError
 from sim.simulate import SimOptions
-from sim.space import load_space, param_material, space_from_dict
 from sim.sweep import record_key, run_sweep, sample_points
 
 
@@ -196,14 +196,14 @@ def test_failed_designs_are_recorded_and_retried(tiny_space, tmp_path):
 def test_an_internal_error_in_one_design_is_recorded_not_raised(monkeypatch):
     """One design hitting a bug must not stop a sweep of thousands (it once did: a TypeError
     from the solver killed the process pool); the record names the error."""
-    import sim.sweep
+    import sim.sweep.run
 
     def bug(*args, **kwargs):
         raise TypeError("cannot unpack non-iterable NoneType object")
 
-    monkeypatch.setattr(sim.sweep, "simulate", bug)
+    monkeypatch.setattr(sim.sweep.run, "simulate", bug)
     point = sample_points(load_space(), 1, 0)[0]
-    record = sim.sweep.evaluate_point(point, dataclasses.asdict(SimOptions()))
+    record = sim.sweep.run.evaluate_point(point, dataclasses.asdict(SimOptions()))
     assert record["status"] == "failed"
     assert record["reason"] == (
         "internal error TypeError: cannot unpack non-iterable NoneType object"
@@ -296,7 +296,7 @@ def test_sweep_on_a_real_dask_cluster(tiny_space, tmp_path):
 
 
 def test_run_sweep_api_in_process(tiny_space, tmp_path):
-    from sim.space import load_space as load
+    from sim.design import load_space as load
 
     seen = []
     summary = run_sweep(
@@ -313,8 +313,8 @@ def test_run_sweep_api_in_process(tiny_space, tmp_path):
 @pytest.mark.slow
 def test_default_space_brackets_every_human_value():
     """FE runs of a few points of the shipped space land below and above each human target."""
-    from sim._bracket import bracket
-    from sim.targets import load_targets
+    from sim.design import load_targets
+    from sim.sweep._bracket import bracket
 
     _, results = bracket()
     for name, target in load_targets().values.items():
@@ -340,7 +340,7 @@ def test_segments_of_a_sample_merge_into_the_whole_sweep(tiny_space, tmp_path, m
     sweep of 6, which ``read_sweep`` reads; overlapping segments, segments of another seed, a
     start out of range or with another sampler, and resuming a merged folder are refused with
     the field named."""
-    import sim.sweep as sweep_mod
+    import sim.sweep.run as sweep_mod
     from sim.sweep import merge_sweeps
     from surrogate._io import read_sweep
 
@@ -388,10 +388,9 @@ def test_a_gzipped_table_reads_hashes_and_merges_as_the_plain_one(
     damaged one is refused naming the file."""
     import shutil
 
-    import sim.sweep as sweep_mod
+    import sim.sweep.run as sweep_mod
     from sim.provenance import sha256_file
-    from sim.sweep import merge_sweeps
-    from sim.sweep_folder import table_path, table_sha256, write_table_gz
+    from sim.sweep import merge_sweeps, table_path, table_sha256, write_table_gz
     from surrogate._io import read_points, read_sweep
 
     monkeypatch.setattr(sweep_mod, "evaluate_point", _fake_fe)
@@ -437,10 +436,10 @@ def test_cli_sweep_start_out_of_range_is_one_line(tiny_space, tmp_path):
 def test_cli_merge_sweeps_joins_segments_and_refuses_bad_input_in_one_line(
     tiny_space, tmp_path, monkeypatch, capsys
 ):
-    """``fingertip merge-sweeps`` (``sim.sweep.merge_sweeps``): segments [0, 3) and [3, 6) of
+    """``fingertip merge-sweeps`` (``sim.sweep.run.merge_sweeps``): segments [0, 3) and [3, 6) of
     one sample give the table of one sweep of 6; one folder, an existing --out, a folder that is
     no sweep or segments of other seeds are one line naming the field, and write nothing."""
-    import sim.sweep as sweep_mod
+    import sim.sweep.run as sweep_mod
     from explore.cli import main
 
     monkeypatch.setattr(sweep_mod, "evaluate_point", _fake_fe)

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from sim.design import load_targets
 from sim.errors import DesignError
-from sim.targets import load_targets
 
 BASE = """
 [tapping]
@@ -120,7 +120,7 @@ def test_unknown_keys_are_refused_naming_the_key_and_the_allowed_ones(
 def test_the_shipped_targets_file_uses_only_allowed_keys():
     import tomllib
 
-    from sim.targets import ALLOWED_KEYS, DEFAULT_TARGETS_PATH
+    from sim.design import ALLOWED_KEYS, DEFAULT_TARGETS_PATH
 
     data = tomllib.loads(DEFAULT_TARGETS_PATH.read_text())
     for table, body in data.items():

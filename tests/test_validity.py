@@ -1,4 +1,5 @@
-"""Validity of an FE result (sim.validity): strain and J, folding, contact width, the verdict.
+"""Validity of an FE result (sim.protocols.validity): strain and J, folding, contact width, the
+verdict.
 
 The physics checks use the plate protocol (well under a second each); the command line runs as a
 real subprocess for the warning on stderr and the JSON block, as tests/test_cli.py does.
@@ -20,11 +21,11 @@ from fe_helpers import compress, uniaxial_body
 import explore.cli
 from explore.cli import main
 from sim import Geometry, PlateOptions, SimOptions, ValidityOptions, homogeneous_design, simulate
-from sim.contact import Plate
+from sim.fe import Plate
 from sim.materials import LAWS, Material
 from sim.metrics import DIAGNOSTIC_KEYS
 from sim.options import apply_overrides
-from sim.validity import (
+from sim.protocols.validity import (
     DeformationTracker,
     assess,
     check,
@@ -315,7 +316,7 @@ def test_options_of_a_sweep_made_before_the_validity_section_load() -> None:
     """A sweep config from before the ``validity`` section (solver < 2.0: the shipped sweep's
     options without it) gets the defaults (``fingertip run`` reads it to confirm designs with
     the training sweep's options)."""
-    from sim.sweep import options_from_dict
+    from sim.options import options_from_dict
 
     config = json.loads((REPO / "surrogate/pretrained/default/config.json").read_text())
     old = {k: v for k, v in config["options"].items() if k != "validity"}
@@ -369,7 +370,7 @@ def test_a_protocol_stops_at_its_first_step_beyond_the_limits() -> None:
 def _first_violation_s(design) -> float:
     """The simulated time of the first recorded plate step whose running summary breaks the
     default limits, on a run to the end (an observer wrapped around the recorder)."""
-    from sim import protocols
+    from sim.protocols import loading as protocols
 
     seen: list[float] = []
     record = protocols._Recorder.record

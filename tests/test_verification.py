@@ -1,7 +1,7 @@
 """Verification of the FE code against closed forms: every law in homogeneous modes, plane-strain
 Hertz contact, a manufactured solution with convergence rates, global equilibrium.
 
-The machinery lives in ``sim/_verification.py`` (shared with ``studies/verify_fe.py``, which
+The machinery lives in ``sim/verification/cases.py`` (shared with ``studies/verify_fe.py``, which
 runs the longer versions and writes ``docs/verification.md``).
 
 What ``tests/test_materials.py`` already covers and is not repeated here: stress and tangent vs
@@ -21,8 +21,12 @@ import numpy as np
 import pytest
 
 from sim import MeshOptions, PlateOptions, homogeneous_design
-from sim._reactions import internal_forces
-from sim._verification import (
+from sim.fe import Body, Control, Discretization, NewtonOptions, Plate
+from sim.fe._reactions import internal_forces
+from sim.geometry import build_mesh
+from sim.materials import CATALOGUE, MooneyRivlin
+from sim.protocols import run_plate
+from sim.verification import (
     MODES,
     ManufacturedSolution,
     balance,
@@ -32,12 +36,6 @@ from sim._verification import (
     mms_case,
     sweep,
 )
-from sim.contact import Plate
-from sim.fe import Discretization
-from sim.materials import CATALOGUE, MooneyRivlin
-from sim.mesh import build_mesh
-from sim.protocols import run_plate
-from sim.solver import Body, Control, NewtonOptions
 
 LAWS = law_cases()
 
@@ -118,7 +116,7 @@ def _fingertip_body(rtol: float = 1e-6) -> Body:
 
 
 def test_internal_forces_match_the_solver_residual_on_free_dofs() -> None:
-    """sim._reactions assembles the same element forces as Discretization.evaluate."""
+    """sim.fe._reactions assembles the same element forces as Discretization.evaluate."""
     body = _fingertip_body()
     run_plate(body, PlateOptions(depth_mm=0.5, steps=3))
     disc = body.disc

@@ -36,6 +36,9 @@ are the relaxed ones: ``Material.instantaneous`` (shear moduli / ``g_inf``, bulk
 ``k_inf``) is the law to evaluate for ``S0``/``D0``, and ``Material.relax`` turns them into the
 viscoelastic stress and the tangent factor (``Material.tangent``); the assembly goes through those
 ``Material`` methods, which keep ``S0`` and the history split when ``k != g``.
+
+Calibrating a material from test data (``fingertip fit-material``) is :mod:`sim.materials.fit`,
+imported on its own: a simulation never loads it.
 """
 
 from sim.materials._catalogue import (

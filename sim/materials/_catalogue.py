@@ -94,7 +94,7 @@ def read_user_catalogue(path: str | Path, option: str = "--catalogue") -> UserCa
         raise DesignError(option, f"malformed TOML in {path}: {exc}") from None
     if not data:
         raise DesignError(option, f"{path} defines no material")
-    from sim.families import FAMILIES  # here: sim.families builds on this package
+    from sim.design import FAMILIES  # here: sim.design.families builds on this package
 
     for name in data:
         if name in FAMILIES:

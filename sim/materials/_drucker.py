@@ -1,13 +1,13 @@
 """The Drucker-stable strains of a fitted material: what ``fingertip fit-material`` records of
 them in the entry's ``provenance`` (:func:`stable_ranges`, checked as a catalogue is read) and
 the compressive log strain an FE layer of it may reach within them
-(:func:`stable_log_strain`, held against the FE's by ``sim.validity.check``).
+(:func:`stable_log_strain`, held against the FE's by ``sim.protocols.validity.check``).
 
-``sim.fit`` checks a fitted law as Abaqus does (``d sigma : d eps > 0``) in the homogeneous
-deformations ``STABILITY_MODES`` at nominal strains ``STABILITY_STRAIN_RANGE``, and writes, per
-deformation, the interval around 0 in which every checked strain is stable, as
-``drucker_stable_<deformation> = [low, high]``. An end inside the checked range is where the
-law turned unstable; an end at the range's edge is stable as far as the check looked.
+``sim.materials.fit`` checks a fitted law as Abaqus does (``d sigma : d eps > 0``) in the
+homogeneous deformations ``STABILITY_MODES`` at nominal strains ``STABILITY_STRAIN_RANGE``, and
+writes, per deformation, the interval around 0 in which every checked strain is stable, as
+``drucker_stable_<deformation> = [low, high]``. An end inside the checked range is where the law
+turned unstable; an end at the range's edge is stable as far as the check looked.
 """
 
 from __future__ import annotations
@@ -66,13 +66,13 @@ def stable_ranges(provenance: Mapping[str, Any], field: str) -> dict[str, tuple[
 
 def stable_log_strain(law: Law, ranges: Mapping[str, tuple[float, float]]) -> float | None:
     """The largest compressive log strain, ``-ln`` of the smallest principal stretch (the FE's
-    measure, ``sim.validity``), that a material of ``law`` may reach and stay Drucker-stable, by
-    its ``ranges`` (:func:`stable_ranges`); None when no range was cut short by an instability
-    (stable wherever the check looked, or nothing recorded).
+    measure, ``sim.protocols.validity``), that a material of ``law`` may reach and stay
+    Drucker-stable, by its ``ranges`` (:func:`stable_ranges`); None when no range was cut short by
+    an instability (stable wherever the check looked, or nothing recorded).
 
     At each end of a range inside ``STABILITY_STRAIN_RANGE`` (the last stable strain before
     the law turned unstable), the smallest principal stretch of that homogeneous deformation
-    (``sim.fit.mode_stretches``: the test's own, with the law's Poisson's ratio) gives a
+    (``sim.materials.fit.mode_stretches``: the test's own, with the law's Poisson's ratio) gives a
     compressive log strain; the smallest over the ends is returned. Conservative: the plane-
     strain FE is nearest to the planar test (one principal stretch 1), but a layer is flagged
     at the first strain at which any checked deformation of its law turned unstable."""
@@ -87,7 +87,9 @@ def stable_log_strain(law: Law, ranges: Mapping[str, tuple[float, float]]) -> fl
         return None
     import numpy as np
 
-    from sim.fit import mode_stretches  # only for a law found unstable: sim.fit stays unloaded
+    from sim.materials.fit import (
+        mode_stretches,  # only for a law found unstable: sim.materials.fit stays unloaded
+    )
 
     strains = []
     for mode, end in cut:

@@ -31,7 +31,6 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from sim._special import exprel
 from sim.materials import _validate as v
 from sim.materials._law import (
     Array,
@@ -54,6 +53,7 @@ from sim.materials._law3 import (
     spectral_stress,
     spectral_tangent,
 )
+from sim.materials._special import exprel
 
 # Relative eigenvalue split below which the divided difference uses its Taylor series.
 _SPLIT_TOL = 5e-3

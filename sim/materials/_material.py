@@ -124,7 +124,7 @@ class Material:
         the stable ranges ``fingertip fit-material`` recorded in ``provenance``
         (``sim.materials._drucker``); None when none was cut short by an instability. The one
         part of ``provenance`` that the FE reads: its results flag a layer strained beyond it
-        (``sim.validity.check``)."""
+        (``sim.protocols.validity.check``)."""
         return stable_log_strain(self.law, stable_ranges(dict(self.provenance), "provenance"))
 
     # --- relaxation coefficients ------------------------------------------------------------

@@ -31,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from sim._special import exprel
 from sim.errors import DesignError
 from sim.materials import _validate as v
+from sim.materials._special import exprel
 
 Array = np.ndarray
 

@@ -3,8 +3,8 @@
 One entry per shipped catalogue material (keyed by its catalogue name) and per material family
 (``family.gel``, ``family.foam``): the ``mode`` of the tests its law was fitted to, the largest
 compressive and tensile logarithmic strains those tests reached (``|ln stretch|``: compressive
-``-ln(lambda_min)``, the quantity of ``sim.validity.compressive_log_strain``; a nominal strain
-``e`` is ``-ln(1 - e)`` in compression and ``ln(1 + e)`` in tension), a ``source`` and a
+``-ln(lambda_min)``, the quantity of ``sim.protocols.validity.compressive_log_strain``; a nominal
+strain ``e`` is ``-ln(1 - e)`` in compression and ``ln(1 + e)`` in tension), a ``source`` and a
 ``note`` for anything argued rather than read.  A law fitted to tension only has no compression
 test: its compressive limit is argued in ``note`` (see ``docs/materials.md``, "The range each
 material was tested in").

@@ -1,0 +1,43 @@
+"""The finite-element model: discretisations, contact and the Newton solver.
+
+- ``fe2d``: total-Lagrangian P2 plane-strain discretisation (``Discretization``);
+- ``fe3d``: its 3D sibling on Q2 hexahedra (``Discretization3D``; loads numba, so it is
+  imported on first use);
+- ``_constitutive``: the viscoelastic stress and tangent of every layer, shared by both;
+- ``_kernels`` (compiled assembly loops), ``_pattern`` (the sparsity pattern), ``_linear``
+  (sparse direct solvers by name), ``_reactions`` (nodal forces and support reactions);
+- ``contact``: rigid frictionless obstacles (plate, wedge, base) and their penalty contact;
+- ``solver``: ``Body`` (the committed state) and Newton with displacement or force control.
+"""
+
+from typing import TYPE_CHECKING
+
+from .contact import Base, Plate, Wedge
+from .fe2d import Discretization, LayerState
+from .solver import FORCE_RTOL, Body, Control, NewtonOptions, StepResult, youngs_moduli
+
+if TYPE_CHECKING:
+    from .fe3d import Discretization3D
+
+__all__ = [
+    "FORCE_RTOL",
+    "Base",
+    "Body",
+    "Control",
+    "Discretization",
+    "Discretization3D",
+    "LayerState",
+    "NewtonOptions",
+    "Plate",
+    "StepResult",
+    "Wedge",
+    "youngs_moduli",
+]
+
+
+def __getattr__(name: str):
+    if name == "Discretization3D":  # numba: only for a 3D simulation
+        from .fe3d import Discretization3D
+
+        return Discretization3D
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

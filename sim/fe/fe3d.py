@@ -1,0 +1,241 @@
+"""Total-Lagrangian 3D discretisation of the fingertip pad: 27-node hexahedra (Q2), the
+sibling of the plane-strain ``sim.fe.fe2d.Discretization``.
+
+The mesh is ``sim.geometry.mesh3d.PadMesh`` (the quarter pad x >= 0, z >= 0; base y = 0 bonded,
+u_x = 0 on x = 0 and u_z = 0 on z = 0); the reference element and its 3 x 3 x 3 Gauss rule are
+``sim.geometry._q2``. The constitutive step is the one the 2D discretisation uses
+(``sim.fe._constitutive.layer_stresses``: the same laws, Prony update and tangent, with 6-component
+``C``), and the residual and tangent are assembled by the compiled kernels ``sim.fe._kernels``
+into the fixed pattern of ``sim.fe._pattern``. The interface a ``sim.fe.solver.Body`` relies on is
+the 2D one: ``n_nodes``, ``dim``, ``X``, ``fixed``, ``gmap``, ``n_free``, ``surface_nodes``,
+``surface_weights()``, ``evaluate()``, ``initial_states()``, ``pattern_position()``,
+``upper_matrix()``, ``upper_data``.
+
+Array conventions: nodal displacements ``u`` have shape (n_nodes, 3); the global dof of node
+``i`` and component ``c`` is ``3 i + c``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..geometry import _q2
+from . import _kernels
+from ._constitutive import LayerState, initial_states, layer_stresses
+from ._pattern import build_pattern
+from .fe2d import Evaluation
+
+if TYPE_CHECKING:
+    import scipy.sparse as sp
+
+    from ..geometry import PadMesh
+    from ..materials import Material
+
+__all__ = ["Discretization3D"]
+
+VOIGT = _kernels.VOIGT[3]
+
+
+class Discretization3D:
+    """Q2 hexahedra on a ``PadMesh`` with one material per layer.
+
+    Elements are reordered so that each layer is a contiguous slice."""
+
+    dim = 3
+    #: the obstacles' plane (horizontal, vertical coordinate): every obstacle is a cylinder
+    #: along x, across the finger -- the wedge's edge runs across the pad
+    obstacle_axes = (2, 1)
+
+    def __init__(
+        self,
+        pmesh: PadMesh,
+        materials: list[Material],
+        fixed: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> None:
+        """``fixed(X) -> mask``: optional function of the node coordinates X (n_nodes, 3)
+        returning the (n_nodes, 3) mask of constrained dofs, replacing the default (base fully
+        fixed, u_x = 0 on x = 0, u_z = 0 on z = 0). Constrained dofs keep whatever value the
+        displacement array holds, so prescribed displacements are set there."""
+        n_layers = int(pmesh.layer.max()) + 1
+        if len(materials) != n_layers:
+            raise ValueError(f"{n_layers} layers in the mesh, {len(materials)} materials given")
+        order = np.argsort(pmesh.layer, kind="stable")
+        self.pmesh = pmesh
+        self.materials = materials
+        self.conn = np.ascontiguousarray(pmesh.hexes[order], dtype=np.int64)  # (E, 27)
+        self.layer = np.asarray(pmesh.layer)[order]
+        counts = np.bincount(self.layer, minlength=n_layers)
+        bounds = np.concatenate([[0], np.cumsum(counts)])
+        self.slices = [slice(int(bounds[k]), int(bounds[k + 1])) for k in range(n_layers)]
+        self.X = np.asarray(pmesh.nodes, dtype=float)  # (n_nodes, 3)
+        self.n_nodes = len(self.X)
+        self.dN, self.w = reference_gradients(self.X, self.conn)
+        self.n_el, self.n_q = self.w.shape
+
+        if fixed is None:
+            mask = np.zeros((self.n_nodes, 3), dtype=bool)
+            mask[pmesh.base, :] = True
+            mask[pmesh.sym_x, 0] = True
+            mask[pmesh.sym_z, 2] = True
+        else:
+            mask = np.asarray(fixed(self.X), dtype=bool)
+        self.fixed = mask
+        self.free = np.flatnonzero(~mask.ravel())
+        self.n_free = len(self.free)
+        gmap = -np.ones(3 * self.n_nodes, dtype=np.int64)
+        gmap[self.free] = np.arange(self.n_free)
+        self.gmap = gmap
+        self.surface_nodes = np.asarray(pmesh.surface_nodes)
+        s = self.surface_nodes
+        self.apex_node = int(s[np.argmax(self.X[s, 1])])
+        self.pattern = build_pattern(self.conn, gmap, 3, extra_nodes=s)
+        pat = self.pattern
+        self.nnz = pat.nnz
+        self.indptr, self.indices = pat.indptr, pat.indices
+        self.upper_data = pat.upper_data
+        self.upper_indices, self.upper_indptr = pat.upper_indices, pat.upper_indptr
+
+    # ------------------------------------------------------------------ helpers
+    def force_scale(self, length_mm: float) -> float:
+        """The whole pad's force (N) per unit of the model's indenter force (N, on the quarter
+        x >= 0, z >= 0): 4; ``length_mm``, the 2D model's out-of-plane length, plays no part."""
+        return 4.0
+
+    def section_curves(self) -> list[tuple[np.ndarray, int]]:
+        """The outer surface's curves in the symmetry planes, ordered from the apex, each with
+        the horizontal coordinate along which it runs: x = 0 (along the finger, z) and z = 0
+        (across it, x). Ordered by the angle from the apex in the scaled coordinates (the pad
+        is star-shaped from the origin)."""
+        a, b, c = self.pmesh.geometry.semi_axes_mm()
+        s = self.surface_nodes
+        X = self.X[s]
+        curves = []
+        for plane, axis, scale in ((0, 2, c), (2, 0, a)):
+            on = np.flatnonzero(np.abs(X[:, plane]) <= 1e-9 * max(a, b, c))
+            angle = np.arctan2(X[on, axis] / scale, X[on, 1] / b)
+            curves.append((s[on[np.argsort(angle, kind="stable")]], axis))
+        return curves
+
+    def contact_area_mm2(self, u: np.ndarray, penetration: np.ndarray, samples: int = 8) -> float:
+        """The whole pad's contact area (mm^2, 4 x the quarter's): the part of the deformed
+        outer surface where the penetration is positive, projected on the plane y = const
+        (the plate's; on a flat patch the two are equal).
+
+        ``penetration`` (mm, > 0 inside the obstacle) at the surface nodes, in the order of
+        ``surface_nodes``, is interpolated over each 9-node face by its shape functions and
+        read at ``samples`` x ``samples`` midpoints of the reference face; each sample counts
+        its share of the projected area, |(dx/ds x dx/dt)_y| ds dt. A patch edge is thus
+        located to within a fraction 1/samples of an element, not snapped to the nodes."""
+        faces = np.asarray(self.pmesh.surface_faces)
+        on_surface = np.full(self.n_nodes, -np.inf)
+        on_surface[self.surface_nodes] = penetration
+        p_faces = on_surface[faces]  # (F, 9)
+        touching = np.any(p_faces > 0.0, axis=1)
+        if not np.any(touching):
+            return 0.0
+        faces, p_faces = faces[touching], p_faces[touching]
+        t = (np.arange(samples) + 0.5) / samples * 2.0 - 1.0
+        S, T = np.meshgrid(t, t, indexing="ij")
+        points = np.column_stack([S.ravel(), T.ravel()])
+        N = _q2.face_shape_functions(points)  # (P, 9)
+        dN = _q2.face_shape_gradients(points)  # (P, 9, 2)
+        x = (self.X + u)[faces]  # (F, 9, 3)
+        tangents = np.einsum("fai,pad->fpdi", x, dN)  # (F, P, 2, 3)
+        normal_y = (
+            tangents[:, :, 0, 2] * tangents[:, :, 1, 0]
+            - tangents[:, :, 0, 0] * tangents[:, :, 1, 2]
+        )  # the y component of dx/ds x dx/dt
+        weight = (2.0 / samples) ** 2
+        inside = (p_faces @ N.T) > 0.0  # (F, P)
+        return 4.0 * weight * float(np.sum(np.abs(normal_y) * inside))
+
+    def quadrature_points(self) -> np.ndarray:
+        """The Gauss points in the reference configuration (3, n_el, n_q), mm."""
+        points, _ = _q2.gauss_rule()
+        N = _q2.shape_functions(points)  # (Q, 27)
+        return np.einsum("qa,eaI->Ieq", N, self.X[self.conn])
+
+    def surface_weights(self) -> np.ndarray:
+        """Each surface node's share of the outer surface's area (mm^2), in the order of
+        ``surface_nodes``: the contact penalty's weights
+        (``sim.geometry.mesh3d.surface_weights``)."""
+        from ..geometry.mesh3d import surface_weights
+
+        w = surface_weights(self.X, np.asarray(self.pmesh.surface_faces))
+        return w[self.surface_nodes]
+
+    def pattern_position(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Where each free-dof pair sits in the tangent's data array (``Pattern.position``)."""
+        return self.pattern.position(rows, cols)
+
+    def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The free-dof tangent as a CSC matrix (``Pattern.matrix``)."""
+        return self.pattern.matrix(data)
+
+    def upper_matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The upper triangle of the tangent as a CSC matrix, for the LDL^T factorisation."""
+        return self.pattern.upper(data)
+
+    def initial_states(self) -> list[LayerState]:
+        return initial_states(self.materials, self.slices, self.n_q, 6)
+
+    # ------------------------------------------------------------------ kinematics
+    def deformation_gradient(self, u: np.ndarray) -> np.ndarray:
+        """F with shape (3, 3, n_el, n_q) for nodal displacements u (n_nodes, 3)."""
+        return _kernels.deformation_gradient(np.ascontiguousarray(u), self.conn, self.dN)
+
+    # ------------------------------------------------------------------ assembly
+    def evaluate(
+        self,
+        u: np.ndarray,
+        states: list[LayerState],
+        dt_s: float,
+        tangent: bool = True,
+        frozen_history: bool = False,
+    ) -> Evaluation:
+        """Internal-force residual (free dofs), tangent data on demand and trial history at
+        ``u``, as ``sim.fe.fe2d.Discretization.evaluate``."""
+        F = self.deformation_gradient(u)
+        with np.errstate(all="ignore"):
+            J = (
+                F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
+                - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
+                + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0])
+            )
+        min_J = float(J.min())
+        if not min_J > 1e-8:  # also catches NaN from an overflowing trial
+            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
+        C = _kernels.right_cauchy_green(F, VOIGT)
+        S, D, new_states = layer_stresses(
+            self.materials, self.slices, C, states, dt_s, tangent, frozen_history
+        )
+        if not np.all(np.isfinite(S)) or (tangent and not np.all(np.isfinite(D))):
+            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
+        pat = self.pattern
+        r = _kernels.internal_forces(F, S, self.dN, self.w, VOIGT, pat.scatter_r, pat.n_free + 1)
+        args = (F, S, D) if tangent else None
+        return Evaluation(r[:-1], args, new_states, ok=True, min_J=min_J, _assemble=self._tangent)
+
+    def _tangent(self, F: np.ndarray, S: np.ndarray, D: np.ndarray) -> np.ndarray:
+        pat = self.pattern
+        data = _kernels.stiffness(F, S, D, self.dN, self.w, VOIGT, pat.scatter_K, pat.nnz + 1)
+        return data[:-1]
+
+
+def reference_gradients(X: np.ndarray, conn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Shape-function gradients ``dN_a/dX_J`` (E, Q, 27, 3) and the weights ``w = det(dX/dxi)
+    w_q`` (E, Q) at the 3 x 3 x 3 Gauss points of each Q2 element of nodes ``X[conn]``.
+    Raises ``ValueError`` for an element whose Jacobian is not positive everywhere."""
+    points, weights = _q2.gauss_rule()
+    G = _q2.shape_gradients(points)  # (Q, 27, 3): dN_a/dxi_d
+    Xe = X[conn]  # (E, 27, 3)
+    jac = np.einsum("eaI,qad->eqId", Xe, G)  # dX_I/dxi_d
+    det = np.linalg.det(jac)
+    if not np.all(det > 0.0):
+        raise ValueError(f"{int(np.sum(~(det > 0)))} Gauss points with det(dX/dxi) <= 0")
+    inv = np.linalg.inv(jac)  # dxi_d/dX_J
+    dN = np.einsum("qad,eqdJ->eqaJ", G, inv)
+    return np.ascontiguousarray(dN), det * weights[None, :]

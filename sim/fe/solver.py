@@ -1,0 +1,537 @@
+"""Newton solver with penalty contact, displacement or force control, and step cutting.
+
+A ``Body`` holds the discretisation, the committed state (displacements, material history, time)
+and the contact obstacles. ``Body.advance`` takes one time step to ``t_new`` under a given control:
+
+- ``Control.position(d)``: the indenter's lowest point is at height ``d`` (mm);
+- ``Control.force(F)``: the indenter (a plate) carries the force ``F`` per unit thickness of the
+  half model (N/mm); its position is an extra unknown, solved for with a bordered (Schur
+  complement) Newton system that reuses the one factorisation for both right-hand sides;
+- ``Control.free()``: no indenter (lifted off), the body relaxes.
+
+The LDL^T factorisation (``sim.fe._linear``: qdldl for the 2D systems, PARDISO for the large 3D
+ones) keeps its symbolic analysis across all iterations and steps because the sparsity pattern
+never changes. Failed steps are cut by the caller
+(``sim.protocols.loading``), never here.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .contact import Base
+from .fe2d import Discretization, LayerState
+
+if TYPE_CHECKING:
+    from ..materials import Material
+
+_log = logging.getLogger(__name__)
+TIMED = ("residual+material", "tangent assembly", "LDL^T factorisation", "triangular solves")
+__all__ = ["FORCE_RTOL", "Body", "Control", "NewtonOptions", "StepResult", "youngs_moduli"]
+
+
+@dataclass(frozen=True)
+class Control:
+    """How the indenter is driven during a step (see module docstring)."""
+
+    kind: str  # "position" | "force" | "free"
+    value: float = 0.0
+
+    @staticmethod
+    def position(d_mm: float) -> Control:
+        return Control("position", float(d_mm))
+
+    @staticmethod
+    def force(f_N_per_mm: float) -> Control:
+        return Control("force", float(f_N_per_mm))
+
+    @staticmethod
+    def free() -> Control:
+        return Control("free")
+
+
+#: a force-controlled step matches its applied force to this fraction of it (or to the round-off
+#: floor of the contact force, ``Body.force_floor``, if larger)
+FORCE_RTOL = 1e-6
+
+
+def youngs_moduli(materials: Sequence[Material]) -> list[float]:
+    """Each material's instantaneous small-strain Young's modulus 2 mu0 (1 + nu) (MPa); the
+    largest sets the scale of Newton's residual tolerance (``Body.atol``)."""
+    return [
+        2.0 * m.instantaneous.initial_shear_modulus_MPa * (1.0 + m.instantaneous.nu)
+        for m in materials
+    ]
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    max_iterations: int = 20
+    line_search_eta: float = 0.8  # accept when |g(alpha)| <= eta |g(0)|
+    min_step: float = 1e-3  # a line search ending below this fraction of the step fails
+    rtol: float = 1e-6  # residual tolerance relative to E0 * a (N/mm)
+    max_backtracks: int = 10
+    # A step whose residual has not halved over the last `stall_window` iterations (judged from
+    # iteration `stall_from` on) is abandoned, and the caller cuts it. On default-space designs
+    # about a third of all factorisations went into steps that then failed at `max_iterations`,
+    # creeping down between jumps as surface nodes enter and leave contact. (6, 8) saved 14-27 %
+    # of the factorisations and 29-38 % of the residual evaluations on three samples; (4, 6)
+    # cost more than it saved (docs/fe_speed.md, "Newton"; studies/newton_study.py).
+    stall_window: int = 6
+    stall_from: int = 8
+    stall_reduction: float = 0.5
+    # plate and base penalty per unit area: kappa = penalty_per_mm * E0_max (N/mm^3), so the
+    # penetration is the contact pressure / kappa, about 1e-4 of a strain-level pressure in mm
+    penalty_per_mm: float = 3000.0
+    # Modified Newton: keep the last factorisation (within a step and into the next) while
+    # the residual falls at least by `reuse_ratio` per iteration, and factorise afresh where it
+    # does not or where a step with the kept one fails its line search. Off by default: the 2D
+    # systems factorise in milliseconds, and the 2D records were made with full Newton. On for
+    # 3D, where a factorisation costs as much as a few residual evaluations.
+    reuse_factorization: bool = False
+    # 0.25: keep the factorisation only while Newton still contracts fast (on the press of
+    # tests/test_fe3d.py full Newton cut the residual 5 to 10 000 times an iteration; the stall
+    # rule above gives up below a halving over six), so a kept one never drags a step toward
+    # the stall rule; there it made 7 factorisations of full Newton's 12, to the same state
+    reuse_ratio: float = 0.25
+
+
+@dataclass(frozen=True)
+class StepResult:
+    converged: bool
+    iterations: int
+    reason: str = ""
+
+
+def _stalled(norms: list[float], opts: NewtonOptions) -> bool:
+    """True when the residual has not fallen by ``stall_reduction`` over ``stall_window``
+    iterations, judged from iteration ``stall_from`` on: the step is better cut than pursued."""
+    k = opts.stall_window
+    return (
+        len(norms) >= max(opts.stall_from, k + 1)
+        and norms[-1] > opts.stall_reduction * norms[-1 - k]
+    )
+
+
+class Body:
+    """A meshed fingertip with its materials, contact obstacles and committed state."""
+
+    def __init__(
+        self,
+        disc: Discretization,
+        indenter=None,
+        options: NewtonOptions = NewtonOptions(),
+        indenter_penalty_per_mm: float | None = None,
+    ) -> None:
+        self.disc = disc
+        self.indenter = indenter
+        self.options = options
+        self.base = Base()
+        moduli = youngs_moduli(disc.materials)
+        e0 = max(moduli)
+        self.E0_MPa = e0
+        # the penalty follows the outermost layer, the one in contact: a soft skin on a stiff
+        # core would otherwise see a penalty orders of magnitude stiffer than itself
+        self.kappa = options.penalty_per_mm * moduli[0]
+        size = float(np.max(disc.X))
+        # a nodal force is a stress times an area: E0 size (N/mm, per unit thickness) in 2D,
+        # E0 size^2 (N) in 3D
+        self.atol = options.rtol * e0 * size ** (disc.dim - 1)
+        s = disc.surface_nodes
+        self.kappa_nodes = self.kappa * disc.surface_weights()
+        factor = indenter_penalty_per_mm or options.penalty_per_mm
+        self.kappa_indenter = self.kappa_nodes * (factor / options.penalty_per_mm)
+        # round-off floor of the indenter force (N/mm): penetrations are differences of
+        # coordinates of size ~size, each good to ~eps size, times the summed penalty
+        self.force_floor = 64.0 * np.finfo(float).eps * float(np.sum(self.kappa_indenter)) * size
+        dim = disc.dim
+        self._sdof = tuple(disc.gmap[dim * s + i] for i in range(dim))  # dofs of each component
+        pos = disc.pattern_position
+        self._kpos = {
+            (i, j): pos(self._sdof[i], self._sdof[j]) for i in range(dim) for j in range(dim)
+        }
+        # every obstacle is a cylinder normal to the plane of the coordinates ``obstacle_axes``
+        # (2D: the section; 3D: y-z, the wedge's edge across the pad): the curvature of a
+        # rounded obstacle (the wedge's tip) lies in that plane
+        self._axes = tuple(disc.obstacle_axes)
+        self._inplane = np.zeros(dim)
+        self._inplane[list(self._axes)] = 1.0
+        # committed state
+        self.u = np.zeros((disc.n_nodes, dim))
+        self.states: list[LayerState] = disc.initial_states()
+        self.t = 0.0
+        self.indenter_position = np.inf
+        self._solver = None  # a sim.fe._linear.LinearSolver, made at the first factorisation
+        self._stale = False  # the kept factorisation failed a line search: factorise afresh
+        self._factored_active: np.ndarray | None = None  # the indenter's contact at that time
+        #: the sparse direct solver by name (``sim.fe._linear.SOLVERS``); None: by the size
+        self.linear_solver: str | None = None
+        self.timings: dict[str, float] = dict.fromkeys(TIMED, 0.0)
+        self._last = None  # (kind, previous value, value, du, dd) of the last committed step
+        self._last_control: Control | None = None
+        self.force = 0.0
+        #: (protocol name, ``ValidityOptions``): the protocol's recorder stops the run at its
+        #: first recorded step beyond these limits (``sim.protocols.validity.ValidityStop``);
+        #: None: never. Set by ``sim.simulate`` when ``validity.stop_at_violation``.
+        self.stop_beyond: tuple[str, Any] | None = None
+        self.newton_iterations = 0
+        self.factorizations = 0
+        self.evaluations = 0  # residual evaluations, line-search trials included
+
+    # ------------------------------------------------------------------ contact
+    def plane_coordinates(
+        self, u: np.ndarray | None = None, nodes: np.ndarray | None = None
+    ) -> np.ndarray:
+        """The deformed (horizontal, vertical) coordinates of ``nodes`` (default: the surface
+        nodes) in the obstacles' plane (``obstacle_axes``), (m, 2): what the obstacles see."""
+        u = self.u if u is None else u
+        nodes = self.disc.surface_nodes if nodes is None else nodes
+        axes = list(self._axes)
+        return self.disc.X[np.ix_(nodes, axes)] + u[np.ix_(nodes, axes)]
+
+    def indenter_penetration(self, nodes: np.ndarray | None = None) -> np.ndarray:
+        """The indenter's penetration (mm, > 0 inside) at ``nodes`` (default: the surface
+        nodes) in the committed state; zeros when it is lifted off."""
+        xy = self.plane_coordinates(nodes=nodes)
+        if self.indenter is None or not np.isfinite(self.indenter_position):
+            return np.zeros(len(xy))
+        return self.indenter.penetration(xy, self.indenter_position)[0]
+
+    def _contact(self, u: np.ndarray, control: Control, d: float):
+        """(penetration, normal, curvature, is_indenter) per obstacle at the surface nodes."""
+        xy = self.plane_coordinates(u)
+        p_b, n_b = self.base.penetration(xy)
+        parts = [(p_b, self._full_normal(n_b), None, False)]
+        if control.kind != "free" and self.indenter is not None:
+            if hasattr(self.indenter, "penetration_curvature"):
+                p_i, n_i, k_i = self.indenter.penetration_curvature(xy, d)
+            else:
+                (p_i, n_i), k_i = self.indenter.penetration(xy, d), None
+            parts.append((p_i, self._full_normal(n_i), k_i, True))
+        return parts
+
+    def _full_normal(self, n: np.ndarray) -> np.ndarray:
+        """An obstacle's normal in its plane (m, 2) as a normal in the body's space (m, dim)."""
+        if self.disc.dim == 2:
+            return n
+        out = np.zeros((len(n), self.disc.dim))
+        out[:, list(self._axes)] = n
+        return out
+
+    def base_contact_nodes(self) -> int:
+        """Number of surface nodes resting on the rigid base beside the bone (committed state)."""
+        return int(np.sum(self.base.penetration(self.plane_coordinates())[0] > 0))
+
+    def max_penetration(self) -> float:
+        """Deepest penetration of the indenter into the committed surface (mm); 0 if none."""
+        return float(max(0.0, self.indenter_penetration().max(initial=0.0)))
+
+    def _add_contact(
+        self, r: np.ndarray, data: np.ndarray | None, parts
+    ) -> tuple[float, np.ndarray]:
+        """Add penalty forces to r and stiffness to data; return indenter force and coupling.
+
+        The force on node i is f = kappa_i p n; its derivative is
+        kappa_i (n n^T - p * curvature * (I - n n^T)), curvature = 1/rho on a rounded surface.
+        """
+        sdof = self._sdof
+        dim = len(sdof)
+        force = 0.0
+        coupling = np.zeros(len(self.kappa_nodes))
+        for p, n, curv, is_indenter in parts:
+            k = self.kappa_indenter if is_indenter else self.kappa_nodes
+            act = p > 0
+            if not np.any(act):
+                continue
+            f = np.where(act, k * p, 0.0)  # pushes the node along n
+            # every surface node has its own dofs and matrix entries: plain indexed updates
+            for i in range(dim):
+                ok = sdof[i] >= 0
+                r[sdof[i][ok]] -= (f * n[:, i])[ok]
+            if data is not None:
+                ka = np.where(act, k, 0.0)
+                c = 0.0 if curv is None else np.where(act, p * curv, 0.0)
+                for (i, j), pos in self._kpos.items():
+                    nn = n[:, i] * n[:, j]
+                    # kappa (n n^T - c (P - n n^T)), P the projector on the curvature's plane
+                    val = ka * (nn - c * (self._inplane[i] * (i == j) - nn))
+                    ok = pos >= 0
+                    data[pos[ok]] += val[ok]
+            if is_indenter:
+                force = float(np.sum(-f * n[:, 1]))  # vertical force on the indenter (up > 0)
+                coupling = np.where(act, k, 0.0)
+        return force, coupling
+
+    # ------------------------------------------------------------------ evaluation
+    def _evaluate(self, u, control, d, dt, tangent, frozen=False):
+        t0 = time.perf_counter()
+        self.evaluations += 1
+        ev = self.disc.evaluate(u, self.states, dt, tangent=tangent, frozen_history=frozen)
+        self.timings["residual+material"] += time.perf_counter() - t0
+        if not ev.ok:
+            return None
+        r = ev.residual.copy()
+        parts = self._contact(u, control, d)
+        force, coupling = self._add_contact(r, None, parts)
+        rd = 0.0
+        if control.kind == "force":
+            rd = control.value - force
+        data = None
+        if tangent:
+
+            def data() -> np.ndarray:  # assembled only when a factorisation needs it
+                t0 = time.perf_counter()
+                out = ev.tangent()  # assembled for this factorisation only: add to it in place
+                self._add_contact(np.zeros_like(r), out, parts)
+                self.timings["tangent assembly"] += time.perf_counter() - t0
+                return out
+
+        return r, data, force, coupling, rd, ev.states
+
+    def _norm(self, r, rd):
+        return max(float(np.max(np.abs(r))) if r.size else 0.0, abs(rd))
+
+    def _may_reuse(self, norms: list[float], active: np.ndarray) -> bool:
+        """Modified Newton (``NewtonOptions.reuse_factorization``): the factorisation made
+        earlier may serve this iteration if the last iteration cut the residual by
+        ``reuse_ratio`` and the indenter touches the same nodes (``active``) as when it was
+        made. A step's first iteration factorises afresh unless the body is free of the
+        indenter now and was then: the predictor moves the state, and a factorisation from
+        before a change of the contact set misleads Newton, but a free body only relaxes (the
+        rest between taps: its tangent changes with the material's history alone). A kept
+        factorisation that fails the line search is replaced at once (``_stale``)."""
+        opts = self.options
+        if not opts.reuse_factorization or self._stale:
+            self._stale = False
+            return False
+        same_contact = self._factored_active is not None and np.array_equal(
+            active, self._factored_active
+        )
+        if len(norms) < 2:
+            return same_contact and not np.any(active)
+        return same_contact and norms[-1] <= opts.reuse_ratio * norms[-2]
+
+    def _factor(self, data):
+        """Factorise the tangent ``data``: the first time with the symbolic analysis, then
+        numerically only (the pattern never changes); returns the solver (``.solve(b)``)."""
+        t0 = time.perf_counter()
+        if self._solver is None:
+            from ._linear import default_solver, make_solver  # `import sim` stays light
+
+            name = self.linear_solver or default_solver(self.disc.n_free, self.disc.dim)
+            self._solver = make_solver(name)
+            self._solver.factor(self.disc.upper_matrix(data))
+        else:  # same pattern: new values, the symbolic analysis kept
+            self._solver.refactor(np.take(data, self.disc.upper_data))
+        self.factorizations += 1
+        self.timings["LDL^T factorisation"] += time.perf_counter() - t0
+        return self._solver
+
+    def top_height(self, u: np.ndarray | None = None) -> float:
+        """Highest point of the current outer surface (mm)."""
+        u = self.u if u is None else u
+        s = self.disc.surface_nodes
+        return float(np.max(self.disc.X[s, 1] + u[s, 1]))
+
+    # ------------------------------------------------------------------ stepping
+    def advance(
+        self,
+        t_new: float,
+        control: Control,
+        frozen_history: bool = False,
+        guess: tuple[np.ndarray, float] | None = None,
+    ) -> StepResult:
+        """Solve the step to ``t_new``; commit the state only if Newton converges.
+
+        ``guess``: a starting displacement and indenter position for Newton (for example the
+        previous tap's increment at the same phase); by default the last increment is
+        extrapolated (``_predict``). A position control keeps its prescribed position."""
+        disc = self.disc
+        opts = self.options
+        dt = t_new - self.t
+        u = self.u.copy()
+        d = control.value if control.kind == "position" else self.indenter_position
+        if control.kind == "force" and not np.isfinite(d):
+            d = self.top_height()
+        if guess is not None:
+            u = guess[0].copy()
+            if control.kind == "force" and np.isfinite(guess[1]):
+                d = guess[1]
+        else:
+            u, d = self._predict(u, d, control)
+        ev = self._evaluate(u, control, d, dt, True, frozen_history)
+        if ev is None:
+            return StepResult(False, 0, "inverted element at start of step")
+        norms: list[float] = []
+        for it in range(1, opts.max_iterations + 1):
+            r, data, force, coupling, rd, states = ev
+            if control.kind == "force" and not np.any(coupling > 0):
+                # the plate lost contact: re-seat it on the highest point with a small overlap
+                s = disc.surface_nodes
+                top = int(np.argmax(disc.X[s, 1] + u[s, 1]))
+                d = self.top_height(u) - control.value / self.kappa_indenter[top]
+                ev = self._evaluate(u, control, d, dt, True, frozen_history)
+                if ev is None:
+                    return StepResult(False, it, "inverted element")
+                continue
+            norm0 = self._norm(r, rd)
+            if _log.isEnabledFor(logging.DEBUG):
+                _log.debug("it %d |r| %.3e rd %.3e d %.5f", it, float(np.abs(r).max()), rd, d)
+            force_ok = control.kind != "force" or abs(rd) <= max(
+                FORCE_RTOL * abs(control.value), self.force_floor
+            )
+            if norm0 <= self.atol and force_ok:  # the load is matched relative to itself too
+                self._commit(u, states, t_new, d, control, force)
+                self.newton_iterations += it - 1
+                return StepResult(True, it - 1)
+            norms.append(norm0)
+            if _stalled(norms, opts):
+                self.newton_iterations += it - 1
+                return StepResult(False, it - 1, "stalled")
+            active = coupling > 0
+            fresh = not self._may_reuse(norms, active)
+            if fresh:
+                solver = self._factor(data())
+                self._factored_active = active
+            else:
+                solver = self._solver
+            t0 = time.perf_counter()
+            with np.errstate(all="ignore"):  # a singular tangent is caught below
+                du = solver.solve(-r)
+                dd = 0.0
+                if control.kind == "force":
+                    dof_y = self._sdof[1]
+                    kcol = np.zeros(disc.n_free)
+                    ok = dof_y >= 0
+                    kcol[dof_y[ok]] = -coupling[ok]
+                    x2 = solver.solve(kcol)
+                    c = float(np.sum(coupling))
+                    dd = (-rd - kcol @ du) / (c - kcol @ x2)
+                    du = du - x2 * dd
+            self.timings["triangular solves"] += time.perf_counter() - t0
+            if not (np.all(np.isfinite(du)) and np.isfinite(dd)):
+                self.newton_iterations += it
+                return StepResult(False, it, "singular tangent")
+            with np.errstate(all="ignore"):
+                g0 = float(du @ r) + dd * rd
+            if not np.isfinite(g0):
+                self.newton_iterations += it
+                return StepResult(False, it, "singular tangent")
+            accepted = self._line_search(u, d, du, dd, g0, control, dt, frozen_history)
+            if accepted is None and not fresh:  # the kept factorisation misled: a fresh one
+                self._stale = True
+                norms.pop()
+                continue
+            if accepted is None:
+                self.newton_iterations += it
+                return StepResult(False, it, "line search failed")
+            u, d, ev = accepted
+            if ev[1] is None:  # accepted a backtracked step: its tangent is still needed
+                ev = self._evaluate(u, control, d, dt, True, frozen_history)
+                if ev is None:  # the tangent's evaluation found an inverted element
+                    self.newton_iterations += it
+                    return StepResult(False, it, "inverted element")
+        self.newton_iterations += opts.max_iterations
+        return StepResult(False, opts.max_iterations, "no convergence")
+
+    def _line_search(
+        self,
+        u: np.ndarray,
+        d: float,
+        du: np.ndarray,
+        dd: float,
+        g0: float,
+        control: Control,
+        dt: float,
+        frozen_history: bool,
+    ) -> tuple[np.ndarray, float, tuple] | None:
+        """The accepted point (displacements, indenter position, its ``_evaluate``) along the
+        Newton direction (``du`` on the free dofs, ``dd``) from (``u``, ``d``); None when the
+        line search fails (no admissible trial, or a step below ``min_step``).
+
+        On the directional derivative g(a) = [du, dd] . residual(a), i.e. on the incremental
+        potential (hyperelasticity, the Prony update within a step, penalty contact and the dead
+        load on the plate are all variational; ``g0`` = g(0)). The full step is taken when it does
+        not overshoot the minimum along the line by much; otherwise the root of g is bracketed
+        (regula falsi). Inverted elements halve the step. The first trial (the full step) is
+        evaluated with its tangent, the others without."""
+        opts = self.options
+        free = self.disc.free
+        a_lo, g_lo = 0.0, g0
+        a_hi = None  # smallest step known to overshoot the minimum along the line
+        alpha = 1.0
+        for bt in range(opts.max_backtracks + 1):
+            u_try = u.copy()
+            u_try.reshape(-1)[free] += alpha * du
+            d_try = d + alpha * dd
+            trial = self._evaluate(u_try, control, d_try, dt, bt == 0, frozen_history)
+            if trial is None:
+                alpha = 0.5 * (a_lo + alpha)
+                continue
+            with np.errstate(all="ignore"):
+                g = float(du @ trial[0]) + dd * trial[4]
+            small = g0 >= 0.0 or abs(g) <= opts.line_search_eta * abs(g0)
+            if small or bt == opts.max_backtracks or (g < 0.0 and alpha >= 1.0):
+                return None if alpha < opts.min_step else (u_try, d_try, trial)
+            if g < 0.0:  # still descending: the minimum lies beyond alpha
+                a_lo, g_lo = alpha, g
+                alpha = min(1.0, 2.0 * alpha) if a_hi is None else 0.5 * (a_lo + a_hi)
+            else:  # overshoot: safeguarded regula falsi inside [a_lo, alpha]
+                a_hi = alpha
+                root = a_lo - g_lo * (alpha - a_lo) / (g - g_lo)
+                width = alpha - a_lo  # keep at least 10 % away from either end
+                alpha = min(max(root, a_lo + 0.1 * width), alpha - 0.1 * width)
+        return None
+
+    def _predict(self, u, d, control):
+        """Extrapolate the last increment in proportion to the change of the control value."""
+        prev = self._last
+        if prev is None or prev[0] != control.kind or control.kind == "free":
+            return u, d
+        _, v_prev, v_now, du_prev, dd_prev = prev
+        if abs(v_now - v_prev) < 1e-14 * max(abs(v_now), 1e-30):
+            return u, d
+        ratio = float(np.clip((control.value - v_now) / (v_now - v_prev), -2.0, 2.0))
+        u_pred = u + ratio * du_prev
+        if control.kind == "force":
+            d = d + ratio * dd_prev
+        return u_pred, d
+
+    def _commit(self, u, states, t_new, d, control, force):
+        if self._last_control is not None and self._last_control.kind == control.kind:
+            self._last = (
+                control.kind,
+                self._last_control.value,
+                control.value,
+                u - self.u,
+                d - self.indenter_position if np.isfinite(self.indenter_position) else 0.0,
+            )
+        else:
+            self._last = None
+        self._last_control = control
+        self.u = u
+        self.states = states
+        self.t = t_new
+        self.indenter_position = d if control.kind != "free" else np.inf
+        self.force = force
+
+    def snapshot(self):
+        """Everything needed to return to the current committed state."""
+        return (
+            self.u.copy(),
+            [LayerState(s.S0.copy(), s.H.copy()) for s in self.states],
+            self.t,
+            self.indenter_position,
+        )
+
+    def restore(self, snap) -> None:
+        self.u, states, self.t, self.indenter_position = snap
+        self.states = [LayerState(s.S0.copy(), s.H.copy()) for s in states]
+        self._last = None
+        self._last_control = None

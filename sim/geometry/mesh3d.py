@@ -1,0 +1,576 @@
+"""Structured Q2 hexahedral meshes of the layered quarter pad (x >= 0, z >= 0), pure numpy.
+
+Every protocol is symmetric about x = 0 and z = 0 (a flat plate; a wedge whose edge runs along x
+at z = 0), so only the quarter x >= 0, z >= 0 of the pad (``sim.geometry.pad``) is meshed. It is
+topologically an eighth of a ball with its corner at the origin (the centre of the base), meshed
+by an o-grid of four structured blocks of 27-node triquadratic hexahedra (``sim.geometry._q2``): an
+inner box at the origin and three blocks X, Y, Z joining its faces x = e_x, y = e_y, z = e_z to the
+curved surfaces.
+
+Parameters. Every node is labelled by a point v of the unit cube [0, 1]^3: the box by all of
+it, block X by its face v_x = 1 (and a radial level), Y by v_y = 1, Z by v_z = 1. The faces are
+gridded by tensor products of three 1D distributions, one per axis and shared by the two faces
+that use it, so the blocks' grids match on their shared faces by construction; a shared node is
+computed from identical inputs, numbered once, with no coordinate search. On the box and its
+faces the distributions are uniform (U_x, U_y, U_z); on the curved surfaces they are graded
+(D_x, D_y, D_z, below).
+
+Surfaces. Along the scaled direction v the boundary of B(a', b', c') is
+diag(a', b', c') U(v) with U(v) = sigma(v) v, sigma(v) = G_1(v)^(-1/m) in closed form
+(``sim.geometry.pad``: the level function is homogeneous, the body star-shaped), so no root is
+sought. The shells (every layer but the last) are foliated by the inset bodies:
+
+    P(v, T) = diag(a - T, b - T, c - T) U(v),   T the depth,
+
+so the outer surface (T = 0) and every interface (T = a cumulative thickness) are coordinate
+surfaces: element faces lie on them and each element is in one layer. dP/dT = -U is never
+tangent to the surface at depth T (its normal is diag(a - T, ...)^-1 grad G_1(U), and
+U . grad G_1(U) = m > 0 by Euler's relation, every term >= 0), so the shells' map has a positive
+Jacobian through any thickness.
+
+Core (the last layer). The box [0, e] has the proportions of the core's semi-axes d_K less a
+common inset (0.6 of the least; ``_BOX_INSET``), scaled so that its corner is at most
+``MeshOptions3D.box_fraction`` of the way out to the core's surface: long in z and thin in y
+like the core, so the segments below are closer to the surface normals than rays from the
+origin (which a box proportional to d_K would give) are on a long pad. The core's nodes lie on
+the straight segments from the box's face point C = diag(e) v (uniform parameters) to the
+core's surface point S = diag(d_K) U(v) (graded parameters): P = (1 - w) C + w S, w in [0, 1].
+Their Jacobian is not positive by construction (rays would be, but are far from normal on a
+long core): the tests check every Gauss point on the parameter ranges and their extremes.
+
+Q2 nodes. The map is evaluated exactly at all 27 nodes of each element -- mid-edge, mid-face and
+centre nodes at the parametric midpoints -- so the elements interpolate the curved surfaces and
+interfaces to third order.
+
+Why this construction: conforming to the interfaces by construction, closed form (no root
+finding, no search), deterministic (pure numpy, no randomness), no degenerate elements (a single
+block mapped onto the octant would have 180-degree "corners" at its seams), and the same code
+for any semi-axes and exponents (it works in the scaled directions v).
+
+Grading. D_x, D_y, D_z and the radial levels equidistribute the target size
+``MeshOptions3D.size`` (smallest at the apex (0, b, 0) and in the contact region around it,
+growing away), measured along the outer-surface lines of each family and below the apex. The
+apex is the corner v = (0, 1, 0) of block Y: the wedge's edge (z = 0) and the plate's patch
+around the apex get the finest elements.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _q2
+from .pad import REFERENCE_PAD, PadGeometry, level, unit_radius
+
+__all__ = [
+    "COARSE_MESH_3D",
+    "DEFAULT_MESH_3D",
+    "MeshOptions3D",
+    "PadMesh",
+    "boundary_faces",
+    "build_pad_mesh",
+    "element_volumes",
+    "face_areas",
+    "jacobian_determinants",
+    "scaled_jacobians",
+    "surface_weights",
+    "write_vtu",
+]
+
+_FINE = 1000  # samples of each 1D line when equidistributing the element size
+_BOX_INSET = 0.6  # the inner box's shape: the core's semi-axes less this fraction of the least
+
+
+@dataclass(frozen=True)
+class MeshOptions3D:
+    """Target element sizes (mm) and division counts of the quarter pad's mesh.
+
+    The target size at a point X of the outer surface is
+
+        h(X) = min(h_max, h_apex + grading * |X - apex|, h_contact + grading * d_contact(X))
+
+    with d_contact the distance from the contact region x <= f a, z <= f c (f =
+    ``contact_fraction``; the top of the pad, where the plate touches and along which the
+    wedge's edge runs); through the thickness, below the apex, h(d) = min(h_max, h_apex +
+    grading * d) at depth d. The 1D node distributions equidistribute h, so their element counts
+    are about the length over h.
+
+    Attributes:
+        h_apex_mm: element size at the apex (0, b, 0).
+        h_contact_mm: element size in the contact region.
+        contact_fraction: f, the contact region's extent as a fraction of a (across) and c
+            (along the finger).
+        grading: growth of the size per mm of distance.
+        h_max_mm: largest element size.
+        layer_divisions: at least this many elements through each layer but the last.
+        around_divisions: at least this many elements along each edge of the o-grid's blocks
+            around the octant (and radially through the core).
+        box_fraction: the inner box's corner at most this fraction of the way out to the
+            core's surface along its ray (the box's shape: the core's semi-axes less 0.6 of the
+            least). Above about 0.6 the core's straight segments fold on long pads (m = 4,
+            c = 20 mm: negative Jacobians at 0.7).
+
+    The o-grid is structured: the inner box has as many elements along each axis as the
+    surface distributions, so it is finely divided too. The field defaults (not the
+    simulations' ``DEFAULT_MESH_3D``, which is coarser) mesh the reference pad
+    (one layer, c = 11 mm) with 1448 elements, 12 967 nodes (38 901 dofs); ``refined(2)`` with
+    11 216 elements, 94 995 nodes (284 985 dofs).
+    """
+
+    h_apex_mm: float = 0.3
+    h_contact_mm: float = 0.6
+    contact_fraction: float = 0.5
+    grading: float = 0.4
+    h_max_mm: float = 2.0
+    layer_divisions: int = 2
+    around_divisions: int = 2
+    box_fraction: float = 0.5
+
+    def __post_init__(self) -> None:
+        positive = ("h_apex_mm", "h_contact_mm", "grading", "h_max_mm")
+        for name in positive:
+            if not getattr(self, name) > 0:
+                raise ValueError(f"MeshOptions3D.{name} must be > 0, got {getattr(self, name)}")
+        if not 0 < self.contact_fraction <= 1:
+            raise ValueError(f"contact_fraction must be in (0, 1], got {self.contact_fraction}")
+        if not 0 < self.box_fraction < 1:
+            raise ValueError(f"box_fraction must be in (0, 1), got {self.box_fraction}")
+        for name in ("layer_divisions", "around_divisions"):
+            if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
+                raise ValueError(f"MeshOptions3D.{name} must be an int >= 1")
+
+    def size(self, points: np.ndarray, geometry: PadGeometry) -> np.ndarray:
+        """Target size h (...,) in mm at surface ``points`` (..., 3) of ``geometry``."""
+        a, b, c = geometry.semi_axes_mm()
+        p = np.asarray(points, dtype=float)
+        d_apex = np.sqrt(p[..., 0] ** 2 + (p[..., 1] - b) ** 2 + p[..., 2] ** 2)
+        dx = np.maximum(p[..., 0] - self.contact_fraction * a, 0.0)
+        dz = np.maximum(p[..., 2] - self.contact_fraction * c, 0.0)
+        h = np.minimum(self.h_max_mm, self.h_apex_mm + self.grading * d_apex)
+        return np.minimum(h, self.h_contact_mm + self.grading * np.sqrt(dx * dx + dz * dz))
+
+    def depth_size(self, depth_mm: np.ndarray) -> np.ndarray:
+        """Target size h (...,) in mm at ``depth_mm`` below the apex."""
+        return np.minimum(self.h_max_mm, self.h_apex_mm + self.grading * np.asarray(depth_mm))
+
+    def refined(self, factor: float) -> MeshOptions3D:
+        """All sizes and the grading divided by ``factor``, the minimum counts multiplied by it
+        (rounded up): the target size h / factor everywhere (for convergence studies)."""
+        return MeshOptions3D(
+            self.h_apex_mm / factor,
+            self.h_contact_mm / factor,
+            self.contact_fraction,
+            self.grading / factor,
+            self.h_max_mm / factor,
+            math.ceil(self.layer_divisions * factor - 1e-9),
+            math.ceil(self.around_divisions * factor - 1e-9),
+            self.box_fraction,
+        )
+
+
+#: The simulations' mesh (``SimOptions.mesh3d``): the family of ``studies/mesh3d_convergence.py``
+#: (its coarsest member, below, refined by f) at f = 1.41, about 11 000-12 000 dofs on the
+#: default-size pads. Over f = 1, 1.41, 2 the displacements at 1 N and 4 N moved by at most
+#: 0.7 % on a soft gel and a stiffer silicone pad, so this member is within 1 % on them; the
+#: plate force is within 1.5-3 % of the finest and the contact area at 4 N within 1.3 %, at
+#: 1 N only within 10-15 % (docs/model_3d.md, "Mesh convergence"). The field defaults of
+#: ``MeshOptions3D`` are the finer mesh of the FElupe comparison (``tests/test_fe3d_felupe.py``).
+COARSE_MESH_3D = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
+DEFAULT_MESH_3D = COARSE_MESH_3D.refined(1.41)
+
+
+@dataclass(frozen=True, eq=False)
+class PadMesh:
+    """A Q2 hexahedral mesh of the quarter pad with its labelled boundaries (read-only arrays).
+
+    Attributes:
+        nodes: (N, 3) node coordinates (mm).
+        hexes: (M, 27) node indices of each element in VTK_TRIQUADRATIC_HEXAHEDRON order
+            (``sim.geometry._q2``; positive Jacobian).
+        layer: (M,) layer index of each element, 0 = outermost.
+        base: indices of the nodes on the bonded base y = 0 (fully fixed).
+        sym_x: indices of the nodes on the symmetry plane x = 0 (u_x = 0).
+        sym_z: indices of the nodes on the symmetry plane z = 0 (u_z = 0).
+        surface_faces: (F, 9) the free outer surface's faces, 9-node quadrilaterals in
+            VTK_BIQUADRATIC_QUAD order, numbered so that dX/ds x dX/dt points outwards.
+        interfaces: node indices on each layer interface, outermost first.
+        geometry: the pad.
+        thicknesses_mm: the thicknesses of all layers but the last.
+    """
+
+    nodes: np.ndarray
+    hexes: np.ndarray
+    layer: np.ndarray
+    base: np.ndarray
+    sym_x: np.ndarray
+    sym_z: np.ndarray
+    surface_faces: np.ndarray
+    interfaces: tuple[np.ndarray, ...]
+    geometry: PadGeometry = field(default=REFERENCE_PAD)
+    thicknesses_mm: tuple[float, ...] = ()
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.nodes.shape[0])
+
+    @property
+    def n_dofs(self) -> int:
+        """Three displacement components per node (before the boundary conditions)."""
+        return 3 * self.n_nodes
+
+    @property
+    def surface_nodes(self) -> np.ndarray:
+        """Indices of the nodes on the free outer surface, ascending."""
+        return np.unique(self.surface_faces)
+
+
+# ----------------------------------------------------------------------------- construction
+def build_pad_mesh(
+    geometry: PadGeometry = REFERENCE_PAD,
+    thicknesses_mm: tuple[float, ...] = (),
+    options: MeshOptions3D = DEFAULT_MESH_3D,
+) -> PadMesh:
+    """Mesh the quarter pad with interfaces at the cumulative depths of ``thicknesses_mm``
+    (the thicknesses of all layers but the last, outermost first).
+
+    Raises ``DesignError`` if the layers leave no core (``PadGeometry.check_layers``).
+    """
+    thicknesses_mm = tuple(float(t) for t in thicknesses_mm)
+    geometry.check_layers(thicknesses_mm)
+    depths = np.concatenate([[0.0], np.cumsum(thicknesses_mm)])  # surface, then interfaces
+    core = _Core.of(geometry, float(depths[-1]), options.box_fraction)
+
+    # 1D vertex distributions (graded: D, on the surfaces; uniform: U, on the box), then the
+    # Q2 node parameters (vertices and midpoints)
+    graded = [_with_midpoints(_tangential(d, geometry, options)) for d in range(3)]
+    uniform = [_with_midpoints(np.linspace(0.0, 1.0, (len(D) + 1) // 2)) for D in graded]
+    w, shell_depths, radial_layer, levels = _radial_levels(geometry, depths, core, options)
+    w = _with_midpoints(w)
+    shell_depths = _with_midpoints(np.concatenate([[depths[-1]], shell_depths]))[1:]
+
+    ids = _node_ids(*(len(U) for U in uniform), len(w) + len(shell_depths))
+    nodes = np.empty((int(max(b.max() for b in ids.values())) + 1, 3))
+    v = np.stack(np.meshgrid(*uniform, indexing="ij"), axis=-1)
+    nodes[ids["box"].ravel()] = (core.box * v).reshape(-1, 3)
+    for axis, name in enumerate(("x", "y", "z")):
+        coords = _block_coordinates(axis, uniform, graded, w, shell_depths, geometry, core)
+        coords = np.moveaxis(coords, 0, axis)  # the level along the block's radial axis
+        nodes[ids[name].ravel()] = coords.reshape(-1, 3)
+
+    hexes, layer, surface = [], [], []
+    for name, face in (("box", None), ("x", 1), ("y", 3), ("z", 5)):
+        h = _block_hexes(ids[name])
+        hexes.append(h)
+        if face is None:
+            layer.append(np.full(len(h), len(depths) - 1))
+            continue
+        axis = face // 2
+        shape = tuple((s - 1) // 2 for s in ids[name].shape)
+        radial_index = np.indices(shape)[axis].ravel()
+        layer.append(radial_layer[radial_index])
+        outer = radial_index == shape[axis] - 1
+        surface.append(h[outer][:, _q2.FACE_NODES[face]])
+    hexes = np.concatenate(hexes)
+    layer = np.concatenate(layer)
+
+    out = PadMesh(
+        nodes=nodes,
+        hexes=hexes,
+        layer=layer,
+        base=np.flatnonzero(nodes[:, 1] == 0.0),
+        sym_x=np.flatnonzero(nodes[:, 0] == 0.0),
+        sym_z=np.flatnonzero(nodes[:, 2] == 0.0),
+        surface_faces=np.concatenate(surface),
+        interfaces=tuple(_level_nodes(ids, 2 * levels[k]) for k in range(1, len(depths))),
+        geometry=geometry,
+        thicknesses_mm=thicknesses_mm,
+    )
+    for arr in (out.nodes, out.hexes, out.layer, out.base, out.sym_x, out.sym_z):
+        arr.setflags(write=False)
+    out.surface_faces.setflags(write=False)
+    for arr in out.interfaces:
+        arr.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _Core:
+    """The core body B(d_K) (``axes`` d_K, exponents n, m) and the inner box [0, box]."""
+
+    axes: np.ndarray
+    box: np.ndarray
+    n: float
+    m: float
+
+    @classmethod
+    def of(cls, geometry: PadGeometry, depth_mm: float, fraction: float) -> _Core:
+        """The core below ``depth_mm``; the box's shape is the core's semi-axes less a common
+        inset (``_BOX_INSET`` of the smallest; at least a tenth of each), scaled so that its
+        corner is at most ``fraction`` of the way out to the core's surface along its ray."""
+        axes = np.array(geometry.semi_axes_mm(depth_mm))
+        n, m = geometry.exponents
+        box = np.maximum(axes - _BOX_INSET * axes.min(), 0.1 * axes)
+        out = float(level(box, axes, n, m)) ** (1.0 / m)  # the corner's fraction of its ray
+        return cls(axes, box * min(1.0, fraction / out), n, m)
+
+
+def _unit_points(directions: np.ndarray, n: float, m: float) -> np.ndarray:
+    """U(v) = sigma(v) v (..., 3): the unit body's surface points along ``directions``."""
+    v = np.asarray(directions, dtype=float)
+    return unit_radius(v, n, m)[..., None] * v
+
+
+def _face_directions(axis: int, t1: np.ndarray, t2: np.ndarray) -> np.ndarray:
+    """Points (T1, T2, 3) of the unit cube's face v_axis = 1 with the other two coordinates
+    (in order) ``t1`` and ``t2``."""
+    a1, a2 = (d for d in range(3) if d != axis)
+    v = np.empty((len(t1), len(t2), 3))
+    v[..., axis] = 1.0
+    v[..., a1] = t1[:, None]
+    v[..., a2] = t2[None, :]
+    return v
+
+
+def _block_coordinates(
+    axis: int,
+    uniform: list[np.ndarray],
+    graded: list[np.ndarray],
+    w: np.ndarray,
+    shell_depths: np.ndarray,
+    geometry: PadGeometry,
+    core: _Core,
+) -> np.ndarray:
+    """Nodes (L, T1, T2, 3) of the block on the cube's face v_axis = 1, by radial level and the
+    other two axes' node indices: the core levels on the segments from the box's face
+    (uniform parameters) to the core's surface (graded ones), (1 - w) C + w S; the shell levels
+    at diag(d - T) S / d_K for their depths T."""
+    a1, a2 = (d for d in range(3) if d != axis)
+    C = core.box * _face_directions(axis, uniform[a1], uniform[a2])
+    U = _unit_points(_face_directions(axis, graded[a1], graded[a2]), core.n, core.m)
+    S = core.axes * U
+    inner = (1.0 - w)[:, None, None, None] * C + w[:, None, None, None] * S
+    scale = np.array([geometry.semi_axes_mm(float(t)) for t in shell_depths]).reshape(-1, 3)
+    shells = scale[:, None, None, :] * U
+    return np.concatenate([inner, shells])
+
+
+def _with_midpoints(x: np.ndarray) -> np.ndarray:
+    """The vertex values ``x`` (k,) with their midpoints between: (2k - 1,)."""
+    out = np.empty(2 * len(x) - 1)
+    out[::2] = x
+    out[1::2] = 0.5 * (x[:-1] + x[1:])
+    return out
+
+
+def _equidistribute(param: np.ndarray, density: np.ndarray, n_min: int) -> np.ndarray:
+    """Vertices in ``param`` (K + 1,) (monotone, from 0 to 1) so that each element holds an
+    equal share of int density (``density`` (K,): elements per sample interval); at least
+    ``n_min`` elements, and about the integral's count."""
+    count = np.concatenate([[0.0], np.cumsum(density)])
+    n_el = max(n_min, math.ceil(count[-1] - 1e-9))
+    out = np.interp(np.linspace(0.0, count[-1], n_el + 1), count, param)
+    out[0], out[-1] = param[0], param[-1]
+    return out
+
+
+def _tangential(axis: int, geometry: PadGeometry, options: MeshOptions3D) -> np.ndarray:
+    """The vertex distribution D_axis on [0, 1]: the number of elements needed along the
+    outer-surface lines v_axis = t of the two cube faces that use it (five lines on each), the
+    densest line deciding each interval."""
+    t = np.linspace(0.0, 1.0, _FINE + 1)
+    lines = []
+    for face in range(3):
+        if face == axis:
+            continue
+        other = 3 - axis - face
+        for value in np.linspace(0.0, 1.0, 5):
+            v = np.zeros((len(t), 3))
+            v[:, axis], v[:, face], v[:, other] = t, 1.0, value
+            lines.append(v)
+    X = geometry.surface_points(np.stack(lines))  # (L, K + 1, 3) on the outer surface
+    seg = np.linalg.norm(np.diff(X, axis=1), axis=-1)
+    mid = 0.5 * (X[:, 1:] + X[:, :-1])
+    density = np.max(seg / options.size(mid, geometry), axis=0)
+    return _equidistribute(t, density, options.around_divisions)
+
+
+def _radial_levels(
+    geometry: PadGeometry, depths: np.ndarray, core: _Core, options: MeshOptions3D
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[int]]:
+    """The radial vertex levels from the box's faces out to the surface, graded by the size
+    below the apex: the core's w (from 0 on the box to 1 on its surface, along the apex's
+    segment x = z = 0), then the shells' depths (innermost first, the innermost interface's
+    left out: it is w = 1). Returns w, the depths, the layer of each radial element and the
+    vertex level of each of ``depths``."""
+    b = geometry.semi_axes_mm()[1]
+    t = np.linspace(0.0, 1.0, _FINE + 1)
+    depth_w = b - (core.box[1] + t * (core.axes[1] - core.box[1]))
+    density = np.abs(np.diff(depth_w)) / options.depth_size(0.5 * (depth_w[1:] + depth_w[:-1]))
+    w = _equidistribute(t, density, options.around_divisions)
+    n_layers = len(depths)
+    radial_layer = [np.full(len(w) - 1, n_layers - 1)]
+    levels = [0] * n_layers
+    levels[-1] = len(w) - 1
+    shell_depths = []
+    for k in range(n_layers - 2, -1, -1):  # layer k from depths[k + 1] up to depths[k]
+        top, bottom = float(depths[k]), float(depths[k + 1])
+        d = bottom + t * (top - bottom)
+        density = np.abs(np.diff(d)) / options.depth_size(0.5 * (d[1:] + d[:-1]))
+        u = _equidistribute(t, density, options.layer_divisions)
+        d_nodes = bottom + u[1:] * (top - bottom)
+        d_nodes[-1] = top
+        shell_depths.append(d_nodes)
+        radial_layer.append(np.full(len(d_nodes), k))
+        levels[k] = levels[k + 1] + len(d_nodes)
+    return (
+        w,
+        np.concatenate([np.zeros(0), *shell_depths]),
+        np.concatenate(radial_layer),
+        levels,
+    )
+
+
+def _node_ids(nx: int, ny: int, nz: int, nr: int) -> dict[str, np.ndarray]:
+    """Global node indices of the four blocks' Q2 node grids, each shared node numbered once.
+
+    ``box`` (nx, ny, nz) over (v_x, v_y, v_z); ``x`` (nr, ny, nz) over (level, v_y, v_z);
+    ``y`` (nx, nr, nz) over (v_x, level, v_z); ``z`` (nx, ny, nr) over (v_x, v_y, level).
+    Level 0 is the box's face; the blocks X, Y share their faces v_x = v_y = 1, etc.
+    """
+    ids = {
+        "box": np.full((nx, ny, nz), -1),
+        "x": np.full((nr, ny, nz), -1),
+        "y": np.full((nx, nr, nz), -1),
+        "z": np.full((nx, ny, nr), -1),
+    }
+    counter = 0
+
+    def number(block: np.ndarray) -> None:
+        nonlocal counter
+        free = block.ravel() == -1  # in C order: deterministic
+        flat = block.reshape(-1)
+        flat[free] = np.arange(counter, counter + np.count_nonzero(free))
+        counter += int(np.count_nonzero(free))
+
+    number(ids["box"])
+    ids["x"][0] = ids["box"][-1]
+    number(ids["x"])
+    ids["y"][:, 0] = ids["box"][:, -1]
+    ids["y"][-1] = ids["x"][:, -1, :]  # v_x = v_y = 1: X's (level, v_z) = Y's (level, v_z)
+    number(ids["y"])
+    ids["z"][:, :, 0] = ids["box"][:, :, -1]
+    ids["z"][-1] = ids["x"][:, :, -1].T  # v_x = v_z = 1: X's (level, v_y) -> Z's (v_y, level)
+    ids["z"][:, -1] = ids["y"][:, :, -1]  # v_y = v_z = 1: Y's (v_x, level) = Z's (v_x, level)
+    number(ids["z"])
+    return ids
+
+
+_LOCAL = np.rint(_q2.REFERENCE_POINTS).astype(int) + 1  # (27, 3) offsets 0, 1, 2
+
+
+def _block_hexes(ids: np.ndarray) -> np.ndarray:
+    """The (M, 27) elements of a structured Q2 node grid ``ids`` (2A + 1, 2B + 1, 2C + 1), in C
+    order of the element indices, local nodes in VTK order."""
+    shape = tuple((s - 1) // 2 for s in ids.shape)
+    e = np.indices(shape).reshape(3, -1)  # (3, M)
+    i = 2 * e[0][:, None] + _LOCAL[:, 0]
+    j = 2 * e[1][:, None] + _LOCAL[:, 1]
+    k = 2 * e[2][:, None] + _LOCAL[:, 2]
+    return ids[i, j, k]
+
+
+def _level_nodes(ids: dict[str, np.ndarray], level: int) -> np.ndarray:
+    """Indices of the nodes at the Q2 radial level ``level`` of the three blocks."""
+    parts = [ids["x"][level].ravel(), ids["y"][:, level].ravel(), ids["z"][:, :, level].ravel()]
+    return np.unique(np.concatenate(parts))
+
+
+# ----------------------------------------------------------------------------- element geometry
+def _jacobians(nodes: np.ndarray, hexes: np.ndarray, chunk: int = 4096) -> np.ndarray:
+    """dX/dxi (M, 27, 3, 3) at the 27 Gauss points: ``[e, g, i, d]`` = dX_i/dxi_d."""
+    points, _ = _q2.gauss_rule()
+    dN = _q2.shape_gradients(points)  # (27 g, 27 a, 3 d)
+    out = np.empty((len(hexes), len(points), 3, 3))
+    for s in range(0, len(hexes), chunk):
+        X = nodes[hexes[s : s + chunk]]  # (m, 27 a, 3 i)
+        out[s : s + chunk] = np.einsum("mai,gad->mgid", X, dN)
+    return out
+
+
+def jacobian_determinants(nodes: np.ndarray, hexes: np.ndarray) -> np.ndarray:
+    """det(dX/dxi) (M, 27) at the 3 x 3 x 3 Gauss points (``sim.geometry._q2.gauss_rule`` order)."""
+    return np.linalg.det(_jacobians(nodes, hexes))
+
+
+def scaled_jacobians(nodes: np.ndarray, hexes: np.ndarray) -> np.ndarray:
+    """Each element's smallest scaled Jacobian over its 27 Gauss points (M,):
+    det J / (|J e_xi| |J e_eta| |J e_zeta|), in [-1, 1], 1 for a rectangular box."""
+    J = _jacobians(nodes, hexes)
+    norms = np.linalg.norm(J, axis=2)  # (M, 27, 3): lengths of the columns
+    return np.min(np.linalg.det(J) / np.prod(norms, axis=-1), axis=1)
+
+
+def element_volumes(nodes: np.ndarray, hexes: np.ndarray) -> np.ndarray:
+    """Volume (M,) of each element in mm^3: sum over the Gauss points of det J w."""
+    _, weights = _q2.gauss_rule()
+    return jacobian_determinants(nodes, hexes) @ weights
+
+
+def _face_metric(points: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The face shape functions (9 g, 9 a) and |dX/ds x dX/dt| w (F, 9 g) at the face rule."""
+    s, w = _q2.face_gauss_rule()
+    N = _q2.face_shape_functions(s)
+    dN = _q2.face_shape_gradients(s)  # (9 g, 9 a, 2)
+    X = np.asarray(points, dtype=float)[faces]  # (F, 9 a, 3)
+    tangents = np.einsum("fai,gad->fgdi", X, dN)  # (F, 9 g, 2, 3)
+    normal = np.cross(tangents[:, :, 0], tangents[:, :, 1])
+    return N, np.linalg.norm(normal, axis=-1) * w
+
+
+def face_areas(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Area (F,) of each 9-node face (3 x 3 Gauss rule on the curved face), mm^2."""
+    return _face_metric(points, faces)[1].sum(axis=1)
+
+
+def surface_weights(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Each node's share of the area of ``faces`` (the 3D analogue of
+    ``sim.fe.contact.surface_weights``): w_i = sum over the faces of int N_i dA, by the 3 x 3 Gauss
+    rule on the curved face at ``points`` (N, 3) (reference or current). Returns (N,), zero
+    off the faces; sum(w) is the faces' area. On a flat parallelogram face the weights are
+    area * (1/36 corners, 4/36 mid-edges, 16/36 centre), all positive."""
+    N, dA = _face_metric(points, faces)
+    contrib = dA @ N  # (F, 9 a): int N_a dA
+    w = np.zeros(len(points))
+    np.add.at(w, faces.ravel(), contrib.ravel())
+    return w
+
+
+def boundary_faces(hexes: np.ndarray, on_boundary: np.ndarray) -> np.ndarray:
+    """The 9-node faces (F, 9) of ``hexes`` whose nine nodes are all flagged by
+    ``on_boundary`` (N,) bool, oriented out of their element (a face between two flagged
+    elements appears twice, once from each side)."""
+    faces = hexes[:, _q2.FACE_NODES]  # (M, 6, 9)
+    inside = np.all(on_boundary[faces], axis=2)
+    return faces[inside]
+
+
+def write_vtu(
+    mesh: PadMesh,
+    path,
+    point_data: dict[str, np.ndarray] | None = None,
+    cell_data: dict[str, np.ndarray] | None = None,
+) -> None:
+    """Write ``mesh`` as VTK_TRIQUADRATIC_HEXAHEDRON cells (meshio's "hexahedron27", no
+    reordering) to a .vtu file, with the element ``layer`` and any ``point_data`` (name ->
+    (N, ...)) and ``cell_data`` (name -> (M, ...)) arrays."""
+    import meshio
+
+    cells = {"layer": mesh.layer, **(cell_data or {})}
+    meshio.Mesh(
+        np.asarray(mesh.nodes),
+        [("hexahedron27", np.asarray(mesh.hexes))],
+        point_data=dict(point_data or {}),
+        cell_data={k: [np.asarray(v)] for k, v in cells.items()},
+    ).write(str(path))

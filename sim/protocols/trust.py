@@ -1,0 +1,152 @@
+"""What a surrogate learns of an FE result's trust, and the rule that turns it into flags.
+
+An FE result is trusted when its taps reached the periodic state (``settled``) and its
+deformation stayed within the validity limits (``valid``, :mod:`sim.protocols.validity`). The flags
+are yes/no answers to thresholds that are options, so a surrogate learns the continuous figures
+behind them instead (``TRUST_OUTPUTS``, read from the diagnostic columns of a sweep's ``table.csv``
+or from ``SimResult.diagnostics()``), and :func:`trust_flags` applies the same thresholds to its
+predictions as the solver and ``sim.protocols.validity.check`` apply to an FE result:
+
+- the largest compressive log strain in tapping and plate (the protocols the strain limit
+  applies to by default), and the smallest J of each protocol;
+- whether the free surface reached the base or folded, in any protocol, and whether the FE
+  failed to converge in any protocol (0/1: the mean of an ensemble of such predictions reads
+  as a probability, flagged at 0.5; a design the FE cannot simulate is no answer either);
+- the tapping's periodic-state residual and largest estimated relative error (settled when
+  both are within ``TappingOptions.residual_tol`` / ``settle_tol``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "PROBABILITY_OUTPUTS",
+    "TRUST_OUTPUTS",
+    "trust_censoring",
+    "trust_flags",
+    "trust_values",
+]
+
+#: output name -> the protocol whose net learns it ("any": the plate/wedge net)
+TRUST_OUTPUTS: dict[str, str] = {
+    "tapping_max_compressive_log_strain": "tapping",
+    "plate_max_compressive_log_strain": "plate",
+    "tapping_min_J": "tapping",
+    "plate_min_J": "plate",
+    "wedge_min_J": "wedge",
+    "reached_base": "any",
+    "folded": "any",
+    "failed": "any",
+    "tapping_residual": "tapping",
+    "tapping_max_estimated_error": "tapping",
+}
+_PROTOCOLS = ("tapping", "plate", "wedge")
+#: the 0/1 outputs: a prediction of one (an ensemble's mean of 0/1 values) reads as a
+#: probability, so it and its interval lie in [0, 1] (``surrogate.Surrogate.predict``)
+PROBABILITY_OUTPUTS = ("reached_base", "folded", "failed")
+
+
+def _float(v: Any) -> float:
+    if v is None or v == "" or isinstance(v, bool):
+        return float(v) if isinstance(v, bool) else np.nan
+    if isinstance(v, str):
+        low = v.strip().lower()
+        if low in ("true", "false"):
+            return float(low == "true")
+    try:
+        return float(v)
+    except (TypeError, ValueError):
+        return np.nan
+
+
+def trust_values(diagnostics: Mapping[str, Any]) -> dict[str, float]:
+    """The ``TRUST_OUTPUTS`` of one FE result, from its diagnostics (``SimResult.diagnostics()``
+    or a ``table.csv`` row: text cells are parsed; ``failed`` from a row's ``status``); NaN
+    where the result does not have one."""
+    out = {
+        name: _float(diagnostics.get(name))
+        for name in TRUST_OUTPUTS
+        if name not in PROBABILITY_OUTPUTS
+    }
+    status = diagnostics.get("status")  # a table row's: "ok" or "failed"
+    out["failed"] = np.nan if status in (None, "") else float(status != "ok")
+    for flag in ("reached_base", "folded"):
+        seen = [_float(diagnostics.get(f"{p}_{flag}")) for p in _PROTOCOLS]
+        seen = [v for v in seen if np.isfinite(v)]
+        out[flag] = float(max(seen)) if seen else np.nan
+    if _stopped(diagnostics):  # a protocol stopped early: a flag still 0, or "not failed",
+        for flag in PROBABILITY_OUTPUTS:  # might have turned 1 later
+            if out[flag] == 0.0:
+                out[flag] = np.nan
+    return {name: out[name] for name in TRUST_OUTPUTS}
+
+
+def _stopped(diagnostics: Mapping[str, Any]) -> tuple[str, ...]:
+    """The protocols stopped at their first step beyond the validity limits (solver >= 2.3;
+    ``SimResult.diagnostics()["stopped"]`` or a table cell, comma-separated)."""
+    cell = diagnostics.get("stopped") or ""
+    return tuple(p.strip() for p in str(cell).split(",") if p.strip())
+
+
+def trust_censoring(diagnostics: Mapping[str, Any]) -> dict[str, int]:
+    """Per ``TRUST_OUTPUTS`` name, how its value of this FE result is known: 0 exactly, +1 as a
+    lower bound, -1 as an upper bound. A protocol stopped at its first violation (solver 2.3)
+    recorded its extremes up to the stop: its largest strain would only have grown (+1), its
+    smallest J only fallen (-1). (Its 0/1 flags that were still 0 are unknown:
+    ``trust_values`` gives them as NaN.)"""
+    out = dict.fromkeys(TRUST_OUTPUTS, 0)
+    for p in _stopped(diagnostics):
+        if f"{p}_max_compressive_log_strain" in out:
+            out[f"{p}_max_compressive_log_strain"] = 1
+        if f"{p}_min_J" in out:
+            out[f"{p}_min_J"] = -1
+    return out
+
+
+def trust_flags(values: Mapping[str, Any], validity, tapping) -> dict[str, np.ndarray]:
+    """Predicted ``valid`` and ``settled`` (bool arrays) and the first reason a design fails
+    (``why``: text array, "" when it passes), from predicted ``TRUST_OUTPUTS`` (arrays; an
+    output the predictor does not have is not judged). ``validity``: ``ValidityOptions``;
+    ``tapping``: ``TappingOptions`` (its tolerances)."""
+    n = len(np.atleast_1d(next(iter(values.values()))))
+    why = np.full(n, "", dtype=object)
+    valid = np.ones(n, dtype=bool)
+    settled = np.ones(n, dtype=bool)
+
+    def fail(mask: np.ndarray, text: str, which: np.ndarray) -> None:
+        mask = np.asarray(mask, dtype=bool)  # NaN compares False: not judged
+        why[mask & (why == "")] = text
+        which &= ~mask
+
+    def get(name: str) -> np.ndarray | None:
+        v = values.get(name)
+        return None if v is None else np.asarray(v, dtype=float).reshape(n)
+
+    for p in validity.strain_limited:
+        v = get(f"{p}_max_compressive_log_strain")
+        if v is not None:
+            with np.errstate(invalid="ignore"):
+                fail(v > validity.max_compressive_log_strain,
+                     f"{p} strain > {validity.max_compressive_log_strain:g}", valid)  # fmt: skip
+    for p in _PROTOCOLS:
+        v = get(f"{p}_min_J")
+        if v is not None:
+            with np.errstate(invalid="ignore"):
+                fail(v < validity.min_J, f"{p} J < {validity.min_J:g}", valid)
+    for flag, allowed in (("reached_base", validity.allow_base_contact),
+                          ("folded", validity.allow_folding), ("failed", False)):  # fmt: skip
+        v = get(flag)
+        if v is not None and not allowed:
+            with np.errstate(invalid="ignore"):
+                fail(v > 0.5, flag.replace("_", " "), valid)
+    res, err = get("tapping_residual"), get("tapping_max_estimated_error")
+    with np.errstate(invalid="ignore"):
+        if res is not None:
+            fail(res > tapping.residual_tol, "unsettled (residual)", settled)
+        if err is not None:
+            fail(err > tapping.settle_tol, "unsettled (error estimate)", settled)
+    return {"valid": valid, "settled": settled, "why": why}
