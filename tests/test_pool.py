@@ -90,7 +90,11 @@ def test_stop_workers_ends_a_busy_worker_at_once():
 
 
 INTERRUPTED = """
-import os, sys, time
+import os, signal, sys, time
+# Ctrl-C as in a shell's foreground process, whatever the test process left to its children
+# (an ignored or blocked SIGINT is inherited across exec, and the full suite leaves one)
+signal.signal(signal.SIGINT, signal.default_int_handler)
+signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 from explore.cli import _terminate_as_interrupt
 from sim.pool import process_pool
 restore = _terminate_as_interrupt()  # what `fingertip` does
