@@ -1,6 +1,6 @@
-"""The user-facing pages describe the software as it is: no work sessions or private run
-folders, a README short enough to read, and every ``fingertip`` command the README shows one
-that the real command line accepts (parsed by its own argparse parser, never run)."""
+"""The pages, the code and the tests describe the software as it is (no history of its making,
+no private run folders), a README short enough to read, and every ``fingertip`` command the
+pages show one that the real command line accepts (parsed by its own parser, never run)."""
 
 from __future__ import annotations
 
@@ -25,8 +25,15 @@ USER_PAGES = [
     ROOT / "datasets/README.md",
     ROOT / "surrogate/README.md",
 ]
+#: words of the project's own making (bracketed letters: this line does not match itself)
 HISTORY = re.compile(
-    r"[Ss]essions? [0-9]+|[Tt]his session|between sessions|work session|runs/main_v[0-9]+"
+    r"[Ss]essions? [0-9]+|[Tt]his sessio[n]|betwee[n] sessions|wor[k] session|runs/main_v[0-9]+"
+)
+#: the code and tests, held to the same rule as the pages
+SOURCES = sorted(
+    p
+    for d in ("sim", "explore", "surrogate", "tests", "studies", "benchmarks")
+    for p in (ROOT / d).rglob("*.py")
 )
 MAX_README_WORDS = 1500  # the issue: "about 1 500 words at most"
 #: the languages of fenced blocks whose lines are shell commands ("": none given)
@@ -34,8 +41,8 @@ SHELL = {"", "bash", "sh", "shell", "console"}
 SEPARATORS = {"&&", "||", ";", "|"}
 
 
-@pytest.mark.parametrize("page", USER_PAGES, ids=lambda p: str(p.relative_to(ROOT)))
-def test_no_work_sessions_or_private_run_folders(page: Path) -> None:
+@pytest.mark.parametrize("page", [*USER_PAGES, *SOURCES], ids=lambda p: str(p.relative_to(ROOT)))
+def test_no_history_of_its_making_or_private_run_folders(page: Path) -> None:
     hits = [
         f"{page.relative_to(ROOT)}:{n}: {line.strip()}"
         for n, line in enumerate(page.read_text().splitlines(), 1)
