@@ -17,7 +17,7 @@ import numpy as np
 if TYPE_CHECKING:
     import scipy.sparse as sp
 
-__all__ = ["Pattern", "build_pattern"]
+__all__ = ["Pattern", "PatternAccess", "build_pattern"]
 
 
 @dataclass(frozen=True)
@@ -129,3 +129,22 @@ def build_pattern(
         upper_indptr=np.searchsorted(prow[lower], np.arange(n_free + 1)).astype(np.int32),
         keys=ukeys,
     )
+
+
+class PatternAccess:
+    """The tangent's pattern as the solver (``sim.fe.solver.Body``) reads it, for a
+    discretisation (2D or 3D) holding its ``Pattern`` as ``self.pattern``."""
+
+    pattern: Pattern
+
+    def pattern_position(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
+        """Where each free-dof pair sits in the tangent's data array (``Pattern.position``)."""
+        return self.pattern.position(rows, cols)
+
+    def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The free-dof tangent as a CSC matrix (``Pattern.matrix``)."""
+        return self.pattern.matrix(data)
+
+    def upper_matrix(self, data: np.ndarray) -> sp.csc_matrix:
+        """The upper triangle of the tangent as a CSC matrix, for the LDL^T factorisation."""
+        return self.pattern.upper(data)

@@ -27,10 +27,9 @@ import numpy as np
 from ..geometry import FingertipMesh
 from ..geometry._p2 import P2Basis, TriMesh
 from ._constitutive import LayerState, initial_states, layer_stresses
-from ._pattern import build_pattern
+from ._pattern import PatternAccess, build_pattern
 
 if TYPE_CHECKING:
-    import scipy.sparse as sp
     from skfem import Basis
 
     from ..materials import Material
@@ -64,7 +63,7 @@ class Evaluation:
         return self._data
 
 
-class Discretization:
+class Discretization(PatternAccess):
     """P2 triangles on a ``FingertipMesh`` with one material per layer.
 
     Elements are reordered so that each layer is a contiguous slice.
@@ -197,18 +196,6 @@ class Discretization:
                 nodes.append((pos[a] + pos[b], mesh.p.shape[1] + int(bf[j])))
         nodes.sort()
         return np.array([n for _, n in nodes], dtype=np.int64)
-
-    def pattern_position(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Where each free-dof pair sits in the tangent's data array (``Pattern.position``)."""
-        return self.pattern.position(rows, cols)
-
-    def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        """The free-dof tangent as a CSC matrix (``Pattern.matrix``)."""
-        return self.pattern.matrix(data)
-
-    def upper_matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        """The upper triangle of the tangent as a CSC matrix, for the LDL^T factorisation."""
-        return self.pattern.upper(data)
 
     def initial_states(self) -> list[LayerState]:
         return initial_states(self.materials, self.slices, self.n_q, 3)

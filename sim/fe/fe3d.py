@@ -25,12 +25,10 @@ import numpy as np
 from ..geometry import _q2
 from . import _kernels
 from ._constitutive import LayerState, initial_states, layer_stresses
-from ._pattern import build_pattern
+from ._pattern import PatternAccess, build_pattern
 from .fe2d import Evaluation
 
 if TYPE_CHECKING:
-    import scipy.sparse as sp
-
     from ..geometry import PadMesh
     from ..materials import Material
 
@@ -39,7 +37,7 @@ __all__ = ["Discretization3D"]
 VOIGT = _kernels.VOIGT[3]
 
 
-class Discretization3D:
+class Discretization3D(PatternAccess):
     """Q2 hexahedra on a ``PadMesh`` with one material per layer.
 
     Elements are reordered so that each layer is a contiguous slice."""
@@ -166,18 +164,6 @@ class Discretization3D:
 
         w = surface_weights(self.X, np.asarray(self.pmesh.surface_faces))
         return w[self.surface_nodes]
-
-    def pattern_position(self, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-        """Where each free-dof pair sits in the tangent's data array (``Pattern.position``)."""
-        return self.pattern.position(rows, cols)
-
-    def pattern_matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        """The free-dof tangent as a CSC matrix (``Pattern.matrix``)."""
-        return self.pattern.matrix(data)
-
-    def upper_matrix(self, data: np.ndarray) -> sp.csc_matrix:
-        """The upper triangle of the tangent as a CSC matrix, for the LDL^T factorisation."""
-        return self.pattern.upper(data)
 
     def initial_states(self) -> list[LayerState]:
         return initial_states(self.materials, self.slices, self.n_q, 6)
