@@ -45,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import DesignError
-from .section import REFERENCE_GEOMETRY, Geometry
+from .section import REFERENCE_GEOMETRY, Geometry, check_in_range
 
 __all__ = [
     "HALF_LENGTH_RANGE_MM",
@@ -88,10 +88,7 @@ class PadGeometry:
             ("half_length_mm", HALF_LENGTH_RANGE_MM),
             ("length_exponent", LENGTH_EXPONENT_RANGE),
         ):
-            value = getattr(self, name)
-            is_number = isinstance(value, int | float) and not isinstance(value, bool)
-            if not (is_number and lo <= value <= hi):  # NaN fails the comparison too
-                raise DesignError(f"geometry.{name}", f"must be in [{lo}, {hi}], got {value!r}")
+            check_in_range(f"geometry.{name}", getattr(self, name), lo, hi)
 
     def to_dict(self) -> dict[str, float]:
         """The section's keys plus ``half_length_mm`` and ``length_exponent``."""

@@ -21,6 +21,14 @@ from ..errors import DesignError
 __all__ = ["REFERENCE_GEOMETRY", "Geometry", "superellipse_points"]
 
 
+def check_in_range(field_name: str, value: object, lo: float, hi: float) -> None:
+    """``DesignError`` naming ``field_name`` unless ``value`` is a number (not a bool) in
+    [lo, hi] (NaN fails the comparison too)."""
+    is_number = isinstance(value, int | float) and not isinstance(value, bool)
+    if not (is_number and lo <= value <= hi):
+        raise DesignError(field_name, f"must be in [{lo}, {hi}], got {value!r}")
+
+
 @dataclass(frozen=True)
 class Geometry:
     """Cross-section of the pulp.
@@ -41,10 +49,7 @@ class Geometry:
             ("height_mm", 1.0, 50.0),
             ("exponent", 1.2, 8.0),
         ):
-            value = getattr(self, name)
-            is_number = isinstance(value, int | float) and not isinstance(value, bool)
-            if not (is_number and lo <= value <= hi):  # NaN fails the comparison too
-                raise DesignError(f"geometry.{name}", f"must be in [{lo}, {hi}], got {value!r}")
+            check_in_range(f"geometry.{name}", getattr(self, name), lo, hi)
 
     def to_dict(self) -> dict[str, float]:
         return {
