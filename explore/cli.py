@@ -259,12 +259,13 @@ def _add_simulate(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from sim.design import load_space
+    from sim.design import DEFAULT_SPACE_3D_PATH, load_space
     from sim.sweep import run_sweep
 
     user, catalogue = _user_catalogues(args)
-    space = load_space(args.space, catalogue)
     options = _sim_options(args)
+    default = DEFAULT_SPACE_3D_PATH if options.model.dimension == "3d" else None
+    space = load_space(args.space or default, catalogue)
     summary = run_sweep(
         space,
         args.n,
@@ -298,7 +299,13 @@ def _add_sweep(p: argparse.ArgumentParser) -> None:
         "are examples); --catalogue adds a user catalogue; --out a sweep folder (new, or one to "
         "resume)."
     )
-    p.add_argument("space", nargs="?", type=Path, help="design-space TOML (default: shipped)")
+    p.add_argument(
+        "space",
+        nargs="?",
+        type=Path,
+        help="design-space TOML (default: the shipped one, sim/data/default_space.toml; with "
+        "--model 3d sim/data/default_space_3d.toml, which adds the pad's length and profile)",
+    )
     p.add_argument("--n", type=int, required=True, help="number of designs")
     p.add_argument("--out", type=Path, required=True, help="sweep folder, e.g. runs/NAME")
     from sim.sweep import default_workers

@@ -473,3 +473,21 @@ def test_mesh_size_distance_matches_a_kd_tree():
     points = rng.uniform([0.0, 0.0], [6.0, 5.5], size=(9000, 2))  # more than one chunk
     want = cKDTree(curve).query(points)[0]
     np.testing.assert_allclose(_nearest_distance(points, curve), want, rtol=1e-15, atol=0)
+
+
+def test_the_model_root_is_bracketed_and_exact_for_a_linear_body():
+    """``_model_root``: with a body part linear in a (as the model assumes) the next trial is the
+    root of g itself, a kink of the contact part included; it stays inside the bracket."""
+    from sim.fe.solver import _model_root
+
+    def g_contact(a: float) -> float:  # a node entering contact at a = 0.4, stiff beyond
+        return 50.0 * max(a - 0.4, 0.0)
+
+    def g_body(a: float) -> float:
+        return -1.0 + 0.5 * a
+
+    a = _model_root(g_contact, 0.0, g_body(0.0), 1.0, g_body(1.0))
+    assert a == pytest.approx(0.4 + 0.8 / 50.5, rel=1e-3)  # -1 + 0.5 a + 50 (a - 0.4) = 0
+    assert 0.0 < a < 1.0
+    # a root at the bracket's end is kept 1 % inside it
+    assert _model_root(lambda a: 0.0, 0.0, -1.0, 1.0, -1e-9) == pytest.approx(0.99)

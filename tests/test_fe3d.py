@@ -185,3 +185,29 @@ def test_a_script_using_pardiso_exits_without_noise():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stderr == ""
+
+
+def test_the_line_searchs_contact_part_is_the_residuals(two_layers):
+    """``Body._contact_slope``, evaluated from the surface nodes alone, is the contacts' part of
+    the line search's g(a) = [du, dd] . residual(a) under force control: g minus the body's own
+    part (its internal forces alone), at steps where nodes enter the plate."""
+    body = Body(two_layers, Plate(), NewtonOptions())
+    disc = two_layers
+    u = _smooth(disc.X)
+    u[disc.fixed] = 0.0
+    d = body.top_height(u) - 0.2
+    control = Control.force(0.3)
+    rng = np.random.default_rng(5)
+    du = 2e-3 * rng.standard_normal(disc.n_free)
+    dd = -0.2  # the plate moves down: more nodes enter contact along the line
+    g_contact = body._contact_slope(u, d, du, dd, control)
+    entered = []
+    for a in (0.0, 0.3, 1.0):
+        ua = u.copy()
+        ua.reshape(-1)[disc.free] += a * du
+        r, _, _, coupling, rd, _ = body._evaluate(ua, control, d + a * dd, 0.01, False)
+        own = disc.evaluate(ua, body.states, 0.01, tangent=False).residual
+        g_total, g_body = du @ r + dd * rd, du @ own
+        entered.append(int(np.sum(coupling > 0)))
+        assert g_contact(a) == pytest.approx(g_total - g_body, rel=1e-9, abs=1e-12 * abs(g_total))
+    assert entered[0] >= 1 and entered[-1] > entered[0]

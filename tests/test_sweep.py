@@ -139,6 +139,58 @@ def test_space_round_trips():
     assert space_from_dict(space.to_dict()) == space
 
 
+def test_the_3d_space_is_the_default_space_with_the_pads_length_and_profile():
+    """``default_space_3d.toml`` extends the default space: the same section and layers, plus
+    c and m within their argued ranges (docs/fingertip_3d.md); its designs carry their pad,
+    the inverse map recovers the point, and its dict form needs no ``extends`` to be read back."""
+    from sim.design import DEFAULT_SPACE_3D_PATH, point_from_design
+    from sim.geometry import PadGeometry
+
+    space2, space3 = load_space(), load_space(DEFAULT_SPACE_3D_PATH)
+    pad_names = ["geometry.half_length_mm", "geometry.length_exponent"]
+    assert [n for n in space3.names if n not in pad_names] == space2.names
+    assert all(space3[n] == space2[n] for n in space2.names)
+    assert (space3[pad_names[0]].low, space3[pad_names[0]].high) == (8.0, 14.0)
+    assert (space3[pad_names[1]].low, space3[pad_names[1]].high) == (2.0, 8.0)
+    points = sample_points(space3, 32, seed=1)
+    for point in points:
+        design = space3.design(point)
+        assert design.pad == PadGeometry(design.geometry, point[pad_names[0]], point[pad_names[1]])
+        back = point_from_design(design, space3)
+        assert all(back[n] == point[n] for n in pad_names)
+    cs = [p[pad_names[0]] for p in points]
+    assert min(cs) < 9.0 and max(cs) > 13.0  # the sample spans the range
+    assert space_from_dict(space3.to_dict()) == space3
+    # the 2D space leaves every design's pad unstated (so 2D record keys are unchanged)
+    design2 = space2.design(sample_points(space2, 1, seed=1)[0])
+    assert design2.half_length_mm is None and design2.length_exponent is None
+
+
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        ('extends = "nowhere.toml"', "extends"),
+        ('extends = "default_space.toml"\n[geometry]\nhalf_length_mm = { low = 0.5, high = 9 }',
+         "geometry.half_length_mm"),
+        ('extends = "default_space.toml"\n[geometry]\nlength_exponent = { value = 9.0 }',
+         "geometry.length_exponent"),
+        ('extends = "default_space.toml"\n[geometry]\nlength_mm = { value = 9.0 }',
+         "geometry.length_mm"),
+    ],
+)  # fmt: skip
+def test_a_bad_3d_space_names_the_field(tmp_path, text, field):
+    import shutil
+
+    from sim.design import DEFAULT_SPACE_PATH
+
+    shutil.copy(DEFAULT_SPACE_PATH, tmp_path / "default_space.toml")
+    path = tmp_path / "space.toml"
+    path.write_text(text + "\n")
+    with pytest.raises(DesignError) as exc:
+        load_space(path)
+    assert exc.value.field == field
+
+
 def test_cli_invalid_space_is_one_line_exit_2(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text(TINY.replace("low = 0.3, high = 1.0", "low = 1.0, high = 0.3"))

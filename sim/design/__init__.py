@@ -26,6 +26,7 @@ from .skin import (
     load_design,
 )
 from .space import (
+    DEFAULT_SPACE_3D_PATH,
     DEFAULT_SPACE_PATH,
     LAYER_ROLES,
     PARAM_MATERIAL_KEYS,
@@ -56,6 +57,7 @@ from .targets import (
 
 __all__ = [
     "ALLOWED_KEYS",
+    "DEFAULT_SPACE_3D_PATH",
     "DEFAULT_SPACE_PATH",
     "DEFAULT_TARGETS_PATH",
     "FAMILIES",

@@ -34,14 +34,14 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from ..errors import DesignError, read_toml
-from ..geometry import Geometry
+from ..geometry import REFERENCE_PAD, Geometry
 from ..materials import (
     CATALOGUE,
     Material,
@@ -53,6 +53,7 @@ from .families import FAMILIES, FAMILY_KEYS, family_material, family_uses, is_fa
 from .skin import MIN_CORE_MM, Design, Layer
 
 __all__ = [
+    "DEFAULT_SPACE_3D_PATH",
     "DEFAULT_SPACE_PATH",
     "LAYER_ROLES",
     "PARAM_MATERIAL_KEYS",
@@ -72,6 +73,8 @@ __all__ = [
 ]
 
 DEFAULT_SPACE_PATH = Path(__file__).parents[1] / "data" / "default_space.toml"
+#: the default space of the 3D model: the default space and the pad's length and side profile
+DEFAULT_SPACE_3D_PATH = DEFAULT_SPACE_PATH.with_name("default_space_3d.toml")
 LAYER_ROLES = ("skin", "middle", "core")
 #: keys of the continuous material families (``sim.design.families``; which of them a layer uses is
 #: ``sim.design.families.family_uses``)
@@ -79,6 +82,10 @@ PARAM_MATERIAL_KEYS = FAMILY_KEYS
 #: relaxation times of the three Prony terms of the "param" family relative to ``tau_s``
 PRONY_TIME_RATIOS = FAMILIES["param"].time_ratios
 _GEOMETRY_KEYS = ("half_width_mm", "height_mm", "exponent")
+#: the 3D pad's keys (``sim.geometry.pad.PadGeometry``): parameters of a space that states them
+#: (the 3D model's ``default_space_3d.toml``); a space without them leaves every design's pad at
+#: its default, and the 2D model never reads them
+_PAD_KEYS = ("half_length_mm", "length_exponent")
 _LAYER_KEYS = ("thickness_mm", "material", *PARAM_MATERIAL_KEYS)
 
 
@@ -372,6 +379,7 @@ def point_to_design(
     """Build the design of a (masked) point; material names from ``catalogue`` (default: the
     shipped one)."""
     geometry = Geometry(*(float(point[f"geometry.{k}"]) for k in _GEOMETRY_KEYS))
+    pad = {k: float(point[f"geometry.{k}"]) for k in _PAD_KEYS if f"geometry.{k}" in point}
     layers = []
     for role in active_roles(point["layers.count"]):
         name = point[f"{role}.material"]
@@ -381,7 +389,7 @@ def point_to_design(
             mat = catalogue_material(name, f"{role}.material", catalogue)
         thickness = None if role == "core" else float(point[f"{role}.thickness_mm"])
         layers.append(Layer(mat, thickness))
-    return Design(tuple(layers), geometry)
+    return Design(tuple(layers), geometry, **pad)
 
 
 def _family_values(mat: Material, family: str) -> dict[str, float] | None:
@@ -426,6 +434,11 @@ def point_from_design(design: Design, space: DesignSpace) -> dict[str, Any]:
     roles = active_roles(len(design.layers))
     point: dict[str, Any] = {
         **{f"geometry.{k}": v for k, v in design.geometry.to_dict().items()},
+        **{
+            f"geometry.{k}": getattr(design.pad, k)
+            for k in _PAD_KEYS
+            if f"geometry.{k}" in space.names
+        },
         "layers.count": len(design.layers),
     }
     catalogue = space.catalogue
@@ -537,15 +550,21 @@ def space_from_dict(
     used: dict[str, Material] = {}  # the user materials the choices name
     geo = data.get("geometry", {})
     for key in geo:
-        if key not in _GEOMETRY_KEYS:
+        if key not in (*_GEOMETRY_KEYS, *_PAD_KEYS):
             raise DesignError(
-                f"geometry.{key}", f"unknown key; allowed: {', '.join(_GEOMETRY_KEYS)}"
+                f"geometry.{key}",
+                f"unknown key; allowed: {', '.join((*_GEOMETRY_KEYS, *_PAD_KEYS))}",
             )
     ref = Geometry()
     for key in _GEOMETRY_KEYS:
         p = _parameter(f"geometry.{key}", geo.get(key, {"value": getattr(ref, key)}))
         for v in _values(p):
             Geometry(**{**ref.to_dict(), key: v})  # raises DesignError naming geometry.<key>
+        params.append(p)
+    for key in (k for k in _PAD_KEYS if k in geo):
+        p = _parameter(f"geometry.{key}", geo[key])
+        for v in _values(p):
+            replace(REFERENCE_PAD, **{key: v})  # raises DesignError naming geometry.<key>
         params.append(p)
     layers = data.get("layers")
     if not isinstance(layers, Mapping) or "core" not in layers:
@@ -642,5 +661,28 @@ def load_space(
 ) -> DesignSpace:
     """Read a design-space TOML file (the shipped default when ``path`` is None); material
     names from ``catalogue`` (default: the shipped one)."""
-    data = read_toml(DEFAULT_SPACE_PATH if path is None else path, "SPACE")
-    return space_from_dict(data, catalogue)
+    path = Path(DEFAULT_SPACE_PATH if path is None else path)
+    return space_from_dict(_read_space_toml(path), catalogue)
+
+
+def _read_space_toml(path: Path, seen: tuple[Path, ...] = ()) -> dict[str, Any]:
+    """A space file's tables; ``extends = "other.toml"`` (beside it) takes the other file's
+    tables and replaces or adds what this one states: a whole ``[geometry]`` key or
+    ``[layers.<role>]`` table at a time (a space that adds the pad's keys to the default space
+    repeats nothing of it)."""
+    data = dict(read_toml(path, "SPACE"))
+    base_name = data.pop("extends", None)
+    if base_name is None:
+        return data
+    base_path = (path.parent / str(base_name)).resolve()
+    if base_path in seen or base_path == path.resolve():
+        raise DesignError("extends", f"{path} extends itself through {base_path.name}")
+    if not base_path.is_file():
+        raise DesignError("extends", f"no such space file beside {path.name}: {base_name}")
+    merged = _read_space_toml(base_path, (*seen, path.resolve()))
+    for section, table in data.items():
+        if section in ("geometry", "layers", "materials") and isinstance(table, Mapping):
+            merged[section] = {**merged.get(section, {}), **table}
+        else:
+            merged[section] = table
+    return merged

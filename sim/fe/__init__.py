@@ -14,7 +14,15 @@ from typing import TYPE_CHECKING
 
 from .contact import Base, Plate, Wedge
 from .fe2d import Discretization, LayerState
-from .solver import FORCE_RTOL, Body, Control, NewtonOptions, StepResult, youngs_moduli
+from .solver import (
+    FORCE_RTOL,
+    Body,
+    Control,
+    NewtonOptions,
+    StepResult,
+    residual_tolerance,
+    youngs_moduli,
+)
 
 if TYPE_CHECKING:
     from .fe3d import Discretization3D
@@ -31,6 +39,7 @@ __all__ = [
     "Plate",
     "StepResult",
     "Wedge",
+    "residual_tolerance",
     "youngs_moduli",
 ]
 

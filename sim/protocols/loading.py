@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import SimulationError
-from ..fe import FORCE_RTOL, Body, Control, Plate, Wedge, youngs_moduli
+from ..fe import FORCE_RTOL, Body, Control, Plate, Wedge, residual_tolerance, youngs_moduli
 from .validity import DeformationTracker, ValidityStop, check
 
 if TYPE_CHECKING:
@@ -402,8 +402,9 @@ def hysteresis_resolution_Nmm(
 
     The loop area is ``-closed integral of delta dF`` = ``closed integral of F d(delta)``. Newton
     ends a step once the indenter force matches the applied one within ``FORCE_RTOL`` of it and
-    every other equation's residual is within ``Body.atol = rtol x E0 x size`` (N/mm of the
-    half model; E0 the largest Young's modulus, size the largest coordinate). Each force of the
+    every other equation's residual is within ``Body.atol`` (``sim.fe.residual_tolerance``:
+    rtol x E0 x size, N/mm of the half model; E0 the largest Young's modulus, size the largest
+    coordinate). Each force of the
     loop is then known to ``dF = FORCE_RTOL x peak + 2 L x atol`` (N: L the out-of-plane length,
     2 for the half model) at worst, and the integral, whose path is twice the travel from first
     touch to the peak (``closed integral of |d delta|``), to ``2 x travel x dF``. A smaller
@@ -425,11 +426,11 @@ def hysteresis_resolution_Nmm(
     if options.model.dimension == "3d":  # Body.atol in N; the quarter pad's force x 4
         if design is not None:
             size = max(size, design.pad.half_length_mm)
-        force = FORCE_RTOL * tapping.peak_force_N + 4.0 * newton.rtol * e0 * size**2
+        atol_N = residual_tolerance(newton.rtol, e0, size, 3)
+        force = FORCE_RTOL * tapping.peak_force_N + 4.0 * atol_N
     else:  # Body.atol in N/mm of the half section; x 2 L
-        force = (
-            FORCE_RTOL * tapping.peak_force_N + 2.0 * tapping.length_mm * newton.rtol * e0 * size
-        )
+        atol_N_per_mm = residual_tolerance(newton.rtol, e0, size, 2)
+        force = FORCE_RTOL * tapping.peak_force_N + 2.0 * tapping.length_mm * atol_N_per_mm
     return 2.0 * abs(travel) * force
 
 
