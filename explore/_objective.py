@@ -17,8 +17,9 @@ effort F_wedge / F_ref.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +36,7 @@ __all__ = [
     "closeness",
     "infeasibility",
     "objectives",
+    "point_strain_limits",
 ]
 
 WEDGE_REFERENCE_N = 2.35  # silicone GLS 40 on the reference geometry (docs/validation.md)
@@ -92,19 +94,57 @@ def _value(metrics: Mapping, name: str):
     return v
 
 
+def point_strain_limits(
+    points: Sequence[Mapping[str, Any]], catalogue: Mapping[str, Any] | None, validity
+) -> np.ndarray | None:
+    """Per design point, the compressive log strain its predicted largest strain is held to
+    (``sim.protocols.validity.design_strain_limit``: the largest of its layers' tested limits);
+    None when ``validity`` overrides every layer's (then that one number applies). A layer's
+    limit depends on its material only (a family's on the family, whatever its parameters
+    within the family's bounds), so each material name is looked up once."""
+    if validity.max_compressive_log_strain is not None or not points:
+        return None
+    from sim.design import active_roles, family_material, is_family
+    from sim.design.families import FAMILIES
+    from sim.materials import catalogue_material
+    from sim.protocols.validity import design_strain_limit
+
+    seen: dict[str, float] = {}
+
+    def limit(point: Mapping[str, Any], role: str) -> float:
+        name = point[f"{role}.material"]
+        if name not in seen:
+            if is_family(name):
+                keys = FAMILIES[name].keys
+                material = family_material(name, {k: point[f"{role}.{k}"] for k in keys})
+            else:
+                material = catalogue_material(name, f"{role}.material", catalogue)
+            seen[name] = design_strain_limit([material], validity)
+        return seen[name]
+
+    return np.array(
+        [max(limit(p, r) for r in active_roles(p["layers.count"])) for p in points], dtype=float
+    )
+
+
 def infeasibility(
-    values: Mapping[str, np.ndarray], targets: Targets, validity, tapping
+    values: Mapping[str, np.ndarray],
+    targets: Targets,
+    validity,
+    tapping,
+    strain_limit: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """How far predicted designs are from credible, and why: ``(penalty, why)``.
 
     A credible design is one whose FE result can be an answer: it settles, stays within the
-    validity limits (``sim.protocols.trust.trust_flags`` on the predicted trust outputs) and
+    validity limits (``sim.protocols.trust.trust_flags`` on the predicted trust outputs, the
+    largest strain held to ``strain_limit``, per design: :func:`point_strain_limits`) and
     recovers between taps (``sag_mm`` within ``targets.max_sag_mm``). ``penalty`` is 0 for a
     credible design and ``1 + excess`` otherwise, ``excess`` summing how far each limit is passed
     (relative: strain / limit - 1, limit J / J - 1, sag / limit - 1, and 1 per failed yes/no limit),
     so that a search ranks every credible design first and still sees the way back towards the
     credible ones. Outputs the predictor does not have are not judged."""
-    from sim.protocols import trust_flags
+    from sim.protocols import strain_limit_of, trust_flags
 
     n = len(np.atleast_1d(next(iter(values.values())))) if values else 0
     excess = np.zeros(n)
@@ -118,16 +158,15 @@ def infeasibility(
 
     trust = {k: v for k in TRUST_NAMES if (v := get(k)) is not None}
     if trust:
-        flags = trust_flags(trust, validity, tapping)
+        flags = trust_flags(trust, validity, tapping, strain_limit)
         bad = ~(flags["valid"] & flags["settled"])
         why = np.where(bad, flags["why"], why)
         excess += bad.astype(float)
+        limit = strain_limit_of(validity, strain_limit)
         with np.errstate(invalid="ignore", divide="ignore"):
             for p in validity.strain_limited:
                 if (v := trust.get(f"{p}_max_compressive_log_strain")) is not None:
-                    excess += np.nan_to_num(
-                        np.maximum(v / validity.max_compressive_log_strain - 1, 0)
-                    )
+                    excess += np.nan_to_num(np.maximum(v / limit - 1, 0))
             for p in ("tapping", "plate", "wedge"):
                 if (v := trust.get(f"{p}_min_J")) is not None:
                     excess += np.nan_to_num(np.maximum(validity.min_J / v - 1, 0), posinf=10.0)

@@ -23,6 +23,7 @@ import numpy as np
 from sim.design import Targets
 from sim.options import SimOptions
 from sim.protocols import ValidityOptions, shown_hysteresis
+from sim.protocols.validity import binding_strain_limit, strain_limits, strain_summary
 from sim.provenance import nan_if_none, write_if_changed
 
 from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
@@ -238,10 +239,8 @@ def _rejected(run: RunData, targets: Targets, validity: ValidityOptions) -> dict
         if c.status != "ok":
             out["failed"] += 1
         elif d.get("valid") is False:
-            strains = [d.get(f"{p}_max_compressive_log_strain") for p in validity.strain_limited]
             js = [d.get(f"{p}_min_J") for p in _PROTOCOLS]
-            limit = validity.max_compressive_log_strain
-            if any(isinstance(x, int | float) and x > limit for x in strains):
+            if _beyond_strain_limit(d, validity):
                 out["strain"] += 1
             elif any(isinstance(x, int | float) and x < validity.min_J for x in js):
                 out["J"] += 1
@@ -254,28 +253,73 @@ def _rejected(run: RunData, targets: Targets, validity: ValidityOptions) -> dict
     return out
 
 
+def _strain_limits(d: Mapping[str, Any], validity: ValidityOptions) -> dict[str, Any]:
+    """Per strain-limited protocol, the layer whose compressive limit binds an FE result's
+    diagnostics (``sim.protocols.validity.binding_strain_limit``: each layer against its own
+    tested limit, or the override; a record without per-layer figures on its largest strain)."""
+    out = {}
+    for p in validity.strain_limited:
+        summary = strain_summary(d, p)
+        if summary is not None:
+            out[p] = binding_strain_limit(summary, validity)
+    return out
+
+
+def _beyond_strain_limit(d: Mapping[str, Any], validity: ValidityOptions) -> bool:
+    """Whether an FE result's diagnostics put a layer beyond its compressive limit."""
+    return any(
+        s.strain > s.limit
+        for p in validity.strain_limited
+        if (summary := strain_summary(d, p)) is not None
+        for s in strain_limits(summary, validity)
+    )
+
+
+def _strain_limit_words(s: Any) -> str:
+    """A layer's limit (``StrainLimit``) in words: "its limit of 0.53 (argued: ...)"; "the
+    validity limit of 0.60 (...)" for a record without per-layer figures."""
+    what = {
+        "measured": "the strain its material was tested to",
+        "argued": "argued for its material: no test compressed it that far",
+        "untested": "the paper's: its material has no tested range",
+        "overridden": "one limit for every layer: the training sweep's options or --set "
+        "validity.max_compressive_log_strain",
+        "": "the strain the materials were tested to",
+    }.get(s.basis, s.basis)
+    whose = "its" if s.label else "the validity"
+    return f"{whose} limit of {s.limit:.2f} ({what})"
+
+
+def _binding_words(d: Mapping[str, Any], validity: ValidityOptions) -> str:
+    """The tapping's binding layer (``_strain_limits``) in words: "; layer 1 (core,
+    family.gel) at 0.512 against its limit of 0.53 (argued ...)", or "" without one."""
+    s = _strain_limits(d, validity).get("tapping")
+    if s is None:
+        return ""
+    if not s.label:  # a record without per-layer figures: its largest strain is all there is
+        return ""
+    return f"; {s.label} at {s.strain:.3f} against {_strain_limit_words(s)}"
+
+
 def _limit_words(answer: Mapping[str, Any], run: RunData, targets: Targets) -> str:
     """What holds the best design where it is: the validity limit or the sag limit it is at,
     and how many other confirmed designs went beyond those limits."""
     validity = run_options(run).validity
-    limit, min_j = validity.max_compressive_log_strain, validity.min_J
+    min_j = validity.min_J
     d = answer.get("diagnostics") or {}
-    strains = {
-        p: d[f"{p}_max_compressive_log_strain"]
-        for p in validity.strain_limited
-        if isinstance(d.get(f"{p}_max_compressive_log_strain"), int | float)
-    }
+    strains = _strain_limits(d, validity)
     js = {p: d[f"{p}_min_J"] for p in _PROTOCOLS if isinstance(d.get(f"{p}_min_J"), int | float)}
     sag = (answer.get("readings") or {}).get("sag_mm")
     max_sag = targets.max_sag_mm
     binding, free = [], []
     if strains:
-        where, strain = max(strains.items(), key=lambda kv: kv[1])
+        where, s = max(strains.items(), key=lambda kv: kv[1].strain / max(kv[1].limit, 1e-12))
+        layer = f" {s.label}" if s.label else ""
         text = (
-            f"its {where} compresses it to a log strain of {strain:.3f} against the validity "
-            f"limit of {limit:.2f} (the strain the materials were tested to)"
+            f"its {where} compresses{layer or ' it'} to a log strain of {s.strain:.3f} against "
+            + _strain_limit_words(s)
         )
-        (binding if strain >= _AT_LIMIT * limit else free).append(text)
+        (binding if s.strain >= _AT_LIMIT * s.limit else free).append(text)
     if js:
         where, j = min(js.items(), key=lambda kv: kv[1])
         if min_j >= _AT_LIMIT * j:
@@ -425,9 +469,11 @@ def _targets_section(targets: Targets | None, tolerance: Any) -> list[str]:
     return [*lines, ""]
 
 
-def _readings_rows(answer: Mapping[str, Any], targets: Targets | None) -> list[str]:
+def _readings_rows(
+    answer: Mapping[str, Any], targets: Targets | None, validity: ValidityOptions
+) -> list[str]:
     """The sag between the two readings of the displacements (those above are in the targets'
-    reading) and the validity of the FE result."""
+    reading) and the validity of the FE result, with the layer whose limit binds it."""
     r = answer.get("readings") or {}
     d = answer.get("diagnostics") or {}
     if not r and not d:
@@ -443,8 +489,8 @@ def _readings_rows(answer: Mapping[str, Any], targets: Targets | None) -> list[s
         f"{_fmt(shown.get('disp_at_4N_mm'))} mm (they differ by the sag).",
         f"- **Settled**: {_fmt(d.get('settled'))}; **within the validity limits**: "
         f"{_fmt(d.get('valid'))} (largest compressive log strain in tapping "
-        f"{_fmt(d.get('tapping_max_compressive_log_strain'))}, smallest J "
-        f"{_fmt(d.get('tapping_min_J'))}).",
+        f"{_fmt(d.get('tapping_max_compressive_log_strain'))}{_binding_words(d, validity)}, "
+        f"smallest J {_fmt(d.get('tapping_min_J'))}).",
         "",
     ]
 
@@ -505,7 +551,7 @@ def _answer_section(
         lines += ["**Not credible** (let in by `--allow-untrusted`): see its diagnostics.", ""]
     if targets is not None:
         lines += [*_answer_rows(answer, targets, tolerance, options), ""]
-    lines += _readings_rows(answer, targets)
+    lines += _readings_rows(answer, targets, options.validity)
     return lines
 
 

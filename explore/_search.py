@@ -225,14 +225,22 @@ def suggest_point(trial, space: DesignSpace) -> dict[str, Any]:
 
 
 # ----------------------------------------------------------------------------- scoring
-def _scores(pred, targets: Targets, options=None, allow_untrusted: bool = False):
+def _scores(
+    pred, targets: Targets, options=None, allow_untrusted: bool = False, points=None, space=None
+):
     """(score, objectives, why-not-credible) of a surrogate ``Prediction``, vectorised: the
     closeness of the median prediction, plus the credibility penalty unless
     ``allow_untrusted`` (``explore._objective.infeasibility``, judged with the validity limits
-    and tapping tolerances of ``options``, a ``SimOptions``, default the defaults)."""
+    and tapping tolerances of ``options``, a ``SimOptions``, default the defaults; the largest
+    strain of each of the predicted design ``points`` held to the limit of its materials,
+    named in ``space``'s catalogue: ``explore._objective.point_strain_limits``)."""
     from sim.options import SimOptions
 
+    from ._objective import point_strain_limits
+
     options = SimOptions() if options is None else options
+    catalogue = getattr(space, "catalogue", None)
+    strain_limit = point_strain_limits(points or [], catalogue, options.validity)
     names = list(pred.metric_names)
     cols = {m: names.index(m) for m in names}
     point = pred.median
@@ -241,7 +249,7 @@ def _scores(pred, targets: Targets, options=None, allow_untrusted: bool = False)
     c = closeness(metrics, targets)
     obj = objectives(c)
     judged = {m: (pred.mean if m in _YES_NO else point)[:, cols[m]] for m in _JUDGED if m in cols}
-    penalty, why = infeasibility(judged, targets, options.validity, options.tapping)
+    penalty, why = infeasibility(judged, targets, options.validity, options.tapping, strain_limit)
     if allow_untrusted:
         return c.score, obj, why
     return c.score + penalty, obj + penalty[:, None], why
@@ -269,7 +277,8 @@ def predict_rows(
     names = list(pred.metric_names)
     cols = {m: names.index(m) for m in names}
     point = pred.median  # the robust point prediction (see surrogate.Prediction)
-    scores, obj, why = _scores(pred, targets, options, allow_untrusted)
+    space = getattr(surrogate, "space", None)
+    scores, obj, why = _scores(pred, targets, options, allow_untrusted, list(points), space)
     scored = [targets.metric(m) for m in SCORED]
     with np.errstate(divide="ignore", invalid="ignore"):
         spread = np.stack(
@@ -444,7 +453,7 @@ def screen(
     for start in range(0, n, chunk):
         points = space.points(unit[start : start + chunk])
         score, _, _ = _scores(surrogate.predict(points), targets, settings.options,
-                              settings.allow_untrusted)  # fmt: skip
+                              settings.allow_untrusted, points, space)  # fmt: skip
         score = np.where(np.isfinite(score), score, np.inf)
         best = np.argsort(score, kind="stable")[: settings.screen_keep]
         keep_scores += score[best].tolist()

@@ -138,7 +138,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         if "settled" in tap:
             print(_settle_line(tap))
         for protocol, summary in result.validity_summaries().items():
-            print(_validity_line(protocol, summary, protocol in result.stopped))
+            print(_validity_line(protocol, summary, protocol in result.stopped, options))
         print(f"({result.n_dofs} dofs, {result.wall_time_s:.2f} s)")
         if args.out is not None:
             print(f"written to {args.out}")
@@ -149,6 +149,12 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         )
     for protocol, violation in result.violations():  # a warning: the exit code is unchanged
         print(f"warning: {protocol}: {violation.warning()}", file=sys.stderr)
+    for option, value in result.validity["overridden"].items():
+        print(
+            f"note: --set validity.{option}={value:g} holds every layer to {value:g}, "
+            "overriding the limit its material was tested to",
+            file=sys.stderr,
+        )
     for protocol, stop in result.validity["stopped"].items():
         print(
             f"warning: {protocol}: stopped at t = {stop['time_s']:.4g} s, its first step beyond "
@@ -199,9 +205,23 @@ def _settle_line(tap: dict) -> str:
     )
 
 
-def _validity_line(protocol: str, summary: dict, stopped: bool = False) -> str:
-    """How far the protocol deformed the design, in one line (limits: README, --set validity.*);
-    ``stopped``: up to the step at which it stopped (``validity.stop_at_violation``)."""
+def _validity_line(
+    protocol: str, summary: dict, stopped: bool = False, options: SimOptions | None = None
+) -> str:
+    """How far the protocol deformed the design, in one line (limits: README, --set validity.*),
+    with the layer nearest its compressive limit (``sim.protocols.validity.binding_strain_limit``
+    with the ``options``' limits); ``stopped``: up to the step at which it stopped
+    (``validity.stop_at_violation``)."""
+    from sim.protocols.validity import binding_strain_limit
+
+    validity = (options or SimOptions()).validity
+    binding = binding_strain_limit(summary, validity)
+    nearest = (
+        f" ({binding.label} nearest its limit: {binding.strain:.2f} of {binding.limit:.2f}, "
+        f"{binding.basis_words})"
+        if binding is not None and binding.label
+        else ""
+    )
     width = summary["contact_width_at_peak_mm"]
     flags = [
         text
@@ -213,7 +233,8 @@ def _validity_line(protocol: str, summary: dict, stopped: bool = False) -> str:
     ]
     return (
         f"validity ({protocol}): compressive log strain {summary['max_compressive_log_strain']:.2f}"
-        f", min J {summary['min_J']:.2f}"
+        + nearest
+        + f", min J {summary['min_J']:.2f}"
         + (f", contact width {width:.2f} mm" if width is not None else "")
         + (
             f" x length {summary['contact_length_at_peak_mm']:.2f} mm"
@@ -335,7 +356,27 @@ def _add_sweep(p: argparse.ArgumentParser) -> None:
     p.set_defaults(func=_cmd_sweep)
 
 
+#: the methods of ``fingertip train SWEEP3D --method`` (``surrogate.MULTIFIDELITY_METHODS``,
+#: named here so that the parser does not import the surrogate; a test holds them equal)
+MULTIFIDELITY_METHODS = ("3d", "input", "delta", "delta-contact", "finetune")
+
+
+def _sweep_dimension(folder) -> str:
+    """The model ("2d", "3d") a sweep folder's config.json names; "2d" when it names none or
+    cannot be read (the training then says what is wrong with the folder)."""
+    from sim.sweep import read_config
+
+    try:
+        config = read_config(folder)
+        return str(config["options"]["model"]["dimension"])
+    except (OSError, ValueError, KeyError, TypeError):
+        return "2d"
+
+
 def _cmd_train(args: argparse.Namespace) -> int:
+    three_d = _sweep_dimension(args.sweep) == "3d"
+    if three_d or args.low_fidelity is not None or args.method is not None:
+        return _train_multifidelity(args, three_d)
     if args.seeds is not None:
         return _train_seeds(args)
     if getattr(args, "jobs_given", False):
@@ -351,6 +392,45 @@ def _cmd_train(args: argparse.Namespace) -> int:
         progress=not args.no_progress,
         include_untrusted=args.include_untrusted,
     )
+    return _print_training(ckpt)
+
+
+def _train_multifidelity(args: argparse.Namespace, three_d: bool) -> int:
+    """``fingertip train SWEEP3D [--low-fidelity CHECKPOINT] [--method NAME]``: a multi-fidelity
+    surrogate of the 3D model's metrics (3D designs alone without --low-fidelity)."""
+    if not three_d:
+        option = "--low-fidelity" if args.low_fidelity is not None else "--method"
+        raise UsageError(
+            f"{option}: {args.sweep} is not a sweep of the 3D model; a multi-fidelity surrogate "
+            "learns from a 3D sweep (fingertip sweep --model 3d) and a 2D surrogate"
+        )
+    if args.method is not None and args.method not in MULTIFIDELITY_METHODS:
+        raise UsageError(
+            f"--method: must be one of {', '.join(MULTIFIDELITY_METHODS)}, got {args.method!r}"
+        )
+    if args.seeds is not None or getattr(args, "jobs_given", False):
+        raise UsageError("--seeds: one training per seed is for 2D sweeps; give --seed")
+    from surrogate import train_multifidelity
+
+    ckpt = train_multifidelity(
+        args.sweep,
+        args.low_fidelity,
+        args.method,
+        args.out,
+        seed=args.seed,
+        members=args.members,
+        max_epochs=args.max_epochs,
+        progress=not args.no_progress,
+        include_untrusted=args.include_untrusted,
+    )
+    report = json.loads((ckpt.parent / "report.json").read_text())
+    low = report.get("low_fidelity")
+    print(f"method: {report['method']} (low fidelity: {low['path'] if low else 'none, 3D only'})")
+    return _print_training(ckpt)
+
+
+def _print_training(ckpt) -> int:
+    """A training run's held-out scores, speed, report and checkpoint, printed."""
     report = json.loads((ckpt.parent / "report.json").read_text())
     left_out = ", ".join(f"{n} {why}" for why, n in sorted(report.get("excluded", {}).items()))
     if left_out:
@@ -423,7 +503,10 @@ def _add_train(p: argparse.ArgumentParser) -> None:
         "fingertip sweep (the dataset: table.csv and config.json); --out a new training run "
         "folder (its model.safetensors is the checkpoint). With --seeds, one training per seed "
         "into OUT/seed<S> and OUT/spread.md: the accuracy targets met by each seed's held-out "
-        "designs and by the mean over the seeds."
+        "designs and by the mean over the seeds. A sweep of the 3D model (fingertip sweep "
+        "--model 3d) trains a multi-fidelity surrogate of the 3D metrics: with --low-fidelity, "
+        "from a 2D surrogate and the 3D designs (--method), without it from the 3D designs "
+        "alone (docs/multifidelity.md)."
     )
     p.add_argument("sweep", type=Path, help="sweep folder (runs/NAME with table.csv)")
     p.add_argument(
@@ -463,6 +546,21 @@ def _add_train(p: argparse.ArgumentParser) -> None:
         action="store_true",
         help="also learn from designs whose taps did not settle or that went beyond the "
         "validity limits (left out by default)",
+    )
+    p.add_argument(
+        "--low-fidelity",
+        type=Path,
+        metavar="CHECKPOINT",
+        help="with a 3D sweep: the 2D surrogate (a checkpoint file or a training run folder, "
+        "e.g. surrogate/pretrained/default) whose predictions the multi-fidelity surrogate "
+        "learns from",
+    )
+    p.add_argument(
+        "--method",
+        metavar="NAME",
+        help="with a 3D sweep, how the 2D surrogate's predictions are used: "
+        f"{', '.join(MULTIFIDELITY_METHODS)} (default delta with --low-fidelity, 3d without: "
+        "the 3D designs alone)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_train)

@@ -183,7 +183,9 @@ _ONLY_IN = {
 
 
 def _parse(name: str, raw: Any, default: Any) -> Any:
-    kind = type(default)
+    # a None default is an optional number (validity.max_compressive_log_strain: None, each
+    # layer's own limit): a value given overrides it
+    kind = float if default is None else type(default)
     try:
         if kind is bool:
             if isinstance(raw, bool):

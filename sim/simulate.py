@@ -28,7 +28,14 @@ from .metrics import (
 )
 from .options import SimOptions
 from .protocols import REGISTRY, Protocol, ProtocolResult
-from .protocols.validity import ValidityOptions, ValidityStop, Violation, check
+from .protocols.validity import (
+    LAYER_LIMIT_KEYS,
+    LAYER_STRAINS,
+    ValidityOptions,
+    ValidityStop,
+    Violation,
+    check,
+)
 from .provenance import finite_or_none
 
 __all__ = [
@@ -92,10 +99,12 @@ class SimResult:
 
     @property
     def validity(self) -> dict[str, Any]:
-        """``{"valid", "violations", "protocols"}``: the overall verdict, the violated limits as
-        ``"<limit> (<protocol>)"`` and per protocol its summary plus its own ``violations`` and
-        ``valid``. Failed protocols have no summary: ``valid`` speaks of the completed ones only
-        (see ``ok``)."""
+        """``{"valid", "violations", "protocols", "stopped", "overridden"}``: the overall
+        verdict, the violated limits as ``"<limit> (<protocol>)"``, per protocol its summary
+        plus its own ``violations`` and ``valid``, the protocols stopped at a violation, and the
+        limits that override the materials' own (``ValidityOptions.overridden``: {} when each
+        layer is held to its tested limit). Failed protocols have no summary: ``valid`` speaks
+        of the completed ones only (see ``ok``)."""
         protocols = {}
         for name, summary in self.validity_summaries().items():
             own = [str(v) for v in check(summary, self.validity_options, name)]
@@ -106,6 +115,7 @@ class SimResult:
             "violations": violations,
             "protocols": protocols,
             "stopped": {name: self.protocols[name]["stopped"] for name in self.stopped},
+            "overridden": self.validity_options.overridden,
         }
 
     @property
@@ -118,7 +128,11 @@ class SimResult:
         """Flat, JSON/CSV-ready validity figures: ``valid``, ``violations`` (joined by "; "),
         ``stopped`` (the protocols stopped at a violation, joined by ",") and
         per protocol run ``<protocol>_<key>`` for the keys of ``DIAGNOSTIC_KEYS`` (None where the
-        protocol failed)."""
+        protocol failed). Besides (in a record, not a table's columns): each layer's largest
+        compressive log strain per protocol (``<protocol>_max_compressive_log_strain_by_layer``)
+        and each layer's tested limit (``sim.protocols.validity.LAYER_LIMIT_KEYS``), from which
+        ``sim.protocols.validity.strain_summary`` gives a stored record's layers back to
+        ``strain_limits``."""
         validity = self.validity
         out: dict[str, Any] = {
             "valid": validity["valid"],
@@ -129,6 +143,10 @@ class SimResult:
             summary = validity["protocols"].get(name, {})
             for key, source in DIAGNOSTIC_KEYS.items():
                 out[f"{name}_{key}"] = summary.get(source)
+        for name, summary in validity["protocols"].items():
+            out[f"{name}_{LAYER_STRAINS}"] = summary.get(LAYER_STRAINS)
+            for key in LAYER_LIMIT_KEYS:
+                out[key] = summary.get(key)
         if "tapping" in self.protocols:  # the periodic state (sim.protocols.periodic)
             tap = self.protocols["tapping"]
             for key in SETTLE_KEYS:

@@ -12,6 +12,12 @@ Public API::
     learning_curve(sweep_dir, sizes, seed=0, repeats=3, ...) -> dict  # error vs FE designs
     CheckpointError                                        # a refused checkpoint file
 
+    # the 3D model's metrics from many 2D designs (a 2D surrogate) and few 3D ones
+    train_multifidelity(sweep3d_dir, low_fidelity=None, method=None, out_dir=None, seed=0)
+    load_multifidelity(path, low_fidelity=None) -> MultiFidelitySurrogate   # .predict(points)
+    multifidelity_curve(sweep3d, sizes, low_fidelity=..., methods=...) -> dict
+    MULTIFIDELITY_METHODS                                  # name -> method class
+
 Importing this package is cheap; torch is imported on first use of a name that needs it.
 """
 
@@ -32,6 +38,10 @@ if TYPE_CHECKING:
     from ._evaluate import Report, Speed
     from ._io import SweepData, check_point, read_points, read_sweep
     from ._learning_curve import learning_curve
+    from ._multifidelity import METHODS as MULTIFIDELITY_METHODS
+    from ._multifidelity import MultiFidelitySurrogate, fit_multifidelity
+    from ._multifidelity_checkpoint import load_multifidelity, save_multifidelity
+    from ._multifidelity_run import multifidelity_curve, train_multifidelity
     from ._run import train_surrogate
     from ._spread import train_seeds
     from ._surrogate import Prediction, Surrogate
@@ -39,8 +49,10 @@ if TYPE_CHECKING:
 
 __all__ = [
     "CHECKPOINT_NAME",
+    "MULTIFIDELITY_METHODS",
     "CheckpointError",
     "Encoder",
+    "MultiFidelitySurrogate",
     "Prediction",
     "Report",
     "Speed",
@@ -49,11 +61,16 @@ __all__ = [
     "TrainConfig",
     "check_point",
     "fine_tune",
+    "fit_multifidelity",
     "learning_curve",
     "load_checkpoint",
+    "load_multifidelity",
+    "multifidelity_curve",
     "read_points",
     "read_sweep",
     "save_checkpoint",
+    "save_multifidelity",
+    "train_multifidelity",
     "train_seeds",
     "train_surrogate",
 ]
@@ -61,6 +78,7 @@ __all__ = [
 _LAZY = {
     "CHECKPOINT_NAME": "_run",
     "Encoder": "_encoding",
+    "MultiFidelitySurrogate": "_multifidelity",
     "Prediction": "_surrogate",
     "Report": "_evaluate",
     "Speed": "_evaluate",
@@ -69,17 +87,31 @@ _LAZY = {
     "TrainConfig": "_train",
     "check_point": "_io",
     "fine_tune": "_train",
+    "fit_multifidelity": "_multifidelity",
     "learning_curve": "_learning_curve",
     "load_checkpoint": "_checkpoint",
+    "load_multifidelity": "_multifidelity_checkpoint",
+    "multifidelity_curve": "_multifidelity_run",
     "read_points": "_io",
     "read_sweep": "_io",
     "save_checkpoint": "_checkpoint",
+    "save_multifidelity": "_multifidelity_checkpoint",
+    "train_multifidelity": "_multifidelity_run",
     "train_seeds": "_spread",
     "train_surrogate": "_run",
 }
 
 
+#: names bound to another name of their module
+_RENAMED = {"MULTIFIDELITY_METHODS": ("_multifidelity", "METHODS")}
+
+
 def __getattr__(name: str):
+    if name in _RENAMED:
+        module, attr = _RENAMED[name]
+        value = getattr(import_module(f".{module}", __name__), attr)
+        globals()[name] = value
+        return value
     if name in _LAZY:
         value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
         globals()[name] = value

@@ -195,6 +195,12 @@ def read_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, 
             path, "not a surrogate checkpoint (not a readable safetensors file)"
         ) from None
     text = meta.get(META_KEY)
+    if text is None and "fingertip_multifidelity" in meta:  # _multifidelity_checkpoint.META_KEY
+        raise CheckpointError(
+            path,
+            "a multi-fidelity checkpoint (the 3D model's metrics): load it with "
+            "surrogate.load_multifidelity",
+        )
     if text is None:
         raise CheckpointError(
             path, f"not a surrogate checkpoint (a safetensors file without the {META_KEY} header)"

@@ -240,6 +240,9 @@ def trust_score(parity: Sequence[ParityData]) -> TrustScore | None:
         return None
 
     def flags(field: str) -> np.ndarray:
+        # the FE's and the surrogate's figures under the same thresholds: an agreement score, not
+        # a verdict, so the designs' materials are not needed (their largest strain is held to
+        # the paper's 0.60, ``sim.protocols.strain_limit_of``)
         values = {m: getattr(p, field) for m, p in by_name.items()}
         f = trust_flags(values, ValidityOptions(), TappingOptions())
         return f["valid"] & f["settled"]

@@ -14,7 +14,7 @@ import numpy as np
 
 from sim.design import DesignSpace, space_from_dict
 from sim.errors import DesignError, read_toml
-from sim.metrics import METRICS, PROTOCOLS, diagnostic_names
+from sim.metrics import METRICS, METRICS_3D, PROTOCOLS, diagnostic_names, metric_registry
 from sim.protocols import TRUST_OUTPUTS, trust_censoring, trust_values
 from sim.provenance import KINDS, folder_kind, sha256_file
 from sim.sweep import (
@@ -36,6 +36,7 @@ TABLE_COLUMNS = (
     "wall_time_s",
     "reason",
     *METRICS,
+    *METRICS_3D,
     *diagnostic_names(),
 )
 
@@ -198,7 +199,7 @@ class SweepData:
         if self.whole is None or self.whole.all():
             return self.targets
         out = self.targets.copy()
-        fe = np.array([m in METRICS for m in self.metric_names])
+        fe = np.array([m in METRICS or m in METRICS_3D for m in self.metric_names])
         out[np.ix_(~self.whole, fe)] = np.nan
         return out
 
@@ -269,9 +270,13 @@ def _trusted_protocols(row: dict[str, str], validity: Any) -> frozenset[str]:
     figures, with the sweep's ``ValidityOptions``) and, for the taps, reached the periodic state,
     gave a credible result whatever the others did. A protocol without figures (it failed) is not
     trusted. None at all when the figures do not show why the design is untrusted (the table's flags
-    and figures disagree)."""
+    and figures disagree). A table has each protocol's largest strain, not each layer's: with
+    each layer held to its own tested limit (no ``validity.max_compressive_log_strain``
+    override), whether a protocol's layers stayed within theirs is read from the row's
+    ``violations`` (``_strain_violated``), the verdict its FE result recorded."""
     from sim.protocols.validity import check
 
+    per_layer = validity.max_compressive_log_strain is None
     kept, blamed = set(), False
     for protocol in PROTOCOLS:
         cells = [row.get(f"{protocol}_{k}") or "" for k in _DIAGNOSED]
@@ -287,7 +292,11 @@ def _trusted_protocols(row: dict[str, str], validity: Any) -> frozenset[str]:
             "reached_base": bool(_flag(cells[2])),
             "folded": bool(_flag(cells[3])),
         }
-        ok = not check(summary, validity, protocol)
+        broken = check(summary, validity, protocol)
+        if per_layer:
+            broken = [v for v in broken if v.option != "max_compressive_log_strain"]
+            broken += _strain_violated(row, protocol)
+        ok = not broken
         if protocol == "tapping" and _flag(row.get("settled")) is not True:
             ok = False
         blamed |= not ok
@@ -296,12 +305,28 @@ def _trusted_protocols(row: dict[str, str], validity: Any) -> frozenset[str]:
     return frozenset(kept) if blamed else frozenset()
 
 
+def _strain_violated(row: dict[str, str], protocol: str) -> list[str]:
+    """The compressive strain limits (a layer's tested one, or a Drucker-stable one) that a
+    table row's ``violations`` cell records for ``protocol`` (``SimResult.validity``'s
+    ``"<violation> (<protocol>)"``, joined by "; ")."""
+    cell = row.get("violations") or ""
+    return [
+        v
+        for v in (x.strip() for x in cell.split(";"))
+        if v.endswith(f"({protocol})") and "compressive log strain" in v
+    ]
+
+
 #: the per-protocol figures of a table row that ``sim.protocols.validity.check`` judges
 _DIAGNOSED = ("max_compressive_log_strain", "min_J", "reached_base", "folded")
 
 
 def read_sweep(
-    folder: str | Path, trusted_only: bool = True, per_protocol: bool = True
+    folder: str | Path,
+    trusted_only: bool = True,
+    per_protocol: bool = True,
+    *,
+    dimension: str = "2d",
 ) -> SweepData:
     """Designs with at least one finite metric (failed protocols leave NaN, masked in training),
     and, when the table has the trust columns, every design (a failed one teaches ``failed``).
@@ -316,7 +341,11 @@ def read_sweep(
     settled, valid designs, ``docs/surrogate_accuracy.md``) the median error of hysteresis_Nmm
     went from 11.5 to 9.7 %, and with the default grouping that of plate_force_at_1mm_N from
     16 to 7 %, wedge_peak_force_N from 5.8 to 3.5 %. A table without these columns (a sweep made
-    before they were recorded) is used whole, its designs counted in ``unchecked``."""
+    before they were recorded) is used whole, its designs counted in ``unchecked``.
+
+    ``dimension``: the model the sweep must be of ("2d"; "3d" for the multi-fidelity surrogate,
+    ``surrogate._multifidelity``, whose metrics include ``sim.metrics.METRICS_3D``); a sweep of
+    the other model is refused."""
     folder = Path(folder)
     config_path, table = folder / CONFIG, table_path(folder)
     if not folder.is_dir():
@@ -334,11 +363,14 @@ def read_sweep(
     except (json.JSONDecodeError, KeyError, TypeError) as exc:
         raise DesignError("SWEEP", f"unreadable {config_path}: {exc}") from None
     model = ((config.get("options") or {}).get("model") or {}).get("dimension", "2d")
-    if model != "2d":  # the search confirms with the 2D FE: a 3D surrogate would mix the two
-        raise DesignError(
-            "SWEEP",
-            f"{folder} is a sweep of the {model} model; the surrogate learns from 2D sweeps only",
+    if model != dimension:  # the search confirms with the 2D FE: a 3D surrogate would mix the two
+        learns = (
+            "the surrogate learns from 2D sweeps only"
+            if dimension == "2d"
+            else f"the multi-fidelity surrogate learns from {dimension.upper()} sweeps"
         )
+        raise DesignError("SWEEP", f"{folder} is a sweep of the {model} model; {learns}")
+    registry = metric_registry(model)
     validity = _validity_options(config)
     points, targets, index, whole = [], [], [], []
     bounds: list[list[int]] = []  # per row, trust_censoring (when the table has trust columns)
@@ -351,14 +383,14 @@ def read_sweep(
             header = reader.fieldnames or []
             # the metrics the table has (a table from before a metric was added lacks it), then
             # the trust outputs (sim.protocols.trust) when it has the diagnostic columns
-            metric_names = tuple(m for m in METRICS if m in header)
+            metric_names = tuple(m for m in registry if m in header)
             n_fe = len(metric_names)
             learns_trust = "valid" in header
             if learns_trust:
                 metric_names += tuple(TRUST_OUTPUTS)
             missing = [c for c in ("index", *space.names) if c not in header]
             if missing or not metric_names:
-                what = missing[0] if missing else next(iter(METRICS))
+                what = missing[0] if missing else next(iter(registry))
                 raise DesignError("SWEEP", f"{table} has no column {what!r}")
             for row in reader:
                 n_rows += 1
@@ -380,8 +412,8 @@ def read_sweep(
                     # its metrics are not learnt (but those of a protocol trusted on its own
                     # are), what made it so is
                     kept = _trusted_protocols(row, validity) if per_protocol else frozenset()
-                    partial += any(METRICS[m][0] in kept for m in metric_names[:n_fe])
-                    protocol = [METRICS[m][0] for m in metric_names[:n_fe]]
+                    partial += any(registry[m][0] in kept for m in metric_names[:n_fe])
+                    protocol = [registry[m][0] for m in metric_names[:n_fe]]
                     y = [v if p in kept else math.nan for p, v in zip(protocol, y, strict=True)]
                 if learns_trust:
                     y += list(trust_values(row).values())

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from sim.metrics import METRICS
+from sim.metrics import metric_registry
 from sim.protocols import TRUST_OUTPUTS
 from sim.provenance import finite_or_none, git_commit
 
@@ -114,7 +114,8 @@ def metric_groups(metric_names: Sequence[str], grouping: str) -> tuple[int, ...]
         raise ValueError(f"groups must be one of {', '.join(GROUPINGS)}, got {grouping!r}")
     if grouping == "none":
         return tuple(0 for _ in metric_names)
-    protocol = {m: v[0] for m, v in METRICS.items()}
+    # the 3D model's contact patch is measured in the taps: with the tapping's metrics
+    protocol = {m: v[0] for m, v in metric_registry("3d").items()}
     if grouping == "tapping":
         protocol.update(TRUST_OUTPUTS)
     kind = [0 if protocol.get(m) == "tapping" else 1 for m in metric_names]
@@ -565,10 +566,11 @@ def calibration_factors(
     the factor is ``r_(k) / Z90``, ``k = ceil((n + 1) coverage)``: a new design exchangeable with
     them falls inside with probability at least ``coverage``.
 
-    Only FE metrics (``sim.metrics.METRICS``) with ``min_n`` finite values are calibrated; trust
-    outputs (censored bounds, yes/no flags) keep 1. Returns the factors (n_metrics,) and the
-    header's ``calibration`` record."""
+    Only FE metrics (``sim.metrics.METRICS``, and the 3D model's ``METRICS_3D``) with ``min_n``
+    finite values are calibrated; trust outputs (censored bounds, yes/no flags) keep 1. Returns
+    the factors (n_metrics,) and the header's ``calibration`` record."""
     factors = np.ones(len(metric_names))
+    fe_metrics = metric_registry("3d")
     with np.errstate(divide="ignore", invalid="ignore"):
         scores = np.abs(np.asarray(z) - mean_z) / std_z
     counts: dict[str, int] = {}
@@ -576,7 +578,7 @@ def calibration_factors(
         r = scores[:, j]
         r = np.sort(r[np.isfinite(r)])
         counts[name] = int(r.size)
-        if name not in METRICS or r.size < min_n:
+        if name not in fe_metrics or r.size < min_n:
             continue
         k = math.ceil((r.size + 1) * coverage)
         if k <= r.size and r[k - 1] > 0:

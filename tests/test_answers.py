@@ -428,3 +428,44 @@ def test_the_answers_of_the_space_are_the_run_s(run: Path) -> None:
         design = load_design(answer_path(run, kind), space.catalogue)
         got = point_from_design(design, space)
         assert {k: got[k] for k in point} == pytest.approx(point), kind
+
+
+def test_the_report_names_the_layer_and_the_limit_that_binds(run: Path, monkeypatch) -> None:
+    """An answer whose FE record has each layer's strain and tested limit: the verdict and the
+    answer's section name the layer nearest its own limit (the gel core, argued), not the
+    design's largest strain against one limit; an override is said to be one."""
+    from sim.protocols.validity import LAYER_LIMIT_KEYS, layer_limit
+
+    monkeypatch.setattr(explore._report, "write_figures", lambda run_dir, workers=1: {})
+    limits = [layer_limit(m) for m in point_to_design(BEST, CATALOGUE).materials]
+    assert [(t.material, t.basis) for t in limits] == [
+        ("platsil_gel_10_marechal", "argued"),
+        ("family.gel", "argued"),
+    ]
+    summary = json.loads((run / "summary.json").read_text())
+    diagnostics = summary["answers"]["best"]["diagnostics"]
+    # the skin strains most (0.56) but the core (0.512) is nearer its own limit (0.528)
+    diagnostics.update(
+        dict(zip(LAYER_LIMIT_KEYS, ([t.log_strain for t in limits],
+             [t.material for t in limits], [t.basis for t in limits]), strict=True)),
+        tapping_max_compressive_log_strain=0.56,
+        tapping_max_compressive_log_strain_by_layer=[0.56, 0.512],
+    )  # fmt: skip
+    (run / "summary.json").write_text(json.dumps(summary))
+    text = explore._report.write_report(run).read_text()
+    first = text.split("\n\n")[1]
+    assert (
+        "its tapping compresses layer 1 (core, family.gel) to a log strain of 0.512 against its "
+        "limit of 0.53 (argued for its material: no test compressed it that far)" in first
+    )
+    assert "; layer 1 (core, family.gel) at 0.512 against its limit of 0.53 (argued" in text
+    # the run's options override every layer's limit: the skin's 0.56 binds, said so
+    config = json.loads((run / "config.json").read_text())
+    config["sim_options"]["validity"] = {"max_compressive_log_strain": 0.58}
+    (run / "config.json").write_text(json.dumps(config))
+    first = explore._report.write_report(run).read_text().split("\n\n")[1]
+    assert (
+        "its tapping compresses layer 0 (skin, platsil_gel_10_marechal) to a log strain of "
+        "0.560 against its limit of 0.58 (one limit for every layer: the training sweep's "
+        "options or --set validity.max_compressive_log_strain)" in first
+    )

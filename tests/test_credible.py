@@ -11,13 +11,21 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from explore._objective import infeasibility
+from explore._objective import infeasibility, point_strain_limits
 from explore._search import design_family, family_space, predict_rows
 from explore._sensitivity import STEP, sensitivities, sensitivity_notes
 from explore._summary import credible, summarise
 from explore._types import Candidate, Confirmation
 from sim.design import Targets, load_space, point_to_design
-from sim.protocols import TRUST_OUTPUTS, TappingOptions, ValidityOptions, trust_flags, trust_values
+from sim.protocols import (
+    TRUST_OUTPUTS,
+    TappingOptions,
+    ValidityOptions,
+    strain_limit_of,
+    trust_flags,
+    trust_values,
+)
+from sim.protocols.validity import PAPER_LOG_STRAIN
 
 HUMAN = {"disp_at_1N_mm": 1.83, "disp_at_4N_mm": 2.91, "hysteresis_Nmm": 2.26}
 TARGETS = Targets(dict(HUMAN), reading="from_first_touch", max_sag_mm=0.37)
@@ -48,7 +56,8 @@ def test_trust_values_read_diagnostics_and_table_cells():
 
 def test_trust_flags_apply_the_solvers_thresholds():
     validity, tapping = ValidityOptions(), TappingOptions()
-    lim, tol = validity.max_compressive_log_strain, tapping.residual_tol
+    lim, tol = strain_limit_of(validity), tapping.residual_tol
+    assert lim == PAPER_LOG_STRAIN  # without the designs' materials: the paper's limit
     values = {
         "tapping_max_compressive_log_strain": np.array([0.5 * lim, 1.1 * lim, 0.5, np.nan]),
         "wedge_min_J": np.array([0.9, 0.9, 0.5 * validity.min_J, 0.9]),
@@ -65,10 +74,50 @@ def test_trust_flags_apply_the_solvers_thresholds():
     assert trust_flags(wedge, validity, tapping)["valid"].all()
 
 
+def test_trust_flags_hold_each_design_to_its_own_strain_limit():
+    """The same predicted strain is credible in a design whose materials were tested further
+    and not in one tested less far; an override holds every design to one number, and says
+    so."""
+    tapping = TappingOptions()
+    strain = {"tapping_max_compressive_log_strain": np.array([0.7, 0.7])}
+    own = np.array([1.0498, 0.5276])  # a foam core's limit, a gel's
+    f = trust_flags(strain, ValidityOptions(), tapping, own)
+    np.testing.assert_array_equal(f["valid"], [True, False])
+    assert f["why"][1] == "tapping strain > 0.5276"
+    f = trust_flags(strain, ValidityOptions(max_compressive_log_strain=0.65), tapping)
+    np.testing.assert_array_equal(f["valid"], [False, False])
+    assert f["why"][0] == "tapping strain > 0.65 (overridden)"
+    # the search's penalty grows with the strain over each design's own limit
+    penalty, _ = infeasibility(strain, TARGETS, ValidityOptions(), tapping, own)
+    assert penalty[0] == 0.0 and penalty[1] == pytest.approx(1.0 + 1.0 + (0.7 / 0.5276 - 1))
+
+
+def test_a_design_point_is_held_to_the_largest_of_its_layers_limits():
+    """Per point, the limit of its materials (sim.protocols.validity.layer_limit): a family by
+    its family, a catalogue material by its name; the largest of the layers' (the surrogate
+    predicts the design's largest strain, wherever it is); None under an override."""
+    from sim.materials._tests import tested_range
+
+    gel_only = _gel_point(0.01, 0.2)
+    gel_over_foam = {
+        **gel_only, "layers.count": 2, "skin.material": "gel", "skin.thickness_mm": 1.0,
+        "skin.mu0_MPa": 0.02, "skin.alpha": 3.0, "skin.g_total": 0.2, "skin.tau_s": 0.1,
+        "core.material": "foam", "core.nu": 0.2,
+    }  # fmt: skip
+    paper = {**gel_only, "core.material": "silicone_gls40"}
+    limits = point_strain_limits([gel_only, gel_over_foam, paper], None, ValidityOptions())
+    want = [tested_range(n).max_compressive_log_strain
+            for n in ("family.gel", "family.foam", "silicone_gls40")]  # fmt: skip
+    np.testing.assert_array_equal(limits, want)
+    assert want == [0.5276, 1.0498, 0.5978]
+    over = ValidityOptions(max_compressive_log_strain=0.7)
+    assert point_strain_limits([gel_only], None, over) is None
+
+
 # ----------------------------------------------------------------------------- the search
 def test_infeasibility_ranks_credible_designs_first_and_grows_with_the_excess():
     validity, tapping = ValidityOptions(), TappingOptions()
-    lim = validity.max_compressive_log_strain
+    lim = strain_limit_of(validity)
     values = {
         "tapping_max_compressive_log_strain": np.array([0.3, 1.2 * lim, 2.0 * lim, 0.3]),
         "sag_mm": np.array([0.1, 0.1, 0.1, 0.5]),
@@ -122,7 +171,7 @@ class FakeSurrogate:
                 "hysteresis_Nmm": 2.26,
                 "wedge_peak_force_N": 0.1,
                 "sag_mm": 0.5 * g,
-                "tapping_max_compressive_log_strain": 0.3 * d1,
+                "tapping_max_compressive_log_strain": 0.25 * d1,
                 "tapping_min_J": 0.99,
                 "tapping_residual": 0.0,
                 "tapping_max_estimated_error": 0.0,
@@ -148,8 +197,9 @@ def _gel_point(mu: float, g: float) -> dict:
 
 def test_the_search_flags_and_penalises_designs_predicted_not_credible():
     sur = FakeSurrogate()
-    on_target = _gel_point(0.01, 0.2)  # predicted human-like, strain 0.55, sag 0.1: credible
-    too_soft = _gel_point(0.005, 0.2)  # strain 0.78 > 0.60: beyond validity
+    on_target = _gel_point(0.01, 0.2)  # predicted human-like, strain 0.46, sag 0.1: credible
+    # strain 0.55: within the paper's 0.60, beyond the gel family's own 0.53: not credible
+    too_soft = _gel_point(0.007, 0.2)
     putty = _gel_point(0.01, 0.9)  # sag 0.45 > 0.37
     rows = predict_rows(sur, [on_target, too_soft, putty], TARGETS)
     assert not rows[0].flags and rows[0].score == pytest.approx(0.1 * 0.1 / 2.35)

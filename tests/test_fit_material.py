@@ -22,6 +22,7 @@ import explore.cli
 from sim.materials import LAWS, Material, Prony, read_user_catalogue
 from sim.materials.fit import (
     Curve,
+    ModeFit,
     RelaxationData,
     _ramp,
     _viscous_nominal,
@@ -29,7 +30,9 @@ from sim.materials.fit import (
     fit_material,
     fit_prony,
     nominal_stress,
+    reached_log_strains,
 )
+from sim.protocols.validity import LayerLimit, layer_limit
 
 REPO = Path(explore.cli.__file__).resolve().parents[1]
 MODES = ("uniaxial", "compression", "biaxial", "planar")
@@ -272,11 +275,18 @@ def test_fit_material_writes_a_catalogue_entry_report_and_figure(tests_dir, caps
     assert prov["uniaxial_strain_range"] == [0.02, 1.0] and prov["nu_assumed"] is False
     assert prov["uniaxial_r2"] > 0.999 and prov["uniaxial_rms_MPa"] >= 0
     assert prov["drucker_stable_biaxial"] == [-0.8, 2.0]
+    # the tested range of its data: tension to 100 % (ln 2), compression to 45 % (-ln 0.55)
+    assert prov["tested_mode"] == ["uniaxial_tension", "uniaxial_compression"]
+    assert prov["max_tensile_log_strain"] == round(math.log(2.0), 4)
+    assert prov["max_compressive_log_strain"] == round(-math.log(0.55), 4)
+    assert "tested_note" not in prov  # measured: nothing argued
     # the loader keeps the provenance, and the entry round-trips through the design form
     cat = read_user_catalogue(out)
     mat = cat.materials[0]
     assert mat.name == "labgel" and mat.provenance_dict == prov
     assert mat.to_dict()["provenance"] == prov
+    # and an FE layer of it is held to the compression its tests reached
+    assert layer_limit(mat) == LayerLimit(round(-math.log(0.55), 4), "labgel", "measured")
     report = json.loads((tests_dir / "gel.fit.json").read_text())
     assert report["stable_everywhere"] is True and len(report["tests"]) == 2
     # nothing is overwritten
@@ -299,6 +309,45 @@ def test_elastic_fit_says_elastic_only_and_extrapolated(tests_dir, capsys) -> No
     assert "nu = 0.499 is our assumption" in raw["source"]
     assert raw["provenance"]["relaxation"] == "none: ELASTIC-ONLY"
     assert raw["provenance"]["compression"] == "extrapolated from tension"
+    # tension only: its compressive limit is argued, never none: the lateral contraction of the
+    # tension test to 100 %, a stretch of 2^-1/2 (log ln 2 / 2)
+    prov = raw["provenance"]
+    assert prov["tested_mode"] == ["uniaxial_tension"]
+    assert prov["max_tensile_log_strain"] == round(math.log(2.0), 4)
+    assert prov["max_compressive_log_strain"] == round(0.5 * math.log(2.0), 4)
+    assert "ARGUED" in prov["tested_note"]
+    mat = read_user_catalogue(out).materials[0]
+    assert layer_limit(mat) == LayerLimit(round(0.5 * math.log(2.0), 4), "soft", "argued")
+
+
+def _mode_fit(mode: str, low: float, high: float) -> ModeFit:
+    return ModeFit(mode, f"{mode}.csv", "", 10, (low, high), 1.0, 0.0, 0.0)
+
+
+def test_the_tested_range_is_each_tests_own_stretches() -> None:
+    """``reached_log_strains``: the log strains of each test's principal stretches at the ends of
+    its fitted range, on the sides its mode exercises: an equibiaxial test to 50 % compresses the
+    thickness to 1 / 1.5^2, a planar one to 1 / 1.5; a hyperfoam's tension test contracts it
+    laterally to l^-nu, the argued compressive limit of tension-only data."""
+    got = reached_log_strains("ogden", [_mode_fit("biaxial", 0.01, 0.5)], 0.499)
+    assert got == {
+        "tested_mode": ["biaxial"],
+        "max_compressive_log_strain": round(2 * math.log(1.5), 4),
+        "max_tensile_log_strain": round(math.log(1.5), 4),
+    }
+    got = reached_log_strains("yeoh", [_mode_fit("planar", 0.01, 0.5)], 0.499)
+    assert got["max_compressive_log_strain"] == got["max_tensile_log_strain"]
+    assert got["max_compressive_log_strain"] == round(math.log(1.5), 4)
+    foam = reached_log_strains("hyperfoam", [_mode_fit("uniaxial", 0.01, 1.0)], 0.3)
+    assert foam["max_compressive_log_strain"] == round(0.3 * math.log(2.0), 4)
+    assert "ARGUED" in foam["tested_note"]
+    # a compression test decides the compressive side over a tension test's lateral contraction
+    both = reached_log_strains(
+        "ogden", [_mode_fit("uniaxial", 0.01, 3.0), _mode_fit("compression", -0.2, -0.01)], 0.499
+    )
+    assert both["max_compressive_log_strain"] == round(-math.log(0.8), 4)
+    assert both["max_compressive_log_strain"] < 0.5 * math.log(4.0)
+    assert "tested_note" not in both
 
 
 BAD_INPUT = {

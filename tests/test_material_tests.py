@@ -17,7 +17,7 @@ import pytest
 from sim import DesignError
 from sim.materials import CATALOGUE, CATALOGUE_PATH
 from sim.materials import _tests as mt
-from sim.protocols import ValidityOptions
+from sim.protocols.validity import PAPER_LOG_STRAIN
 
 FAMILIES = ("family.gel", "family.foam")
 RANGES = mt.load_tested_ranges()
@@ -65,6 +65,49 @@ def test_argued_limits_say_so(name: str) -> None:
     entry = RANGES[name]
     if entry.max_compressive_log_strain and "uniaxial_compression" not in entry.mode:
         assert "ARGUED" in entry.note, name
+        assert entry.compressive_argued, name
+
+
+@pytest.mark.parametrize("name", sorted(RANGES))
+def test_every_entry_has_a_compressive_limit(name: str) -> None:
+    """The FE holds every layer to its material's compressive limit: a law fitted in tension
+    only has an argued one, never none (no free pass)."""
+    assert RANGES[name].max_compressive_log_strain is not None, name
+
+
+def test_measured_and_argued_limits() -> None:
+    """Measured: a test compressed the material that far; argued: none did (tension only), or
+    the entry is a family's, whose law has no fit of its own (its note says ARGUED)."""
+    measured = {n for n, e in RANGES.items() if not e.compressive_argued}
+    assert measured == {
+        "silicone_gls40",
+        "polyurethane_74_45",
+        "ecoflex_0010_dawood",
+        "ecoflex_0030_dawood",
+        "ecoflex_0050_dawood",
+    }
+    assert RANGES["family.gel"].compressive_argued  # its modes include compression
+    assert "uniaxial_compression" in RANGES["family.gel"].mode
+
+
+def test_a_provenance_records_a_tested_range() -> None:
+    """A material's provenance (fingertip fit-material's keys) gives its tested range, checked
+    like a file entry; errors name the provenance key; nothing recorded: None."""
+    prov = {
+        "tested_mode": ("uniaxial_tension",),  # a Material keeps its lists as tuples
+        "max_compressive_log_strain": 0.35,
+        "max_tensile_log_strain": 0.69,
+        "tested_note": "ARGUED: the lateral contraction of the tension test",
+    }
+    got = mt.tested_range_from_provenance(prov, "our lab", "m.provenance")
+    assert got == mt.TestedRange(("uniaxial_tension",), 0.35, 0.69, "our lab", prov["tested_note"])
+    assert got.compressive_argued
+    assert mt.tested_range_from_provenance({"tests": ["uniaxial"]}, "x", "m.provenance") is None
+    unargued = {k: v for k, v in prov.items() if k != "tested_note"}
+    with pytest.raises(DesignError, match=r"^m\.provenance\.tested_note: is required"):
+        mt.tested_range_from_provenance(unargued, "x", "m.provenance")
+    with pytest.raises(DesignError, match=r"^m\.provenance\.tested_mode: unknown mode"):
+        mt.tested_range_from_provenance({**prov, "tested_mode": "squash"}, "x", "m.provenance")
 
 
 def test_fitted_tension_matches_the_catalogue_record() -> None:
@@ -87,9 +130,8 @@ def test_quoted_compression_tests() -> None:
     """The limits read from tests, not argued: 45 % (the paper), 20 mm of 30 mm (Dawood)."""
     for name in ("silicone_gls40", "polyurethane_74_45"):
         assert RANGES[name].max_compressive_log_strain == pytest.approx(-math.log(0.55), abs=1e-4)
-        # the global limit of sim/protocols/validity.py is the same tests' strain, rounded
-        limit = ValidityOptions().max_compressive_log_strain
-        assert RANGES[name].max_compressive_log_strain == pytest.approx(limit, abs=0.005)
+        # the paper's limit of sim/protocols/validity.py is the same tests' strain, rounded
+        assert RANGES[name].max_compressive_log_strain == pytest.approx(PAPER_LOG_STRAIN, abs=0.005)
     for name in ("ecoflex_0010_dawood", "ecoflex_0030_dawood", "ecoflex_0050_dawood"):
         assert RANGES[name].max_compressive_log_strain == pytest.approx(math.log(3.0), abs=1e-4)
         assert RANGES[name].max_tensile_log_strain is None

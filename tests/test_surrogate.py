@@ -916,7 +916,7 @@ def test_the_protocols_trusted_on_their_own_follow_the_validity_rules():
                       f"{p}_reached_base": "False", f"{p}_folded": "False"})  # fmt: skip
         return {**r, **over}
 
-    v = ValidityOptions()
+    v = ValidityOptions(max_compressive_log_strain=0.6)  # a sweep made with the one limit
     assert _trusted_protocols(row(), v) == frozenset()  # nothing says why: keep nothing
     both = {"tapping", "plate"}
     assert _trusted_protocols(row(wedge_min_J="0.2"), v) == both
@@ -924,7 +924,7 @@ def test_the_protocols_trusted_on_their_own_follow_the_validity_rules():
     strained = row(tapping_max_compressive_log_strain="0.9")
     assert _trusted_protocols(strained, v) == {"plate", "wedge"}
     assert _trusted_protocols(row(wedge_max_compressive_log_strain="0.9"), v) == frozenset()
-    limited = ValidityOptions(strain_limit_protocols="tapping,plate,wedge")
+    limited = ValidityOptions(0.6, strain_limit_protocols="tapping,plate,wedge")
     high = row(wedge_max_compressive_log_strain="0.9")
     assert _trusted_protocols(high, limited) == both
     assert _trusted_protocols(row(plate_reached_base="True"), v) == {"tapping", "wedge"}
@@ -932,6 +932,16 @@ def test_the_protocols_trusted_on_their_own_follow_the_validity_rules():
     assert _trusted_protocols(row(settled="False", valid="True"), v) == {"plate", "wedge"}
     failed = row(wedge_min_J="", wedge_max_compressive_log_strain="", plate_min_J="0.3")
     assert _trusted_protocols(failed, v) == {"tapping"}
+    # each layer held to its own limit: a table has no per-layer strains, so whether a
+    # protocol's layers stayed within theirs is the verdict its record wrote (violations)
+    own = ValidityOptions()
+    core = "layer 1 (core, family.gel) compressive log strain 0.55 > 0.53 (argued)"
+    beyond_own = row(tapping_max_compressive_log_strain="0.55", violations=f"{core} (tapping)")
+    assert _trusted_protocols(beyond_own, own) == {"plate", "wedge"}
+    assert _trusted_protocols(beyond_own, v) == frozenset()  # within the one 0.60
+    within_own = row(tapping_max_compressive_log_strain="0.9")  # e.g. a foam core's 1.05
+    assert _trusted_protocols(within_own, own) == frozenset()
+    assert _trusted_protocols(within_own, v) == {"plate", "wedge"}
 
 
 def test_the_encoding_takes_the_tap_frequency_of_the_sweep(tmp_path):

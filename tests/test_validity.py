@@ -20,18 +20,33 @@ from fe_helpers import compress, uniaxial_body
 
 import explore.cli
 from explore.cli import main
-from sim import Geometry, PlateOptions, SimOptions, ValidityOptions, homogeneous_design, simulate
+from sim import (
+    Design,
+    Geometry,
+    Layer,
+    PlateOptions,
+    SimOptions,
+    ValidityOptions,
+    homogeneous_design,
+    simulate,
+)
 from sim.fe import Plate
 from sim.materials import LAWS, Material
 from sim.metrics import DIAGNOSTIC_KEYS
 from sim.options import apply_overrides
 from sim.protocols.validity import (
+    LAYER_LIMIT_KEYS,
+    PAPER_LOG_STRAIN,
     DeformationTracker,
+    LayerLimit,
     assess,
     check,
     compressive_log_strain,
     contact_half_width_mm,
+    layer_limit,
     polyline_self_intersects,
+    strain_limits,
+    strain_summary,
     surface_folded,
     volume_ratio,
 )
@@ -210,15 +225,23 @@ def test_stiff_paper_material_is_valid(tmp_path: Path) -> None:
     assert v["valid"] is True and v["violations"] == []
     s = v["protocols"]["plate"]
     assert SUMMARY_KEYS <= set(s)
-    assert (
-        0.1 < s["max_compressive_log_strain"] < 0.6 * ValidityOptions().max_compressive_log_strain
-    )
+    assert 0.1 < s["max_compressive_log_strain"] < 0.6 * PAPER_LOG_STRAIN
+    # its own limit: the paper's compression tests to 45 %, measured
+    assert s["tested_log_strain_by_layer"] == [0.5978]
+    assert s["tested_material_by_layer"] == ["silicone_gls40"]
+    assert s["tested_basis_by_layer"] == ["measured"]
+    assert v["overridden"] == {}
     assert 0.95 < s["min_J"] <= 1.0
     assert not s["reached_base"] and not s["folded"]
     assert 0.0 < s["contact_width_at_peak_mm"] < 2 * 5.84
     assert s["nominal_compression"] == pytest.approx(1.0 / 5.48)
     diag = res.diagnostics()
-    assert set(diag) == {"valid", "violations", "stopped"} | {f"plate_{k}" for k in DIAGNOSTIC_KEYS}
+    layers = {"plate_max_compressive_log_strain_by_layer", *LAYER_LIMIT_KEYS}
+    assert (
+        set(diag)
+        == {"valid", "violations", "stopped"} | {f"plate_{k}" for k in DIAGNOSTIC_KEYS} | layers
+    )
+    assert diag["tested_log_strain_by_layer"] == s["tested_log_strain_by_layer"]
     assert diag["stopped"] == ""
     assert diag["valid"] is True and diag["violations"] == ""
     assert diag["plate_contact_width_mm"] == s["contact_width_at_peak_mm"]
@@ -263,7 +286,8 @@ def test_soft_design_reaching_the_base_warns(tmp_path: Path) -> None:
     assert "Traceback" not in res.stderr
     out = json.loads(res.stdout)
     block = out["validity"]
-    assert set(block) == {"valid", "violations", "protocols", "stopped"}
+    assert set(block) == {"valid", "violations", "protocols", "stopped", "overridden"}
+    assert block["overridden"] == {}
     assert block["valid"] is False
     plate = block["protocols"]["plate"]
     assert plate["reached_base"] is True
@@ -276,12 +300,33 @@ def test_soft_design_reaching_the_base_warns(tmp_path: Path) -> None:
         "warning: plate: surface reached the base beside the bone, outside the validity range "
         "(--set validity.allow_base_contact=true)" in warnings
     )
+    # Ecoflex 00-10 was tested to 66.7 % (Dawood): its 1.08 is beyond the paper's 0.60, within
+    # its own 1.10, so only the base contact is a violation
     strain = plate["max_compressive_log_strain"]
-    assert strain > 0.6
+    assert PAPER_LOG_STRAIN < strain < plate["tested_log_strain_by_layer"][0] == 1.0986
+    assert not any("compressive log strain" in w for w in warnings)
+    # the paper's 0.60 for every layer, as an override: the strain is a violation, flagged so
+    paper = ("--set", "validity.max_compressive_log_strain=0.6")
+    res = _run_cli("simulate", "squat.toml", "--protocol", "plate", *run_on, *paper, cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
     assert (
-        f"warning: plate: compressive log strain {strain:.2f} beyond the validity limit 0.60 "
-        "(--set validity.max_compressive_log_strain=...)" in warnings
+        f"warning: plate: layer 0 (core, ecoflex_0010_dawood) compressive log strain {strain:.2f} "
+        "beyond the validity limit 0.60 (the limit of --set validity.max_compressive_log_strain, "
+        "overriding the layer's own)" in res.stderr.splitlines()
     )
+    assert (
+        "note: --set validity.max_compressive_log_strain=0.6 holds every layer to 0.6, "
+        "overriding the limit its material was tested to" in res.stderr.splitlines()
+    )
+    assert (
+        f"validity (plate): compressive log strain {strain:.2f} (layer 0 (core, "
+        f"ecoflex_0010_dawood) nearest its limit: {strain:.2f} of 0.60, overridden)" in res.stdout
+    )
+    # a bad value is one line naming the option
+    bad = ("--set", "validity.max_compressive_log_strain=-1")
+    res = _run_cli("simulate", "squat.toml", "--protocol", "plate", *bad, cwd=tmp_path)
+    assert res.returncode == 2 and "Traceback" not in res.stderr
+    assert res.stderr.count("\n") == 1 and "validity.max_compressive_log_strain" in res.stderr
 
 
 def test_overriding_the_limits_changes_the_verdict(
@@ -308,20 +353,24 @@ def test_overriding_the_limits_changes_the_verdict(
     (tmp_path / "stiff.toml").write_text('[[layers]]\nmaterial = "silicone_gls40"\n')
     assert main(["simulate", str(tmp_path / "stiff.toml"), "--protocol", "plate", *strict]) == 0
     err = capsys.readouterr().err
-    assert "warning: plate: compressive log strain" in err
+    assert "warning: plate: layer 0 (core, silicone_gls40) compressive log strain" in err
+    assert "(the limit of --set validity.max_compressive_log_strain, overriding" in err
     assert "warning: plate: volume ratio J" in err
 
 
 def test_options_of_a_sweep_made_before_the_validity_section_load() -> None:
     """A sweep config from before the ``validity`` section (solver < 2.0: the shipped sweep's
     options without it) gets the defaults (``fingertip run`` reads it to confirm designs with
-    the training sweep's options)."""
+    the training sweep's options); one that records the single limit it was made with (0.60)
+    keeps it, as an override of every layer's own."""
     from sim.options import options_from_dict
 
     config = json.loads((REPO / "surrogate/pretrained/default/config.json").read_text())
     old = {k: v for k, v in config["options"].items() if k != "validity"}
     assert options_from_dict(old).validity == ValidityOptions()
-    assert options_from_dict(config["options"]).validity == ValidityOptions()
+    recorded = options_from_dict(config["options"]).validity
+    assert recorded == ValidityOptions(max_compressive_log_strain=PAPER_LOG_STRAIN)
+    assert recorded.overridden == {"max_compressive_log_strain": 0.6}
 
 
 # ----------------------------------------------------------------------------- stop at violation
@@ -367,22 +416,27 @@ def test_a_protocol_stops_at_its_first_step_beyond_the_limits() -> None:
     assert stop["time_s"] == pytest.approx(_first_violation_s(design), abs=1e-12)
 
 
-def _first_violation_s(design) -> float:
+def _first_violation_s(
+    design, options: SimOptions | None = None, limits: ValidityOptions | None = None
+) -> float:
     """The simulated time of the first recorded plate step whose running summary breaks the
-    default limits, on a run to the end (an observer wrapped around the recorder)."""
+    ``limits`` (default: the defaults), on a run of ``options`` to the end (an observer wrapped
+    around the recorder)."""
     from sim.protocols import loading as protocols
 
+    limits = ValidityOptions() if limits is None else limits
+    options = (_running_on() if options is None else options).without_validity_stop()
     seen: list[float] = []
     record = protocols._Recorder.record
 
     def observed(self, t: float, peak: bool = False) -> None:
         record(self, t, peak)
-        if not seen and check(self.tracker.summary(), ValidityOptions(), "plate"):
+        if not seen and check(self.tracker.summary(), limits, "plate"):
             seen.append(self.body.t)
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(protocols._Recorder, "record", observed)
-        simulate(design, ["plate"], _running_on())
+        simulate(design, ["plate"], options)
     return seen[0]
 
 
@@ -410,3 +464,179 @@ def test_the_command_line_says_where_a_protocol_stopped(tmp_path: Path) -> None:
         "its first step beyond the validity limits: no metrics "
         "(--set validity.stop_at_violation=false runs on)"
     )
+
+
+# ----------------------------------------------------------------------------- each layer's limit
+def test_a_layers_limit_comes_from_its_materials_own_tests() -> None:
+    """``layer_limit``: a catalogue material by its entry in material_tests.toml (a law fitted in
+    tension only: the argued limit there, not the gel family's although its law has that
+    form); a family's material by its family, also once written to a design file as an inline
+    table; a provenance that records a tested range; anything else the paper's 0.60."""
+    from sim.design import design_from_dict
+    from sim.design.families import family_material
+    from sim.materials import CATALOGUE, material_from_spec
+
+    assert layer_limit(CATALOGUE["silicone_gls40"]) == LayerLimit(
+        0.5978, "silicone_gls40", "measured"
+    )
+    assert layer_limit(CATALOGUE["ecoflex_0010_dawood"]) == LayerLimit(
+        1.0986, "ecoflex_0010_dawood", "measured"
+    )
+    assert layer_limit(CATALOGUE["ecoflex_0010_marechal"]) == LayerLimit(
+        0.9163, "ecoflex_0010_marechal", "argued"
+    )
+    gel = family_material("gel", {"mu0_MPa": 0.01, "alpha": 3.0, "g_total": 0.3, "tau_s": 0.1})
+    foam = family_material(
+        "foam", {"mu0_MPa": 0.02, "alpha": 2.0, "nu": 0.2, "g_total": 0.4, "tau_s": 1.0}
+    )
+    assert layer_limit(gel) == LayerLimit(0.5276, "family.gel", "argued")
+    assert layer_limit(foam) == LayerLimit(1.0498, "family.foam", "argued")
+    written = design_from_dict(Design((Layer(gel, 1.0), Layer(foam))).to_dict())
+    assert [layer_limit(m).material for m in written.materials] == ["family.gel", "family.foam"]
+    # the earlier "param" family (nu 0.45: no foam) and an inline law: no tested range
+    param = family_material(
+        "param", {"mu0_MPa": 0.02, "alpha": 2.0, "nu": 0.45, "g_total": 0.4, "tau_s": 1.0}
+    )
+    assert layer_limit(param) == LayerLimit(PAPER_LOG_STRAIN, "inline hyperfoam law", "untested")
+    assert layer_limit(_neo_hookean()) == LayerLimit(
+        PAPER_LOG_STRAIN, "inline neo_hookean law", "untested"
+    )
+    # a user's material whose law is the gel family's form, without a tested range of its own
+    # (e.g. fitted before fit-material recorded one): the family's argument holds for its law
+    table = {k: v for k, v in CATALOGUE["ecoflex_0010_marechal"].to_dict().items()
+             if k != "provenance"}  # fmt: skip
+    user_gel = material_from_spec({**table, "name": "my_gel"})
+    assert layer_limit(user_gel) == LayerLimit(0.5276, "my_gel as family.gel", "argued")
+    # a catalogue name on another law is not the catalogue's material
+    renamed = material_from_spec({**_neo_hookean().to_dict(), "name": "silicone_gls40"})
+    assert layer_limit(renamed).basis == "untested"
+    # an inline material that states its tested range in its provenance (fit-material's keys)
+    stated = material_from_spec(
+        {
+            **_neo_hookean().to_dict(),
+            "name": "lab_gel",
+            "provenance": {
+                "tested_mode": "uniaxial_compression",
+                "max_compressive_log_strain": 0.8,
+            },
+        }
+    )
+    assert layer_limit(stated) == LayerLimit(0.8, "lab_gel", "measured")
+    with pytest.raises(ValueError, match=r"provenance\.max_compressive_log_strain: is required"):
+        material_from_spec(
+            {
+                **_neo_hookean().to_dict(),
+                "provenance": {"tested_mode": "uniaxial_tension", "max_tensile_log_strain": 0.7},
+            }
+        )
+
+
+def test_violations_name_the_layer_its_material_and_its_limit() -> None:
+    """From a summary alone: each layer against its own limit; an override against every layer,
+    said so; an untested material's fallback, with the reason; a summary recorded before the
+    layers had their own limits, against the 0.60 it was made with."""
+    summary = {
+        "max_compressive_log_strain": 0.74,
+        "min_J": 0.9,
+        "reached_base": False,
+        "folded": False,
+        "max_compressive_log_strain_by_layer": [0.74, 0.59],
+        "tested_log_strain_by_layer": [1.0986, 0.5276],
+        "tested_material_by_layer": ["ecoflex_0010_dawood", "family.gel"],
+        "tested_basis_by_layer": ["measured", "argued"],
+    }
+    assert assess(summary, ValidityOptions()) == [
+        "layer 1 (core, family.gel) compressive log strain 0.59 > 0.53 (argued)"
+    ]
+    assert check(summary, ValidityOptions())[0].warning() == (
+        "layer 1 (core, family.gel) compressive log strain 0.59 beyond the validity limit 0.53 "
+        "(argued; --set validity.max_compressive_log_strain=... overrides every layer's)"
+    )
+    assert assess(summary, ValidityOptions(max_compressive_log_strain=0.6)) == [
+        "layer 0 (skin, ecoflex_0010_dawood) compressive log strain 0.74 > 0.60 (overridden)"
+    ]
+    assert assess(summary, ValidityOptions(max_compressive_log_strain=0.8)) == []
+    untested = {
+        **summary,
+        "tested_log_strain_by_layer": [1.0986, PAPER_LOG_STRAIN],
+        "tested_material_by_layer": ["ecoflex_0010_dawood", "inline neo_hookean law"],
+        "tested_basis_by_layer": ["measured", "untested"],
+        "max_compressive_log_strain_by_layer": [0.74, 0.65],
+    }
+    warning = check(untested, ValidityOptions())[0].warning()
+    assert warning.startswith(
+        "layer 1 (core, inline neo_hookean law) compressive log strain 0.65 beyond the "
+        "validity limit 0.60 (no tested range: the paper's limit; "
+    )
+    old = {k: v for k, v in summary.items() if k not in LAYER_LIMIT_KEYS}
+    assert assess(old, ValidityOptions()) == ["compressive log strain 0.74 > 0.60"]
+    # the wedge's strain is not held against a design (its tip is a singularity)
+    assert check(summary, ValidityOptions(), "wedge") == []
+
+
+# A soft core under a skin tested further: the 1 mm skin of Ecoflex 00-10 (Dawood: compressed to
+# 66.7 %, log 1.10) over a gel-family core (argued 0.53), pressed 2 mm by the plate (~3 s). The
+# skin reaches 0.74, beyond the paper's 0.60 but within its own limit; the core reaches 0.59,
+# within 0.60 but beyond its own: each layer's own limit reverses the verdict of the one limit.
+def _skin_over_soft_core() -> Design:
+    from sim.design.families import family_material
+    from sim.materials import CATALOGUE
+
+    gel = family_material("gel", {"mu0_MPa": 0.03, "alpha": 2.0, "g_total": 0.0, "tau_s": 1.0})
+    return Design((Layer(CATALOGUE["ecoflex_0010_dawood"], 1.0), Layer(gel)))
+
+
+def _deep_plate(**validity) -> SimOptions:
+    o = _plate_options(depth_mm=2.0)
+    return dataclasses.replace(o, validity=dataclasses.replace(o.validity, **validity))
+
+
+def test_the_core_beyond_its_own_limit_is_named_the_skin_within_its_own_is_not() -> None:
+    res = simulate(_skin_over_soft_core(), ["plate"], _deep_plate(stop_at_violation=False))
+    assert res.ok
+    plate = res.validity["protocols"]["plate"]
+    skin, core = plate["max_compressive_log_strain_by_layer"]
+    assert PAPER_LOG_STRAIN < skin < 1.0986 and 0.5276 < core < PAPER_LOG_STRAIN
+    assert plate["tested_log_strain_by_layer"] == [1.0986, 0.5276]
+    assert res.validity["violations"] == [
+        f"layer 1 (core, family.gel) compressive log strain {core:.2f} > 0.53 (argued) (plate)"
+    ]
+    assert res.validity["overridden"] == {}
+    # the stored record re-checked without the materials (its diagnostics), any options
+    diag = json.loads(json.dumps(res.diagnostics()))
+    stored = strain_summary(diag, "plate")
+    assert [(s.layer, s.strain, s.limit) for s in strain_limits(stored, ValidityOptions())] == [
+        (0, skin, 1.0986),
+        (1, core, 0.5276),
+    ]
+    others = {k: plate[k] for k in ("min_J", "reached_base", "folded")}
+    assert assess({**others, **stored}, ValidityOptions()) == plate["violations"]
+    # the one limit of before, as an override: the skin is flagged and the core is not
+    paper = ValidityOptions(max_compressive_log_strain=PAPER_LOG_STRAIN)
+    assert assess(plate, paper) == [
+        f"layer 0 (skin, ecoflex_0010_dawood) compressive log strain {skin:.2f} > 0.60 (overridden)"
+    ]
+    # a record without the per-layer limits is judged as it was made: its largest strain, 0.60
+    made_before = {k: v for k, v in diag.items() if k not in LAYER_LIMIT_KEYS}
+    assert assess({**others, **strain_summary(made_before, "plate")}, ValidityOptions()) == [
+        f"compressive log strain {skin:.2f} > 0.60"
+    ]
+
+
+def test_a_protocol_stops_at_the_first_step_beyond_a_layers_own_limit() -> None:
+    """The stop uses the same per-layer limits: the core's own limit stops the plate, at the
+    first step the running summary breaks it; the paper's 0.60 as an override stops it
+    elsewhere, at the skin."""
+    design = _skin_over_soft_core()
+    own = simulate(design, ["plate"], _deep_plate())
+    assert own.stopped == ("plate",)
+    stop = own.validity["stopped"]["plate"]
+    assert len(stop["violations"]) == 1
+    assert stop["violations"][0].startswith("layer 1 (core, family.gel) compressive log strain")
+    assert stop["time_s"] == pytest.approx(
+        _first_violation_s(design, _deep_plate(), ValidityOptions()), abs=1e-12
+    )
+    paper = simulate(design, ["plate"], _deep_plate(max_compressive_log_strain=0.6))
+    stop_paper = paper.validity["stopped"]["plate"]
+    assert stop_paper["violations"][0].startswith("layer 0 (skin, ecoflex_0010_dawood)")
+    assert stop_paper["time_s"] != pytest.approx(stop["time_s"], abs=1e-9)

@@ -29,6 +29,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from ..errors import DesignError
 from ..materials import LAWS, Material, Prony
 from ..materials._validate import MU0_MAX_MPA, MU0_MIN_MPA
 
@@ -38,7 +41,9 @@ __all__ = [
     "GEL_NU",
     "Family",
     "family_material",
+    "family_of",
     "family_uses",
+    "family_values",
     "is_family",
 ]
 
@@ -93,6 +98,13 @@ class Family:
     def material(self, values: Mapping[str, float]) -> Material:
         """The material of a layer with these family parameters (keys of ``self.keys``)."""
         return self.build(values, self.time_ratios)
+
+    def admits(self, key: str, value: float) -> bool:
+        """Whether ``value`` of ``key`` is within ``limits`` (low exclusive for ``alpha`` and
+        ``tau_s``: they must be > 0; a modulus's low end is a physical bound, inclusive)."""
+        low, high, _ = self.limits[key]
+        strict_low = key in ("alpha", "tau_s")
+        return (value > low if strict_low else value >= low) and value <= high
 
 
 #: what the laws admit (not what is realistic: the spaces' bounds, argued in
@@ -151,3 +163,48 @@ def family_material(material: str, values: Mapping[str, float]) -> Material:
     """The material of family ``material`` with parameters ``values`` (extra keys ignored)."""
     fam = FAMILIES[material]
     return fam.material({k: float(values[k]) for k in fam.keys})
+
+
+def family_values(mat: Material, family: str) -> dict[str, float] | None:
+    """The parameters of ``family`` that rebuild ``mat`` (to round-off), or None when ``mat`` is
+    not a member of that family (another law, Prony times or shares, Poisson's ratio...)."""
+    law, g, tau = mat.law, mat.prony.g, mat.prony.tau_s
+    fam = FAMILIES[family]
+    try:
+        values = {
+            "mu0_MPa": float(law.mu_MPa[0]),
+            "alpha": float(law.alpha[0]),
+            "nu": float(law.nu),
+            "g_total": float(sum(g)),
+            "tau_s": float(tau[list(fam.time_ratios).index(1.0)]) if tau else 1.0,
+        }
+        built = family_material(family, values)
+    except (AttributeError, IndexError, TypeError, ValueError, DesignError):
+        return None
+    same = (
+        built.law.model == law.model
+        and built.law.to_dict().keys() == law.to_dict().keys()
+        and all(
+            np.allclose(np.atleast_1d(built.law.to_dict()[k]), np.atleast_1d(v), rtol=1e-9)
+            for k, v in law.to_dict().items()
+            if k != "model"
+        )
+        and len(built.prony.g) == len(g)
+        and np.allclose(built.prony.g, g, rtol=1e-9)
+        and np.allclose(built.prony.tau_s, tau, rtol=1e-9)
+        and built.prony_k == mat.prony_k
+        and built.moduli == mat.moduli
+    )
+    return {k: values[k] for k in fam.keys} if same else None
+
+
+def family_of(mat: Material) -> str | None:
+    """The family ``mat`` is a member of (``family_values``, with every parameter within the
+    family's ``limits``), first in ``FAMILIES``' order; None for any other material. A family's
+    material carries no name, and one written to a design file (an answer) is an inline table:
+    this is how either is known as the family's (its tested range, ``sim.protocols.validity``)."""
+    for name in FAMILIES:
+        values = family_values(mat, name)
+        if values is not None and all(FAMILIES[name].admits(k, v) for k, v in values.items()):
+            return name
+    return None

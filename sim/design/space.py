@@ -49,7 +49,14 @@ from ..materials import (
     catalogue_material,
     material_tables,
 )
-from .families import FAMILIES, FAMILY_KEYS, family_material, family_uses, is_family
+from .families import (
+    FAMILIES,
+    FAMILY_KEYS,
+    family_material,
+    family_uses,
+    family_values,
+    is_family,
+)
 from .skin import MIN_CORE_MM, Design, Layer
 
 __all__ = [
@@ -392,39 +399,6 @@ def point_to_design(
     return Design(tuple(layers), geometry, **pad)
 
 
-def _family_values(mat: Material, family: str) -> dict[str, float] | None:
-    """The parameters of ``family`` that rebuild ``mat`` (to round-off), or None when ``mat`` is
-    not a member of that family (another law, Prony times or shares, Poisson's ratio...)."""
-    law, g, tau = mat.law, mat.prony.g, mat.prony.tau_s
-    fam = FAMILIES[family]
-    try:
-        values = {
-            "mu0_MPa": float(law.mu_MPa[0]),
-            "alpha": float(law.alpha[0]),
-            "nu": float(law.nu),
-            "g_total": float(sum(g)),
-            "tau_s": float(tau[list(fam.time_ratios).index(1.0)]) if tau else 1.0,
-        }
-        built = family_material(family, values)
-    except (AttributeError, IndexError, TypeError, ValueError, DesignError):
-        return None
-    same = (
-        built.law.model == law.model
-        and built.law.to_dict().keys() == law.to_dict().keys()
-        and all(
-            np.allclose(np.atleast_1d(built.law.to_dict()[k]), np.atleast_1d(v), rtol=1e-9)
-            for k, v in law.to_dict().items()
-            if k != "model"
-        )
-        and len(built.prony.g) == len(g)
-        and np.allclose(built.prony.g, g, rtol=1e-9)
-        and np.allclose(built.prony.tau_s, tau, rtol=1e-9)
-        and built.prony_k == mat.prony_k
-        and built.moduli == mat.moduli
-    )
-    return {k: values[k] for k in fam.keys} if same else None
-
-
 def point_from_design(design: Design, space: DesignSpace) -> dict[str, Any]:
     """The point of ``space`` whose design is ``design`` (the inverse of ``point_to_design``):
     each layer's material is a catalogue material the space names or a member of one of its
@@ -454,7 +428,7 @@ def point_from_design(design: Design, space: DesignSpace) -> dict[str, Any]:
             point[name] = named[0]
         else:
             for fam in (c for c in choices if is_family(c)):
-                values = _family_values(mat, fam)
+                values = family_values(mat, fam)
                 if values is not None:
                     point[name] = fam
                     point.update({f"{role}.{key}": v for key, v in values.items()})
@@ -633,9 +607,8 @@ def space_from_dict(
 def _check_family_bounds(p: Parameter, key: str, family: Any) -> None:
     """The space's range of ``p`` must lie within what ``family`` admits for ``key``."""
     lo, hi = min(_values(p)), max(_values(p))
-    a, b, text = family.limits[key]
-    strict_low = key in ("alpha", "tau_s")  # > 0; a modulus's low end is a physical bound
-    if (lo <= a if strict_low else lo < a) or hi > b:
+    if not (family.admits(key, lo) and family.admits(key, hi)):
+        text = family.limits[key][2]
         raise DesignError(p.name, f"must be {text} for the {family.name} family, got [{lo}, {hi}]")
 
 

@@ -85,8 +85,9 @@ class Material:
     catalogue name; ``source``: citation of the numbers; ``provenance``: how the numbers were
     obtained (e.g. by ``fingertip fit-material``: tests, strain ranges, rate, fit errors), as
     ``(key, value)`` pairs in the order given (:attr:`provenance_dict`); it does not enter the
-    mechanics, but its Drucker-stable ranges bound the strains at which a result is trusted
-    (:attr:`drucker_limit_log_strain`).
+    mechanics, but its Drucker-stable ranges (:attr:`drucker_limit_log_strain`) and its tested
+    range (``sim.materials._tests.PROVENANCE_KEYS``, read by
+    ``sim.protocols.validity.layer_limit``) bound the strains at which a result is trusted.
 
     When ``k != g`` (:attr:`split_relaxation`) the isochoric and volumetric stresses relax
     apart and the state keeps them apart: ``S0`` has shape ``(2, 3, ...)`` (``[iso, vol]``) and
@@ -122,9 +123,9 @@ class Material:
     def drucker_limit_log_strain(self) -> float | None:
         """The largest compressive log strain within which the law stays Drucker-stable, from
         the stable ranges ``fingertip fit-material`` recorded in ``provenance``
-        (``sim.materials._drucker``); None when none was cut short by an instability. The one
-        part of ``provenance`` that the FE reads: its results flag a layer strained beyond it
-        (``sim.protocols.validity.check``)."""
+        (``sim.materials._drucker``); None when none was cut short by an instability. One of
+        the two parts of ``provenance`` that the FE reads (with the tested range): its results
+        flag a layer strained beyond it (``sim.protocols.validity.check``)."""
         return stable_log_strain(self.law, stable_ranges(dict(self.provenance), "provenance"))
 
     # --- relaxation coefficients ------------------------------------------------------------
@@ -262,6 +263,21 @@ def _provenance(value: Any, field: str) -> tuple[tuple[str, ProvenanceValue], ..
     return tuple(out)
 
 
+def _check_tested_range(provenance: dict[str, Any], source: str | None, field: str) -> None:
+    """The tested range a provenance records (``sim.materials._tests.PROVENANCE_KEYS``), which
+    the FE's validity check reads: valid, and with a compressive limit (measured, or argued in
+    ``tested_note`` for tests in tension only: never none)."""
+    from sim.materials._tests import tested_range_from_provenance
+
+    tested = tested_range_from_provenance(provenance, source, field)
+    if tested is not None and tested.max_compressive_log_strain is None:
+        raise DesignError(
+            f"{field}.max_compressive_log_strain",
+            "is required with a tested range: the compressive log strain the tests reached, or "
+            "one argued in tested_note when no test compressed the material",
+        )
+
+
 def material_from_table(table: Mapping[str, Any], field: str = "material") -> Material:
     """Build a ``Material`` from an inline design-file table (errors name ``f"{field}.key"``).
 
@@ -295,6 +311,7 @@ def material_from_table(table: Mapping[str, Any], field: str = "material") -> Ma
         _provenance(table["provenance"], f"{field}.provenance") if "provenance" in table else ()
     )
     stable_ranges(dict(provenance), f"{field}.provenance")  # the FE reads them: checked here
+    _check_tested_range(dict(provenance), source, f"{field}.provenance")
     return Material(
         law=law, prony=prony, moduli=moduli, name=name, source=source, provenance=provenance
     )

@@ -9,9 +9,12 @@ strain ``e`` is ``-ln(1 - e)`` in compression and ``ln(1 + e)`` in tension), a `
 test: its compressive limit is argued in ``note`` (see ``docs/materials.md``, "The range each
 material was tested in").
 
-Pure data and validation: nothing here feeds a ``Material`` (whose dict keys stored results), and
-the simulation does not use it yet.  Errors are ``DesignError`` naming
-``material_tests.toml:<entry>.<key>``.
+A material fitted by ``fingertip fit-material`` records the same figures in its ``provenance``
+(``PROVENANCE_KEYS``, read by :func:`tested_range_from_provenance`), and an inline material may
+state them there.  ``sim.protocols.validity.layer_limit`` holds each FE layer to the compressive
+limit of its material's entry.  Nothing here changes a ``Material`` or its dict (which keys
+stored results): the entries are looked up by name, family or provenance.  Errors are
+``DesignError`` naming ``material_tests.toml:<entry>.<key>`` (or the provenance key).
 """
 
 from __future__ import annotations
@@ -26,7 +29,15 @@ from typing import Any
 
 from sim.errors import DesignError, read_toml
 
-__all__ = ["MODES", "TESTS_PATH", "TestedRange", "load_tested_ranges", "tested_range"]
+__all__ = [
+    "MODES",
+    "PROVENANCE_KEYS",
+    "TESTS_PATH",
+    "TestedRange",
+    "load_tested_ranges",
+    "tested_range",
+    "tested_range_from_provenance",
+]
 
 TESTS_PATH = Path(__file__).resolve().parents[1] / "data" / "material_tests.toml"
 
@@ -40,6 +51,15 @@ MODES: dict[str, frozenset[str]] = {
     "shear": frozenset({"compressive", "tensile"}),
 }
 _KEYS = ("mode", "max_compressive_log_strain", "max_tensile_log_strain", "source", "note")
+#: the keys of a material's ``provenance`` that record its tested range (``fingertip
+#: fit-material`` writes them), each with the key of a file entry it stands for; the source is
+#: the material's ``source``
+PROVENANCE_KEYS = {
+    "tested_mode": "mode",
+    "max_compressive_log_strain": "max_compressive_log_strain",
+    "max_tensile_log_strain": "max_tensile_log_strain",
+    "tested_note": "note",
+}
 
 
 @dataclass(frozen=True)
@@ -53,6 +73,14 @@ class TestedRange:
     max_tensile_log_strain: float | None
     source: str
     note: str = ""
+
+    @property
+    def compressive_argued(self) -> bool:
+        """Whether the compressive limit is argued rather than read from a test that compressed
+        the material: none of the modes compresses (``MODES``), or the note says ``ARGUED``
+        (the file's mark, e.g. of a family whose law has no fit of its own)."""
+        compresses = any("compressive" in MODES[m] for m in self.mode)
+        return not compresses or "ARGUED" in self.note
 
 
 def _strain(table: Mapping[str, Any], key: str, field: str) -> float | None:
@@ -130,3 +158,25 @@ def tested_range(name: str, path: Path | str = TESTS_PATH) -> TestedRange | None
     the file has no entry (e.g. a user's material); the file is read once and validated whole,
     so one malformed entry fails every look-up."""
     return load_tested_ranges(Path(path)).get(name)
+
+
+def tested_range_from_provenance(
+    provenance: Mapping[str, Any], source: str | None, field: str
+) -> TestedRange | None:
+    """The tested range a material's ``provenance`` records (the keys of ``PROVENANCE_KEYS``,
+    as ``fingertip fit-material`` writes them), validated like a file entry, with ``source``
+    (the material's); None when it records none. Errors name ``f"{field}.<provenance key>"``."""
+    entry = {
+        PROVENANCE_KEYS[k]: list(v) if isinstance(v, tuple) else v  # a Material keeps tuples
+        for k, v in provenance.items()
+        if k in PROVENANCE_KEYS
+    }
+    if not entry:
+        return None
+    text = source if source and source.strip() else "the material's provenance"
+    try:
+        return tested_range_from_table({**entry, "source": text}, field)
+    except DesignError as exc:
+        key = exc.field.removeprefix(f"{field}.")
+        named = next((p for p, k in PROVENANCE_KEYS.items() if k == key), None)
+        raise DesignError(f"{field}.{named}" if named else exc.field, exc.message) from None

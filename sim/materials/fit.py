@@ -79,6 +79,7 @@ __all__ = [
     "FIT_MODELS",
     "MODES",
     "STABILITY_STRAIN_RANGE",
+    "TESTED_MODES",
     "Curve",
     "MaterialFit",
     "ModeFit",
@@ -89,6 +90,7 @@ __all__ = [
     "fit_plot_data",
     "fit_prony",
     "nominal_stress",
+    "reached_log_strains",
     "read_curve",
     "read_relaxation",
     "write_fit",
@@ -494,6 +496,7 @@ class MaterialFit:
             out["compression"] = (
                 "extrapolated from tension" if tested & {"uniaxial", "biaxial", "planar"} else ""
             )
+        out.update(reached_log_strains(self.model, self.modes, self.nu))
         if self.rate_per_s is not None:
             out["rate_per_s"] = self.rate_per_s
         if self.prony is None:
@@ -548,6 +551,58 @@ def _round_params(params: dict[str, Any]) -> dict[str, Any]:
         k: tuple(_round(v) for v in val) if isinstance(val, tuple) else _round(val)
         for k, val in params.items()
     }
+
+
+# ----------------------------------------------------------------------------- tested range
+#: the mode of each test (``MODES``) in the words of ``sim/data/material_tests.toml``
+#: (``sim.materials._tests.MODES``)
+TESTED_MODES = {
+    "uniaxial": "uniaxial_tension",
+    "compression": "uniaxial_compression",
+    "biaxial": "biaxial",
+    "planar": "shear",
+}
+
+
+def reached_log_strains(model: str, modes: Sequence[ModeFit], nu: float) -> dict[str, Any]:
+    """The tested range of the data a law was fitted to, as the provenance keys that
+    ``sim.protocols.validity.layer_limit`` reads (``sim.materials._tests.PROVENANCE_KEYS``):
+    ``tested_mode`` (each test's mode, ``TESTED_MODES``), ``max_compressive_log_strain`` and
+    ``max_tensile_log_strain``, the largest ``-ln`` of the smallest and ``ln`` of the largest
+    principal stretch (``mode_stretches``: the test's own, with the law's Poisson's ratio) over
+    the tests that exercise that side (``sim.materials._tests.MODES``: a compression test the
+    compressive side, a uniaxial tension test the tensile side, equibiaxial and planar tests
+    both), at the ends of each test's fitted strain range.
+
+    With no test that compresses the material (tension only), the compressive limit is ARGUED,
+    never absent: the lateral contraction of the tension tests, the stretches at which the law
+    was evaluated in them (``l^-1/2`` for the incompressible fits, ``l^-nu`` for the hyperfoam;
+    a compressive log strain of ``ln(l) / 2`` for the former), said in ``tested_note``."""
+    from ._tests import MODES as SIDES
+
+    reached: dict[str, float] = {}
+    for m in modes:
+        lam, _ = mode_stretches(model, m.mode, np.asarray(m.strain_range, dtype=float), nu)
+        logs = np.log(lam)
+        sides = SIDES[TESTED_MODES[m.mode]]
+        for side, value in (("compressive", -float(logs.min())), ("tensile", float(logs.max()))):
+            key = side if side in sides else f"lateral_{side}"
+            reached[key] = max(reached.get(key, 0.0), value, 0.0)
+    out: dict[str, Any] = {"tested_mode": list(dict.fromkeys(TESTED_MODES[m.mode] for m in modes))}
+    if "compressive" in reached:
+        out["max_compressive_log_strain"] = _round(reached["compressive"], 4)
+    else:
+        lateral = _round(reached.get("lateral_compressive", 0.0), 4)
+        out["max_compressive_log_strain"] = lateral
+        out["tested_note"] = (
+            "ARGUED: no test compressed the material; the compressive limit is the lateral "
+            "contraction of its tension tests, the stretches at which the law was evaluated in "
+            f"them (a compressive log strain of {lateral:g}; docs/materials.md, 'The range each "
+            "material was tested in')"
+        )
+    if "tensile" in reached:
+        out["max_tensile_log_strain"] = _round(reached["tensile"], 4)
+    return out
 
 
 # ----------------------------------------------------------------------------- fitting

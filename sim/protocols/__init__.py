@@ -22,7 +22,14 @@ from .loading import (
     shown_hysteresis,
 )
 from .periodic import PeriodicState, PeriodicStatus
-from .trust import PROBABILITY_OUTPUTS, TRUST_OUTPUTS, trust_censoring, trust_flags, trust_values
+from .trust import (
+    PROBABILITY_OUTPUTS,
+    TRUST_OUTPUTS,
+    strain_limit_of,
+    trust_censoring,
+    trust_flags,
+    trust_values,
+)
 from .validity import DeformationTracker, ValidityOptions, ValidityStop, Violation
 
 __all__ = [
@@ -46,6 +53,7 @@ __all__ = [
     "run_tapping",
     "run_wedge",
     "shown_hysteresis",
+    "strain_limit_of",
     "trust_censoring",
     "trust_flags",
     "trust_values",

@@ -26,6 +26,7 @@ import numpy as np
 __all__ = [
     "PROBABILITY_OUTPUTS",
     "TRUST_OUTPUTS",
+    "strain_limit_of",
     "trust_censoring",
     "trust_flags",
     "trust_values",
@@ -107,11 +108,29 @@ def trust_censoring(diagnostics: Mapping[str, Any]) -> dict[str, int]:
     return out
 
 
-def trust_flags(values: Mapping[str, Any], validity, tapping) -> dict[str, np.ndarray]:
+def strain_limit_of(validity, strain_limit: Any = None) -> Any:
+    """The compressive log strain a predicted largest strain is held to: ``strain_limit`` when
+    given (per design: ``sim.protocols.validity.design_strain_limit``), else the override
+    ``validity.max_compressive_log_strain``, else the paper's 0.60
+    (``sim.protocols.validity.PAPER_LOG_STRAIN``: without the designs' materials, the limit the
+    earlier results were made with)."""
+    from .validity import PAPER_LOG_STRAIN
+
+    if strain_limit is not None:
+        return strain_limit
+    override = validity.max_compressive_log_strain
+    return PAPER_LOG_STRAIN if override is None else override
+
+
+def trust_flags(
+    values: Mapping[str, Any], validity, tapping, strain_limit: Any = None
+) -> dict[str, np.ndarray]:
     """Predicted ``valid`` and ``settled`` (bool arrays) and the first reason a design fails
     (``why``: text array, "" when it passes), from predicted ``TRUST_OUTPUTS`` (arrays; an
     output the predictor does not have is not judged). ``validity``: ``ValidityOptions``;
-    ``tapping``: ``TappingOptions`` (its tolerances)."""
+    ``tapping``: ``TappingOptions`` (its tolerances); ``strain_limit``: the compressive log
+    strain each design's largest strain is held to (a number or an array, one per design:
+    ``strain_limit_of``)."""
     n = len(np.atleast_1d(next(iter(values.values()))))
     why = np.full(n, "", dtype=object)
     valid = np.ones(n, dtype=bool)
@@ -126,12 +145,15 @@ def trust_flags(values: Mapping[str, Any], validity, tapping) -> dict[str, np.nd
         v = values.get(name)
         return None if v is None else np.asarray(v, dtype=float).reshape(n)
 
+    limit = np.broadcast_to(np.asarray(strain_limit_of(validity, strain_limit), float), (n,))
+    overridden = " (overridden)" if validity.max_compressive_log_strain is not None else ""
     for p in validity.strain_limited:
         v = get(f"{p}_max_compressive_log_strain")
         if v is not None:
             with np.errstate(invalid="ignore"):
-                fail(v > validity.max_compressive_log_strain,
-                     f"{p} strain > {validity.max_compressive_log_strain:g}", valid)  # fmt: skip
+                beyond = v > limit
+            for x in np.unique(limit[beyond]):  # the reason names each design's own limit
+                fail(beyond & (limit == x), f"{p} strain > {x:g}{overridden}", valid)
     for p in _PROTOCOLS:
         v = get(f"{p}_min_J")
         if v is not None:

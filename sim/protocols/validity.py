@@ -12,15 +12,21 @@ committed step a protocol records, the extremes that say how far the model was t
 - whether the free outer surface touched the rigid base beside the bone;
 - whether the outer surface folded (``surface_folded``);
 
-and, once at the protocol's peak load, the width of the contact with the indenter. ``check``
-compares a summary with the thresholds of ``ValidityOptions`` and with each layer's
-Drucker-stable strain when its material's fit has one (``Material.drucker_limit_log_strain``);
-``assess`` words the violations.
+and, once at the protocol's peak load, the width of the contact with the indenter. Each layer is
+held to the compressive log strain its own material was tested to (``layer_limit``: the
+catalogue's and the families' entries of ``sim/data/material_tests.toml``, a fitted material's
+provenance; the paper's 0.60 for a material with no tested range), unless
+``ValidityOptions.max_compressive_log_strain`` overrides every layer's (``strain_limits``).
+``check`` compares a summary with those limits, the other thresholds of ``ValidityOptions`` and
+each layer's Drucker-stable strain when its material's fit has one
+(``Material.drucker_limit_log_strain``); ``assess`` words the violations.
 """
 
 from __future__ import annotations
 
 import functools
+import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -28,35 +34,57 @@ import numpy as np
 
 if TYPE_CHECKING:
     from ..fe import Body, Discretization
+    from ..materials import Material
 
 __all__ = [
+    "BASIS_WORDS",
+    "LAYER_LIMIT_KEYS",
+    "LAYER_STRAINS",
+    "PAPER_LOG_STRAIN",
     "DeformationTracker",
+    "LayerLimit",
+    "StrainLimit",
     "ValidityOptions",
     "ValidityStop",
     "Violation",
     "assess",
+    "binding_strain_limit",
     "check",
     "compressive_log_strain",
     "contact_half_width_mm",
+    "design_strain_limit",
+    "layer_limit",
     "polyline_self_intersects",
+    "strain_limits",
+    "strain_summary",
     "surface_folded",
     "volume_ratio",
 ]
+
+#: The compressive log strain of the paper's compression tests: its materials were characterised
+#: in uniaxial compression to 45 % nominal strain (§2.2.2: 10 mm samples to 5.5 mm), a stretch of
+#: 0.55 and a log strain of ln(1 / 0.55) = 0.598, rounded. The limit of a layer whose material
+#: has no tested range (an inline law without a provenance that records one), and of every layer
+#: of a result recorded before the layers had their own (a summary without
+#: ``tested_log_strain_by_layer``: the limit it was made with).
+PAPER_LOG_STRAIN = 0.60
 
 
 @dataclass(frozen=True)
 class ValidityOptions:
     """Limits of the range in which the model's results are trusted (``--set validity.x=...``)."""
 
-    # The paper's materials were characterised in uniaxial compression up to 45 % nominal strain
-    # (§2.2.2: 10 mm samples to 5.5 mm), i.e. a stretch of 0.55 and a log strain of
-    # ln(1 / 0.55) = 0.598: beyond 0.60 the hyperelastic fit is extrapolated. The limit is on the
-    # LOCAL strain at the quadrature points, which is what a material test covers, not on the
-    # overall compression of the pulp: a human fingertip compresses ~50 % of its pulp at 4 N,
-    # so a human-like design must exceed the paper's recommendation of 20 % nominal strain
-    # (§5.1, ln(1 / 0.8) = 0.22) overall. That figure is reported as ``nominal_compression``
-    # (indenter travel / body height), for information only.
-    max_compressive_log_strain: float = 0.60
+    # The compressive log strain every layer is held to; None (default): each layer to the one
+    # its own material was tested to (``layer_limit``: e.g. 0.598 for the paper's materials,
+    # tested in compression to 45 %; 1.099 for Dawood's Ecoflex, to 66.7 %; an argued limit for
+    # a law fitted in tension only), beyond which its fitted law is extrapolated. A number
+    # overrides every layer's, and the result says so. The limit is on the LOCAL strain at the
+    # quadrature points, which is what a material test covers, not on the overall compression of
+    # the pulp: a human fingertip compresses ~50 % of its pulp at 4 N, so a human-like design
+    # must exceed the paper's recommendation of 20 % nominal strain (§5.1, ln(1 / 0.8) = 0.22)
+    # overall. That figure is reported as ``nominal_compression`` (indenter travel / body
+    # height), for information only.
+    max_compressive_log_strain: float | None = None
     # The smallest volume ratio J. The paper identified its laws as incompressible (J = 1) and
     # assumed nu; no test measured a volume change. Applying the strain limit to the volume,
     # ln J >= -0.60 gives J >= 0.55: the volume ratio of a uniaxial compression to 45 % of a
@@ -89,10 +117,202 @@ class ValidityOptions:
     # ``false`` runs on to the end (the extrapolated numbers, e.g. for --allow-untrusted).
     stop_at_violation: bool = True
 
+    def __post_init__(self) -> None:
+        limit = self.max_compressive_log_strain
+        if limit is not None and not (
+            isinstance(limit, int | float) and not isinstance(limit, bool) and limit > 0
+        ):
+            raise ValueError(
+                "max_compressive_log_strain must be a positive number or None (each layer's "
+                f"tested limit), got {limit!r}"
+            )
+
     @property
     def strain_limited(self) -> tuple[str, ...]:
         """The protocols of ``strain_limit_protocols``, parsed (the one place that does)."""
         return tuple(p.strip() for p in self.strain_limit_protocols.split(",") if p.strip())
+
+    @property
+    def overridden(self) -> dict[str, float]:
+        """The limits that override the materials' own: ``{"max_compressive_log_strain": x}``
+        when set, else {} (what a result reports as overridden)."""
+        limit = self.max_compressive_log_strain
+        return {} if limit is None else {"max_compressive_log_strain": float(limit)}
+
+
+# ---------------------------------------------------------------------------- layer limits
+#: what a limit is, in words (``StrainLimit.basis``): a material's tests, or an option
+BASIS_WORDS = {
+    "measured": "measured",
+    "argued": "argued",
+    "untested": "no tested range: the paper's limit",
+    "overridden": "overridden",
+    "": "",
+}
+
+
+@dataclass(frozen=True)
+class LayerLimit:
+    """The compressive log strain a layer's material was tested to (``log_strain``), the
+    ``material`` it is the limit of (a catalogue or user material's name, ``family.gel``,
+    ``family.foam``, or an inline law) and its ``basis``: "measured" (a test compressed the
+    material that far), "argued" (none did, or the material is a family: from its tension tests
+    or from tests of similar materials, as the entry's note says) or "untested" (no tested range:
+    the paper's ``PAPER_LOG_STRAIN``)."""
+
+    log_strain: float
+    material: str
+    basis: str
+
+
+def layer_limit(material: Material) -> LayerLimit:
+    """THE rule of the compressive limit a layer of ``material`` is held to, from the tests its
+    law was fitted to (``sim.materials._tests``), found in this order:
+
+    1. a shipped catalogue material (exactly the catalogue's entry of its name): its entry in
+       ``sim/data/material_tests.toml``;
+    2. a material whose ``provenance`` records its tested range (``fingertip fit-material``
+       writes it; an inline material may state it): that range;
+    3. a member of a design-space family (``sim.design.families.family_of``, also when written
+       out as an inline table, or a named material whose law is one of the family's): the
+       family's entry (``family.gel``, ``family.foam``), whose argument holds for the law's
+       form;
+    4. anything else (an inline law without such a provenance, the earlier ``param`` family):
+       ``PAPER_LOG_STRAIN``, "untested".
+
+    An entry's compressive limit is measured or argued (``TestedRange.compressive_argued``: a
+    law fitted in tension only has an argued one, never none)."""
+    from ..design.families import family_of
+    from ..materials import CATALOGUE
+    from ..materials._tests import tested_range, tested_range_from_provenance
+
+    name = material.name
+    own = name or f"inline {material.law.model} law"
+    found, label = None, own
+    if name is not None and CATALOGUE.get(name) == material:
+        found = tested_range(name)
+    if found is None and material.provenance:
+        found = tested_range_from_provenance(
+            dict(material.provenance), material.source, "provenance"
+        )
+    if found is None and (family := family_of(material)) is not None:
+        found = tested_range(f"family.{family}")
+        label = f"family.{family}" if name is None else f"{name} as family.{family}"
+    if found is None or found.max_compressive_log_strain is None:
+        return LayerLimit(PAPER_LOG_STRAIN, own, "untested")
+    basis = "argued" if found.compressive_argued else "measured"
+    return LayerLimit(found.max_compressive_log_strain, label, basis)
+
+
+def design_strain_limit(materials: Sequence[Material], options: ValidityOptions) -> float:
+    """The compressive log strain a design's LARGEST strain is held to when its layers' own
+    strains are not known (a surrogate's prediction: it learns the design's largest strain, not
+    each layer's): the override when set, else the largest of its layers' limits
+    (``layer_limit``). Beyond it every layer would be beyond its own limit, wherever the largest
+    strain is, so a design predicted beyond it is not credible; within it the FE's check of each
+    layer against its own limit (``strain_limits``) decides."""
+    if options.max_compressive_log_strain is not None:
+        return float(options.max_compressive_log_strain)
+    return max(layer_limit(m).log_strain for m in materials)
+
+
+@dataclass(frozen=True)
+class StrainLimit:
+    """The compressive limit one layer of a protocol's result is held to: ``layer`` (outermost
+    0; None for a summary without per-layer figures or recorded before the layers had their own
+    limits, judged on its largest strain), its ``role`` ("skin", "middle", "core"), the
+    ``material`` of the limit (``LayerLimit.material``), its largest compressive log ``strain``,
+    the ``limit`` and the limit's ``basis`` (a key of ``BASIS_WORDS``: ``LayerLimit.basis``,
+    "overridden", or "" for the paper's limit of an earlier summary)."""
+
+    layer: int | None
+    role: str
+    material: str
+    strain: float
+    limit: float
+    basis: str
+
+    @property
+    def label(self) -> str:
+        """``"layer 1 (core, family.gel)"``, as violations name the layer ("" if none)."""
+        if self.layer is None:
+            return ""
+        inside = ", ".join(x for x in (self.role, self.material) if x)
+        return f"layer {self.layer} ({inside})" if inside else f"layer {self.layer}"
+
+    @property
+    def basis_words(self) -> str:
+        """``basis`` in words (``BASIS_WORDS``)."""
+        return BASIS_WORDS.get(self.basis, self.basis)
+
+
+def _roles(n_layers: int) -> tuple[str, ...]:
+    from ..design.space import active_roles
+
+    return active_roles(n_layers) if 1 <= n_layers <= 3 else ("",) * n_layers
+
+
+def strain_limits(summary: dict[str, Any], options: ValidityOptions) -> list[StrainLimit]:
+    """THE rule of which compressive limit each layer of a protocol's ``summary`` is held to:
+    ``options.max_compressive_log_strain`` when set (an override, every layer), else the
+    layer's tested limit the summary records (``tested_log_strain_by_layer``, from
+    ``layer_limit``). A summary without per-layer figures (a table row's), or recorded before
+    the layers had their own limits, is one entry: its largest strain against the override or
+    ``PAPER_LOG_STRAIN``, the limit it was made with."""
+    override = options.max_compressive_log_strain
+    strains = summary.get("max_compressive_log_strain_by_layer")
+    tested = summary.get("tested_log_strain_by_layer")
+    if strains is None or (tested is None and override is None):
+        limit, basis = (PAPER_LOG_STRAIN, "") if override is None else (override, "overridden")
+        return [StrainLimit(None, "", "", summary["max_compressive_log_strain"], limit, basis)]
+    roles = _roles(len(strains))
+    materials = summary.get("tested_material_by_layer") or [""] * len(strains)
+    if override is not None:
+        return [
+            StrainLimit(k, roles[k], materials[k], strain, float(override), "overridden")
+            for k, strain in enumerate(strains)
+        ]
+    bases = summary.get("tested_basis_by_layer") or [""] * len(strains)
+    return [
+        StrainLimit(k, roles[k], materials[k], strain, limit, bases[k])
+        for k, (strain, limit) in enumerate(zip(strains, tested, strict=True))
+    ]
+
+
+#: the summary's per-layer strains, and the keys of its per-layer tested limits
+#: (``DeformationTracker.summary``), which ``SimResult.diagnostics`` carries to stored records
+LAYER_STRAINS = "max_compressive_log_strain_by_layer"
+LAYER_LIMIT_KEYS = (
+    "tested_log_strain_by_layer",
+    "tested_material_by_layer",
+    "tested_basis_by_layer",
+)
+
+
+def strain_summary(diagnostics: Mapping[str, Any], protocol: str) -> dict[str, Any] | None:
+    """The part of a protocol's summary that ``strain_limits`` reads, from the flat diagnostics
+    of a stored result (``SimResult.diagnostics``: a record's, a search's confirmation); None
+    when the protocol has no strain. A record made before the layers had their own limits (or
+    a table row) has no per-layer figures: it is judged on its largest strain."""
+    strain = diagnostics.get(f"{protocol}_max_compressive_log_strain")
+    if not isinstance(strain, int | float) or isinstance(strain, bool):
+        return None
+    out: dict[str, Any] = {"max_compressive_log_strain": float(strain)}
+    layers = diagnostics.get(f"{protocol}_{LAYER_STRAINS}")
+    if isinstance(layers, list | tuple) and layers:
+        out[LAYER_STRAINS] = list(layers)
+        for key in LAYER_LIMIT_KEYS:
+            value = diagnostics.get(key)
+            if isinstance(value, list | tuple) and len(value) == len(layers):
+                out[key] = list(value)
+    return out
+
+
+def binding_strain_limit(summary: dict[str, Any], options: ValidityOptions) -> StrainLimit | None:
+    """The layer nearest its compressive limit, or furthest beyond it (the largest strain /
+    limit, ``strain_limits``): the limit that binds the design; None without a strain."""
+    limits = strain_limits(summary, options)
+    return max(limits, key=lambda s: s.strain / s.limit if s.limit > 0 else math.inf, default=None)
 
 
 # ---------------------------------------------------------------------------- kinematics
@@ -267,6 +487,8 @@ class DeformationTracker:
         n_layers = len(disc.slices)
         # each layer's Drucker-stable strain (a user material fitted unstable beyond it)
         self._stable_strain = [m.drucker_limit_log_strain for m in disc.materials]
+        # each layer's tested compressive limit (its material's own tests)
+        self._tested = [layer_limit(m) for m in disc.materials]
         self._layer_strain = np.zeros(n_layers)
         self._layer_J = np.ones(n_layers)
         self._base_nodes = 0
@@ -327,6 +549,11 @@ class DeformationTracker:
         - ``max_compressive_log_strain_at_mm``: reference (x, y) of the quadrature point with the
           largest strain (None if nothing was compressed);
         - ``max_compressive_log_strain_by_layer``, ``min_J_by_layer``: per layer, outermost first;
+        - ``tested_log_strain_by_layer``, ``tested_material_by_layer``,
+          ``tested_basis_by_layer``: per layer, the compressive log strain its material was
+          tested to, the material it is the limit of and whether it was "measured", "argued" or
+          "untested" (``layer_limit``): what ``check`` holds the layer to unless overridden, so
+          that a stored summary is judged again without the materials;
         - ``drucker_stable_log_strain_by_layer``: per layer, the compressive log strain within
           which its material's fit is Drucker-stable (None: no limit), only when a layer has
           one (``Material.drucker_limit_log_strain``; a result without one is unchanged).
@@ -344,6 +571,9 @@ class DeformationTracker:
             "max_compressive_log_strain_at_mm": self._strain_at_mm,
             "max_compressive_log_strain_by_layer": self._layer_strain.tolist(),
             "min_J_by_layer": self._layer_J.tolist(),
+            "tested_log_strain_by_layer": [t.log_strain for t in self._tested],
+            "tested_material_by_layer": [t.material for t in self._tested],
+            "tested_basis_by_layer": [t.basis for t in self._tested],
         }
         if any(limit is not None for limit in self._stable_strain):
             out["drucker_stable_log_strain_by_layer"] = list(self._stable_strain)
@@ -360,6 +590,7 @@ class Violation:
     value: float | None = None  # None for the yes/no limits
     limit: float | None = None
     relation: str = ">"  # value <relation> limit is the violation
+    basis: str = ""  # what the limit is: "measured", "argued", "overridden"... ("": say nothing)
 
     def _numbers(self) -> tuple[str, str]:
         for digits in (2, 3, 4):
@@ -372,7 +603,8 @@ class Violation:
         if self.value is None:
             return self.quantity
         v, lim = self._numbers()
-        return f"{self.quantity} {v} {self.relation} {lim}"
+        basis = f" ({self.basis})" if self.basis else ""
+        return f"{self.quantity} {v} {self.relation} {lim}{basis}"
 
     def warning(self) -> str:
         """The sentence of the command line's warning, with the option that moves the limit
@@ -390,6 +622,10 @@ class Violation:
         v, lim = self._numbers()
         side = "beyond" if self.relation == ">" else "below"
         hint = f"--set validity.{self.option}=..."
+        if self.basis == "overridden":
+            hint = f"the limit of --set validity.{self.option}, overriding the layer's own"
+        elif self.basis:
+            hint = f"{self.basis}; {hint} overrides every layer's"
         return f"{self.quantity} {v} {side} the validity limit {lim} ({hint})"
 
 
@@ -400,18 +636,10 @@ def check(
     only for the protocols of ``options.strain_limit_protocols``, or always if ``protocol`` is
     None)."""
     out = []
-    strain, J = summary["max_compressive_log_strain"], summary["min_J"]
+    J = summary["min_J"]
     limited = protocol is None or protocol in options.strain_limited
-    if limited and strain > options.max_compressive_log_strain:
-        out.append(
-            Violation(
-                "max_compressive_log_strain",
-                "compressive log strain",
-                strain,
-                options.max_compressive_log_strain,
-            )
-        )
     if limited:
+        out += _strain_violations(summary, options)
         out += _drucker_violations(summary)
     if J < options.min_J:
         out.append(Violation("min_J", "volume ratio J", J, options.min_J, "<"))
@@ -420,6 +648,22 @@ def check(
     if summary["folded"] and not options.allow_folding:
         out.append(Violation("allow_folding", "surface folded"))
     return out
+
+
+def _strain_violations(summary: dict[str, Any], options: ValidityOptions) -> list[Violation]:
+    """The layers strained beyond their compressive limit (``strain_limits``), each named with
+    its material and what its limit is (measured, argued, the paper's, overridden)."""
+    return [
+        Violation(
+            "max_compressive_log_strain",
+            f"{s.label} compressive log strain" if s.label else "compressive log strain",
+            s.strain,
+            s.limit,
+            basis=s.basis_words,
+        )
+        for s in strain_limits(summary, options)
+        if s.strain > s.limit
+    ]
 
 
 def _drucker_violations(summary: dict[str, Any]) -> list[Violation]:
