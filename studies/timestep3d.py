@@ -69,8 +69,8 @@ def main() -> None:
                     flush=True,
                 )
         out[path.stem] = runs
-    if args.out:
-        args.out.write_text(json.dumps(out, indent=1) + "\n")
+        if args.out:  # after every design: a long study keeps what it has done
+            args.out.write_text(json.dumps(out, indent=1) + "\n")
 
 
 if __name__ == "__main__":
