@@ -567,9 +567,13 @@ def _add_train(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_predict(args: argparse.Namespace) -> int:
-    from surrogate import load_checkpoint, read_points
+    from surrogate import load_checkpoint, load_multifidelity, read_points
+    from surrogate._multifidelity_checkpoint import is_multifidelity
 
-    model = load_checkpoint(args.checkpoint, allow_solver_mismatch=args.allow_solver_mismatch)
+    if is_multifidelity(args.checkpoint):  # the 3D metrics, from a multi-fidelity surrogate
+        model = load_multifidelity(args.checkpoint)
+    else:
+        model = load_checkpoint(args.checkpoint, allow_solver_mismatch=args.allow_solver_mismatch)
     if args.answer is not None:
         from sim.design import point_from_design
         from surrogate import check_point
@@ -606,7 +610,8 @@ def _add_predict(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
     p.description = (
-        "Predict the metrics of designs with a trained surrogate. Inputs: a checkpoint (a "
+        "Predict the metrics of designs with a trained surrogate (a multi-fidelity one, "
+        "trained on a 3D sweep, predicts the 3D model's). Inputs: a checkpoint (a "
         ".safetensors file or a training run folder); designs as a design TOML file (a search "
         "run's answers/<answer>.toml too), a design-point TOML (name = value), a CSV of points "
         "(a sweep's table.csv: a dataset), or a search run folder or its summary.json with "

@@ -419,3 +419,10 @@ def test_cli_trains_a_3d_sweep_with_the_2d_surrogate(small3d, tmp_path, capsys, 
     assert code == 0, err
     assert "method: 3d (low fidelity: none, 3D only)" in stdout
     assert load_multifidelity(tmp_path / "3d").header["low_fidelity"] is None
+    # fingertip predict reads the multi-fidelity checkpoint: the 3D sweep's own points get the
+    # 3D metrics, contact patch included
+    code, stdout, err = run_main(["predict", out, small3d / "table.csv", "--json"], capsys)
+    assert code == 0, err
+    designs = json.loads(stdout)["designs"]
+    assert len(designs) == 40
+    assert all(d["median"]["contact_area_at_1N_mm2"] > 0 for d in designs)
