@@ -180,47 +180,68 @@ def checkpoint_file(path: str | Path) -> Path:
     return path
 
 
-def read_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """Tensors and header of a checkpoint (a file, or a folder holding ``CHECKPOINT_NAME``:
-    :func:`checkpoint_file`), after the format, schema and hash checks."""
+def read_verified(
+    path: Path,
+    *,
+    meta_key: str,
+    fmt: str,
+    schema_version: int,
+    kind: str,
+    elsewhere: dict[str, str],
+) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Tensors and JSON header of a fingertip safetensors file after the checks every kind of
+    checkpoint shares: a readable file with a ``meta_key`` header (``elsewhere``: the header key
+    of another kind -> the sentence that sends the reader to its loader), valid JSON of format
+    ``fmt`` and schema ``schema_version``, and the recorded sha256 over tensors and header
+    (``_digest``). ``kind`` names the file in the messages ("surrogate checkpoint")."""
     from safetensors import safe_open
 
-    path = checkpoint_file(path)
     try:
         with safe_open(str(path), framework="numpy") as fh:
             meta = fh.metadata() or {}
             tensors = {k: fh.get_tensor(k) for k in fh.keys()}
     except Exception:  # any failure of the parser means: not a readable safetensors file
-        raise CheckpointError(
-            path, "not a surrogate checkpoint (not a readable safetensors file)"
-        ) from None
-    text = meta.get(META_KEY)
-    if text is None and "fingertip_multifidelity" in meta:  # _multifidelity_checkpoint.META_KEY
-        raise CheckpointError(
-            path,
-            "a multi-fidelity checkpoint (the 3D model's metrics): load it with "
-            "surrogate.load_multifidelity",
-        )
+        raise CheckpointError(path, f"not a {kind} (not a readable safetensors file)") from None
+    text = meta.get(meta_key)
     if text is None:
+        for key, sentence in elsewhere.items():
+            if key in meta:
+                raise CheckpointError(path, sentence)
         raise CheckpointError(
-            path, f"not a surrogate checkpoint (a safetensors file without the {META_KEY} header)"
+            path, f"not a {kind} (a safetensors file without the {meta_key} header)"
         )
     try:
         header = json.loads(text)
     except json.JSONDecodeError:
         raise CheckpointError(path, "corrupted checkpoint header (invalid JSON)") from None
-    if not isinstance(header, dict) or header.get("format") != FORMAT:
-        raise CheckpointError(path, f"not a surrogate checkpoint (format is not {FORMAT!r})")
+    if not isinstance(header, dict) or header.get("format") != fmt:
+        raise CheckpointError(path, f"not a {kind} (format is not {fmt!r})")
     version = header.get("schema_version")
-    if version != SCHEMA_VERSION:
+    if version != schema_version:
         raise CheckpointError(
             path,
-            f"checkpoint schema version {version!r}, this fingertip reads {SCHEMA_VERSION}; "
+            f"{kind} schema version {version!r}, this fingertip reads {schema_version}; "
             "retrain with `fingertip train`",
         )
     if header.get("sha256") != _digest(tensors, header):
         raise CheckpointError(path, "tampered or corrupted checkpoint (sha256 mismatch)")
     return tensors, header
+
+
+def read_checkpoint(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
+    """Tensors and header of a checkpoint (a file, or a folder holding ``CHECKPOINT_NAME``:
+    :func:`checkpoint_file`), after the format, schema and hash checks (``read_verified``)."""
+    return read_verified(
+        checkpoint_file(path),
+        meta_key=META_KEY,
+        fmt=FORMAT,
+        schema_version=SCHEMA_VERSION,
+        kind="surrogate checkpoint",
+        elsewhere={
+            "fingertip_multifidelity": "a multi-fidelity checkpoint (the 3D model's metrics): "
+            "load it with surrogate.load_multifidelity"  # _multifidelity_checkpoint.META_KEY
+        },
+    )
 
 
 def load_checkpoint(path: str | Path, *, allow_solver_mismatch: bool = False):

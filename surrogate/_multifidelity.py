@@ -56,7 +56,13 @@ from ._encoding import Encoded, Encoder
 from ._io import SweepData
 from ._model import EnsembleMLP
 from ._normalise import PHYSICAL, Z90, OutputNormaliser
-from ._surrogate import Prediction, Surrogate, clip_probabilities, rule_mask
+from ._surrogate import (
+    Prediction,
+    Surrogate,
+    clip_probabilities,
+    predict_points,
+    rule_mask,
+)
 from ._threads import threads_set, torch_threads
 from ._train import (
     CALIBRATION_COVERAGE,
@@ -397,20 +403,7 @@ class MultiFidelitySurrogate:
 
     def predict(self, points: Sequence[Mapping[str, Any]] | Mapping[str, Sequence]) -> Prediction:
         """Predict a list of 3D design points or a table, as ``Surrogate.predict``."""
-        enc = self.encoder.encode(points)
-        out = self.predict_features(enc.features)
-        return Prediction(
-            self.metric_names,
-            self.units,
-            out["mean"],
-            out["std"],
-            out["lower_90"],
-            out["upper_90"],
-            enc.in_domain,
-            enc.reasons,
-            out["median"],
-            out["by_rule"],
-        )
+        return predict_points(self, points)
 
     def predict_features(self, features: np.ndarray) -> dict[str, np.ndarray]:
         """Predict encoded designs (``encoder.encode``): ``mean``, ``median``, ``std``,

@@ -18,7 +18,6 @@ one given) and refuses it unless its sha256 is the recorded one, then loads it w
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +27,7 @@ from sim.design import space_from_dict
 from sim.metrics import SOLVER_VERSION, same_metrics
 from sim.provenance import json_safe, json_text, replacing, sha256_file
 
-from ._checkpoint import _digest, checkpoint_file, describe, load_checkpoint
+from ._checkpoint import _digest, checkpoint_file, describe, load_checkpoint, read_verified
 from ._encoding import Encoder
 from ._errors import CheckpointError
 from ._multifidelity import METHODS, METRICS_3D_MODEL, MultiFidelityEncoder, MultiFidelitySurrogate
@@ -156,45 +155,18 @@ def is_multifidelity(path: str | Path) -> bool:
 
 
 def _read(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any]]:
-    """Tensors and header after the format, schema and hash checks (``read_checkpoint``'s)."""
-    from safetensors import safe_open
-
-    try:
-        with safe_open(str(path), framework="numpy") as fh:
-            meta = fh.metadata() or {}
-            tensors = {k: fh.get_tensor(k) for k in fh.keys()}
-    except Exception:  # any failure of the parser means: not a readable safetensors file
-        raise CheckpointError(
-            path, "not a multi-fidelity checkpoint (not a readable safetensors file)"
-        ) from None
-    text = meta.get(META_KEY)
-    if text is None:
-        if "fingertip_surrogate" in meta:
-            raise CheckpointError(
-                path,
-                "a 2D surrogate checkpoint, not a multi-fidelity one: load it with "
-                "load_checkpoint (or give it as the low fidelity)",
-            )
-        raise CheckpointError(
-            path,
-            f"not a multi-fidelity checkpoint (a safetensors file without the {META_KEY} header)",
-        )
-    try:
-        header = json.loads(text)
-    except json.JSONDecodeError:
-        raise CheckpointError(path, "corrupted checkpoint header (invalid JSON)") from None
-    if not isinstance(header, dict) or header.get("format") != FORMAT:
-        raise CheckpointError(path, f"not a multi-fidelity checkpoint (format is not {FORMAT!r})")
-    version = header.get("schema_version")
-    if version != SCHEMA_VERSION:
-        raise CheckpointError(
-            path,
-            f"multi-fidelity checkpoint schema version {version!r}, this fingertip reads "
-            f"{SCHEMA_VERSION}; retrain with `fingertip train`",
-        )
-    if header.get("sha256") != _digest(tensors, header):
-        raise CheckpointError(path, "tampered or corrupted checkpoint (sha256 mismatch)")
-    return tensors, header
+    """Tensors and header after the format, schema and hash checks (``read_verified``)."""
+    return read_verified(
+        path,
+        meta_key=META_KEY,
+        fmt=FORMAT,
+        schema_version=SCHEMA_VERSION,
+        kind="multi-fidelity checkpoint",
+        elsewhere={
+            "fingertip_surrogate": "a 2D surrogate checkpoint, not a multi-fidelity one: load "
+            "it with load_checkpoint (or give it as the low fidelity)"
+        },
+    )
 
 
 def _load_low(

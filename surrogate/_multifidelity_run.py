@@ -34,7 +34,7 @@ from ._multifidelity import (
     validation_size,
 )
 from ._multifidelity_checkpoint import save_multifidelity
-from ._run import default_out
+from ._run import default_out, train_config
 from ._train import TrainConfig
 
 __all__ = [
@@ -123,18 +123,7 @@ def train_multifidelity(
     out = Path(out_dir) if out_dir is not None else default_out(sweep3d_dir)
     check_new_folder(out)  # fail before training, not after
     method = _check_method(method, low_fidelity)
-    names = {f.name for f in dataclasses.fields(TrainConfig)}
-    unknown = sorted(set(hyper) - names)
-    if unknown:
-        raise TypeError(f"unknown training option {unknown[0]!r}; known: {sorted(names)}")
-    check_seed(seed)
-    if members < 1:
-        raise DesignError("--members", f"must be >= 1, got {members}")
-    if max_epochs is not None:
-        if max_epochs < 1:
-            raise DesignError("--max-epochs", f"must be >= 1, got {max_epochs}")
-        hyper["max_epochs"] = max_epochs
-    config = TrainConfig(seed=seed, members=members, **hyper)
+    config = train_config(seed, members, max_epochs, hyper)
     low_file = None if low_fidelity is None else checkpoint_file(low_fidelity)
     if low_file is not None:
         load_checkpoint(low_file)  # a refused checkpoint: one line, before reading the sweep

@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import json
 from pathlib import Path
+from typing import Any
 
 from sim.errors import DesignError, check_seed
 from sim.provenance import check_new_folder, provenance, run_folder, write_json
@@ -27,6 +28,25 @@ def default_out(sweep_dir: str | Path) -> Path:
     """``runs/SWEEP`` -> ``runs/SWEEP-surrogate``."""
     sweep_dir = Path(sweep_dir)
     return sweep_dir.parent / f"{sweep_dir.resolve().name}-surrogate"
+
+
+def train_config(
+    seed: int, members: int, max_epochs: int | None, hyper: dict[str, Any]
+) -> TrainConfig:
+    """The ``TrainConfig`` of a training command, its options checked: a ``DesignError`` naming
+    ``--members`` / ``--max-epochs`` / the seed, a ``TypeError`` for an unknown ``hyper`` key."""
+    names = {f.name for f in dataclasses.fields(TrainConfig)}
+    unknown = sorted(set(hyper) - names)
+    if unknown:
+        raise TypeError(f"unknown training option {unknown[0]!r}; known: {sorted(names)}")
+    check_seed(seed)
+    if members < 1:
+        raise DesignError("--members", f"must be >= 1, got {members}")
+    if max_epochs is not None:
+        if max_epochs < 1:
+            raise DesignError("--max-epochs", f"must be >= 1, got {max_epochs}")
+        hyper = {**hyper, "max_epochs": max_epochs}
+    return TrainConfig(seed=seed, members=members, **hyper)
 
 
 def train_surrogate(
@@ -52,18 +72,7 @@ def train_surrogate(
     """
     out = Path(out_dir) if out_dir is not None else default_out(sweep_dir)
     check_new_folder(out)  # fail before training, not after
-    names = {f.name for f in dataclasses.fields(TrainConfig)}
-    unknown = sorted(set(hyper) - names)
-    if unknown:
-        raise TypeError(f"unknown training option {unknown[0]!r}; known: {sorted(names)}")
-    check_seed(seed)
-    if members < 1:
-        raise DesignError("--members", f"must be >= 1, got {members}")
-    if max_epochs is not None:
-        if max_epochs < 1:
-            raise DesignError("--max-epochs", f"must be >= 1, got {max_epochs}")
-        hyper["max_epochs"] = max_epochs
-    config = TrainConfig(seed=seed, members=members, **hyper)
+    config = train_config(seed, members, max_epochs, hyper)
     data = read_sweep(sweep_dir, trusted_only=not include_untrusted)
     if len(data.points) < 4:
         raise DesignError(

@@ -116,6 +116,25 @@ class Prediction:
         return out
 
 
+def predict_points(model: Any, points: Sequence[Mapping[str, Any]] | Mapping[str, Sequence]):
+    """The ``Prediction`` of ``model`` (a ``Surrogate`` or a multi-fidelity one: its
+    ``encoder.encode`` and ``predict_features``) for design points or a table."""
+    enc = model.encoder.encode(points)
+    out = model.predict_features(enc.features)
+    return Prediction(
+        model.metric_names,
+        model.units,
+        out["mean"],
+        out["std"],
+        out["lower_90"],
+        out["upper_90"],
+        enc.in_domain,
+        enc.reasons,
+        out["median"],
+        out["by_rule"],
+    )
+
+
 class Surrogate:
     """Predicts every FE metric of a design, with uncertainty, in microseconds.
 
@@ -153,20 +172,7 @@ class Surrogate:
         design does not use are ignored. A ``DesignError`` for a missing active value or an
         unknown parameter name; designs outside the training domain are flagged, not refused.
         """
-        enc = self.encoder.encode(points)
-        out = self.predict_features(enc.features)
-        return Prediction(
-            self.metric_names,
-            self.units,
-            out["mean"],
-            out["std"],
-            out["lower_90"],
-            out["upper_90"],
-            enc.in_domain,
-            enc.reasons,
-            out["median"],
-            out["by_rule"],
-        )
+        return predict_points(self, points)
 
     def predict_features(self, features: np.ndarray) -> dict[str, np.ndarray]:
         """Predict already encoded designs (n, n_features): ``mean``, ``median``, ``std``,
