@@ -516,8 +516,8 @@ class Body:
         evaluated with its tangent, the others without."""
         opts = self.options
         free = self.disc.free
-        g_contact = self._contact_slope(u, d, du, dd, control)
-        a_lo, gb_lo = 0.0, g0 - g_contact(0.0)  # the body's part of g at a_lo
+        g_contact = None  # the contacts' part of g (``_contact_slope``), made once needed
+        a_lo, gb_lo = 0.0, 0.0  # gb: the body's part of g at a_lo
         a_hi = gb_hi = None  # smallest step known to overshoot the minimum along the line
         alpha = 1.0
         for bt in range(opts.max_backtracks + 1):
@@ -536,6 +536,9 @@ class Body:
             if not np.isfinite(g):
                 alpha = 0.5 * (a_lo + alpha)
                 continue
+            if g_contact is None:  # the full step is not taken (most are): model the line
+                g_contact = self._contact_slope(u, d, du, dd, control)
+                gb_lo = g0 - g_contact(0.0)
             if g < 0.0:  # still descending: the minimum lies beyond alpha
                 a_lo, gb_lo = alpha, g - g_contact(alpha)
                 alpha = min(1.0, 2.0 * alpha) if a_hi is None else 0.5 * (a_lo + a_hi)
