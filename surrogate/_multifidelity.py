@@ -40,7 +40,6 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -50,7 +49,7 @@ import torch
 from sim.design import DesignSpace
 from sim.errors import DesignError
 from sim.metrics import METRICS, metric_registry
-from sim.provenance import finite_or_none, git_commit
+from sim.provenance import finite_or_none
 
 from ._encoding import Encoded, Encoder
 from ._io import SweepData
@@ -75,6 +74,7 @@ from ._train import (
     metric_groups,
     r2_score,
     split_indices,
+    training_header,
 )
 
 __all__ = [
@@ -645,36 +645,14 @@ def fit_multifidelity(
     z_val = surrogate.transform(targets[split.val], features[split.val])
     factors, calibration = calibrate(mean_z, std_z, z_val, names, groups)
     surrogate.normaliser = normaliser.calibrated(factors)
+    record = training_header(data, config, split, best, epochs, threads, log_tangents)
+    record["training"]["groups"] = grouping
+    record["training_data"].update(
+        model="3d", solver_version=data.solver_version, space=data.space.to_dict()
+    )
     surrogate.header.update(
         {
-            "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-            "solver_version": data.solver_version,
-            "git_commit": git_commit(),
-            "training": {
-                **config.to_dict(),
-                "log_tangents": log_tangents,
-                "groups": grouping,
-                "epochs": epochs,
-                "best_epoch": [int(e) for e in best.epoch],
-                "torch_threads": threads,
-            },
-            "training_data": {
-                "sweep": str(Path(data.folder).resolve()),
-                "model": "3d",
-                "table_sha256": data.table_sha256,
-                "n_rows": data.n_rows,
-                "n_used": len(data.points),
-                "solver_version": data.solver_version,
-                "space": data.space.to_dict(),
-                "split_table_index": {
-                    key: [int(data.index[i]) for i in rows]
-                    for key, rows in (
-                        ("train", split.train),
-                        ("val", split.val),
-                        ("test", split.test),
-                    )
-                },
-            },
+            **record,
             "calibration": calibration,
             "validation": _validation(surrogate, features[split.val], targets[split.val], best),
         }

@@ -181,6 +181,43 @@ def _deterministic():
         torch.use_deterministic_algorithms(old)
 
 
+def training_header(
+    data: SweepData,
+    config: TrainConfig,
+    split: Split,
+    best: _Best,
+    epochs: int,
+    threads: int,
+    log_tangents: bool,
+) -> dict[str, Any]:
+    """The checkpoint header's record of a training: when, by which solver's data and commit,
+    the configuration and its outcome (epochs, each net's best epoch, torch threads), and the
+    sweep with the designs of each part of the split (by their table index)."""
+    return {
+        "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
+        "solver_version": data.solver_version,
+        "git_commit": git_commit(),
+        "training": {
+            **config.to_dict(),
+            "log_tangents": log_tangents,
+            "epochs": epochs,
+            "best_epoch": [int(e) for e in best.epoch],
+            "torch_threads": threads,
+        },
+        "training_data": {
+            "sweep": str(Path(data.folder).resolve()),
+            "table_sha256": data.table_sha256,
+            "n_rows": data.n_rows,
+            "n_used": len(data.points),
+            "split_table_index": {
+                "train": [int(data.index[i]) for i in split.train],
+                "val": [int(data.index[i]) for i in split.val],
+                "test": [int(data.index[i]) for i in split.test],
+            },
+        },
+    }
+
+
 def fit(
     data: SweepData,
     config: TrainConfig = TrainConfig(),
@@ -260,29 +297,7 @@ def fit(
     with threads_set(torch_threads() if threads is None else threads) as threads:
         best, history, epochs = _train(model, config, train, val, progress, new=split.new)
     best.restore(model)
-    header = {
-        "created_utc": datetime.now(UTC).isoformat(timespec="seconds"),
-        "solver_version": data.solver_version,
-        "git_commit": git_commit(),
-        "training": {
-            **config.to_dict(),
-            "log_tangents": log_tangents,
-            "epochs": epochs,
-            "best_epoch": [int(e) for e in best.epoch],
-            "torch_threads": threads,
-        },
-        "training_data": {
-            "sweep": str(Path(data.folder).resolve()),
-            "table_sha256": data.table_sha256,
-            "n_rows": data.n_rows,
-            "n_used": len(data.points),
-            "split_table_index": {
-                "train": [int(data.index[i]) for i in split.train],
-                "val": [int(data.index[i]) for i in split.val],
-                "test": [int(data.index[i]) for i in split.test],
-            },
-        },
-    }
+    header = training_header(data, config, split, best, epochs, threads, log_tangents)
     surrogate = Surrogate(model, encoder, normaliser, data.metric_names, header)
     surrogate.header["validation"] = validation_metrics(
         surrogate, x_all[split.val], targets[split.val], best.loss.numpy()
