@@ -87,8 +87,8 @@ def residual_tolerance(rtol: float, e0_MPa: float, size_mm: float, dim: int) -> 
     coarse pad (5 400 dofs) the Prony state's tap-to-tap residual then stalled at 3e-3 to 7e-3
     from the fourth tap on (its tolerance: 1e-3), 16 taps without settling, where this one
     settles in 6 with metrics within 3e-4 of a tolerance 100x tighter (docs/fe_speed.md, "3D")."""
-    thickness_mm = 1.0  # 3D; a 2D force is per unit thickness already
-    return rtol * e0_MPa * size_mm * (thickness_mm if dim == 3 else 1.0)
+    slice_mm = 1.0  # the 2D model's forces are those of a slice of unit thickness
+    return rtol * e0_MPa * size_mm * slice_mm ** (dim - 2)
 
 
 @dataclass(frozen=True)
