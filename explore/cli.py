@@ -567,8 +567,7 @@ def _add_train(p: argparse.ArgumentParser) -> None:
 
 
 def _cmd_predict(args: argparse.Namespace) -> int:
-    from surrogate import load_checkpoint, load_multifidelity, read_points
-    from surrogate._multifidelity_checkpoint import is_multifidelity
+    from surrogate import is_multifidelity, load_checkpoint, load_multifidelity, read_points
 
     if is_multifidelity(args.checkpoint):  # the 3D metrics, from a multi-fidelity surrogate
         model = load_multifidelity(args.checkpoint)

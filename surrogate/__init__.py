@@ -40,7 +40,11 @@ if TYPE_CHECKING:
     from ._learning_curve import learning_curve
     from ._multifidelity import METHODS as MULTIFIDELITY_METHODS
     from ._multifidelity import MultiFidelitySurrogate, fit_multifidelity
-    from ._multifidelity_checkpoint import load_multifidelity, save_multifidelity
+    from ._multifidelity_checkpoint import (
+        is_multifidelity,
+        load_multifidelity,
+        save_multifidelity,
+    )
     from ._multifidelity_run import multifidelity_curve, train_multifidelity
     from ._run import train_surrogate
     from ._spread import train_seeds
@@ -62,6 +66,7 @@ __all__ = [
     "check_point",
     "fine_tune",
     "fit_multifidelity",
+    "is_multifidelity",
     "learning_curve",
     "load_checkpoint",
     "load_multifidelity",
@@ -90,6 +95,7 @@ _LAZY = {
     "fit_multifidelity": "_multifidelity",
     "learning_curve": "_learning_curve",
     "load_checkpoint": "_checkpoint",
+    "is_multifidelity": "_multifidelity_checkpoint",
     "load_multifidelity": "_multifidelity_checkpoint",
     "multifidelity_curve": "_multifidelity_run",
     "read_points": "_io",
