@@ -137,8 +137,9 @@ def _model_root(
     g(a) ~ (the body's part, linear between its values at a_lo and a_hi) + g_contact(a) (exact).
     The model equals g at both ends (g < 0 at a_lo, > 0 at a_hi), so the root is bracketed;
     found by bisection to 1/4096 of the bracket (a dozen cheap evaluations of the contacts'
-    part; scipy.optimize would load scipy.sparse.linalg into every simulation) and kept 1 % of
-    the bracket away from either end."""
+    part, far finer than the acceptance |g| <= eta |g0| needs; scipy.optimize would load
+    scipy.sparse.linalg into every simulation) and kept 1 % of the bracket away from either
+    end, where g is already known, so that every trial learns something new."""
     width = a_hi - a_lo
 
     def model(a: float) -> float:
