@@ -20,14 +20,20 @@ __all__ = [
 ]
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
-SOLVER_VERSION = "2.4"
+SOLVER_VERSION = "2.5"
 #: Earlier solver versions whose metrics this one reproduces within its tolerances: a surrogate
 #: trained on their FE results is as good as one trained on this version's (2.1 -> 2.2 changed
 #: only when Newton gives up on a step; docs/fe_speed.md, "Newton"; 2.2 -> 2.3 only the
 #: designs beyond the validity limits, which lose their metrics, and a surrogate learns metrics
 #: from settled, valid designs; 2.3 -> 2.4 other sub-steps where a contact changes, the metrics
-#: within their time-discretisation error).
-SAME_METRICS_AS = ("2.3", "2.2", "2.1")
+#: within their time-discretisation error; 2.4 -> 2.5 the 2D model bit for bit, the 3D one
+#: within Newton's tolerance).
+SAME_METRICS_AS = ("2.4", "2.3", "2.2", "2.1")
+# 2.5: 3D only (the 2D model computes the same bits: studies/same_metrics.py): modified Newton
+#      keeps its factorisation across changes of the contact set, corrected for them exactly
+#      (NewtonOptions.contact_update, Woodbury); the material tangent computed only when the
+#      tangent is assembled; the 3D laws' eigen-decomposition compiled (sim.materials._eigh3).
+#      Other Newton iterates, the same tolerances (docs/fe_speed.md, "Contact update")
 # 2.4: the line search models the contacts' part of its slope exactly (sim.fe.solver._model_root):
 #      other sub-steps where a contact changes, the same tolerances. Designs 0-63 of the shipped
 #      sweep, solver 2.3 against 2.4 on one machine (`python studies/same_metrics.py --n 64

@@ -261,8 +261,9 @@ def _run(
     """``protocol`` on a fresh body of ``disc``: the body and its result, or how it failed."""
     opts = getattr(options, protocol.name)
     newton = options.newton
-    if disc.dim == 3:  # a factorisation costs as much as a few residuals: modified Newton
-        newton = dataclasses.replace(newton, reuse_factorization=True)
+    if disc.dim == 3:  # a factorisation costs as much as a few residuals: modified Newton,
+        # kept across changes of the contact set (docs/fe_speed.md, "Contact update")
+        newton = dataclasses.replace(newton, reuse_factorization=True, contact_update=True)
     body = Body(
         disc,
         protocol.make_indenter(opts),

@@ -168,6 +168,65 @@ def test_modified_newton_saves_factorisations_for_the_same_answer():
     np.testing.assert_allclose(modified.force, full.force, rtol=1e-5)
 
 
+def test_contact_corrected_solve_is_the_new_matrixs_solve():
+    """``_ContactCorrected``: a factorisation of K0 with a change on a few dofs (two nodes
+    entering contact: rank-one blocks n n^T, one node leaving) solves K0 + P D P^T exactly
+    (Woodbury's identity), with PARDISO's many right-hand sides and qdldl's one by one."""
+    import scipy.sparse as sp
+
+    from sim.fe._linear import make_solver, pardiso_available
+    from sim.fe.solver import _ContactCorrected
+
+    rng = np.random.default_rng(0)
+    n = 60
+    A = sp.random(n, n, density=0.1, random_state=1)
+    K0 = (A + A.T + sp.eye(n) * 8.0).tocsc()
+    dofs = np.array([3, 4, 5, 17, 18, 19, 40])
+    D = np.zeros((7, 7))
+    for at, normal in ((0, [0.0, 1.0, 0.0]), (3, [0.3, 0.9, 0.1])):
+        nrm = np.asarray(normal) / np.linalg.norm(normal)
+        D[at : at + 3, at : at + 3] = 50.0 * np.outer(nrm, nrm)  # entering: rank one
+    D[6, 6] = -3.0  # leaving: its penalty removed
+    K = K0.toarray()
+    K[np.ix_(dofs, dofs)] += D
+    b = rng.normal(size=n)
+    names = ["qdldl"] + (["pardiso"] if pardiso_available() else [])
+    for name in names:
+        solver = make_solver(name)
+        solver.factor(sp.triu(K0).tocsc())
+        corrected = _ContactCorrected(solver, dofs, D, n)
+        assert corrected.ok
+        np.testing.assert_allclose(corrected.solve(b), np.linalg.solve(K, b), rtol=1e-10)
+        unchanged = _ContactCorrected(solver, dofs[:0], D[:0, :0], n)
+        np.testing.assert_allclose(unchanged.solve(b), np.linalg.solve(K0.toarray(), b))
+
+
+def test_contact_update_keeps_factorisations_across_contact_changes():
+    """``NewtonOptions.contact_update``: force-controlled steps of a viscoelastic pad whose
+    patch grows over surface nodes step by step keep one factorisation across the changes,
+    corrected for the contact; fewer factorisations for the same states (to the order of the
+    Newton tolerance)."""
+    pmesh = build_pad_mesh(PAD, (), COARSE)
+    table = {"model": "neo_hookean", "mu_MPa": 0.05, "nu": 0.49}
+    mat = material_from_table({**table, "prony_g": [0.3], "prony_tau_s": [0.5]})
+    disc = Discretization3D(pmesh, [mat])
+    bodies = []
+    for update in (False, True):
+        opts = NewtonOptions(reuse_factorization=True, contact_update=update)
+        body = Body(disc, Plate(), opts)
+        scale = 1.0 / disc.force_scale(10.0)
+        for k, f in enumerate(np.linspace(0.1, 1.0, 8)):
+            assert body.advance(0.05 * (k + 1), Control.force(f * scale)).converged
+        bodies.append(body)
+    kept, updated = bodies
+    n_kept, n_updated = kept.factorizations, updated.factorizations
+    print(f"factorisations: contact set must match {n_kept}, updated {n_updated}")
+    assert updated.factorizations < kept.factorizations
+    size = np.abs(kept.u).max()
+    np.testing.assert_allclose(updated.u, kept.u, rtol=0, atol=1e-5 * size)
+    np.testing.assert_allclose(updated.indenter_position, kept.indenter_position, atol=1e-5)
+
+
 def test_a_script_using_pardiso_exits_without_noise():
     """PARDISO's memory is freed when its solver goes, also at interpreter exit, with
     nothing printed (a user's `fingertip simulate --model 3d` ends clean)."""
@@ -205,7 +264,7 @@ def test_the_line_searchs_contact_part_is_the_residuals(two_layers):
     for a in (0.0, 0.3, 1.0):
         ua = u.copy()
         ua.reshape(-1)[disc.free] += a * du
-        r, _, _, coupling, rd, _ = body._evaluate(ua, control, d + a * dd, 0.01, False)
+        r, _, _, coupling, rd, *_ = body._evaluate(ua, control, d + a * dd, 0.01, False)
         own = disc.evaluate(ua, body.states, 0.01, tangent=False).residual
         g_total, g_body = du @ r + dd * rd, du @ own
         entered.append(int(np.sum(coupling > 0)))

@@ -23,7 +23,7 @@ from sim.materials import (
     Ogden,
     Yeoh,
 )
-from sim.materials._law3 import PLANE, VOIGT3
+from sim.materials._law3 import PLANE, VOIGT3, eigh3
 
 # (law, largest |ln J| of the random states), as tests/test_materials.py, plus an Ogden term
 # with a tiny exponent (the silicone hyperfoam's alpha) next to a stiff one.
@@ -274,6 +274,128 @@ def test_plane_strain_reduction_equals_the_2d_law(name: str) -> None:
         np.testing.assert_allclose(Ss3[:, PLANE], Ss2, rtol=0, atol=1e-12 * s_scale)
         np.testing.assert_allclose(Ss3[:, 2], S33, rtol=0, atol=1e-12 * s_scale)
         np.testing.assert_allclose(Ds3[:, :, :][:, PLANE][:, :, PLANE], Ds2, atol=1e-12 * d_scale)
+
+
+# --------------------------------------------------------------------------------------------
+# The eigen-decomposition of the spectral laws (eigh3: compiled cyclic Jacobi)
+
+
+def check_eigh3(C: np.ndarray, tol: float = 1e-13) -> tuple[np.ndarray, np.ndarray]:
+    """``eigh3`` of the Voigt ``C`` (6, n): the shapes, ascending eigenvalues equal to
+    ``numpy.linalg.eigvalsh``'s, orthonormal eigenvectors and ``sum_a c_a N_a N_a^T = C``, all
+    to ``tol`` relative to the largest |eigenvalue| of each matrix."""
+    c, N = eigh3(C)
+    n = C.shape[1]
+    assert c.shape == (3, n) and N.shape == (3, 3, n)
+    assert np.all(np.isfinite(c)) and np.all(np.isfinite(N))
+    assert np.all(np.diff(c, axis=0) >= 0.0)
+    M = to_mat(C)  # (n, 3, 3)
+    ref = np.linalg.eigvalsh(M).T
+    scale = np.abs(ref).max(axis=0)
+    assert np.all(np.abs(c - ref) <= tol * scale)
+    rebuilt = np.einsum("ak,aik,ajk->kij", c, N, N)
+    assert np.all(np.abs(rebuilt - M) <= tol * scale[:, None, None])
+    gram = np.einsum("aik,bik->kab", N, N)
+    assert np.all(np.abs(gram - np.eye(3)) <= tol)
+    return c, N
+
+
+def spectral_states(c: np.ndarray, seed: int) -> np.ndarray:
+    """Each row of eigenvalues ``c`` (m, 3) in the principal frame and in four random ones,
+    Voigt (6, 5 m)."""
+    rng = np.random.default_rng(seed)
+    frames = [np.eye(3)] + [rotation(rng) for _ in range(4)]
+    return np.concatenate([principal_states(c, Q) for Q in frames], axis=1)
+
+
+def test_eigh3_matches_numpy_on_random_spd_matrices() -> None:
+    """Random SPD matrices (``A A^T + 0.1 I`` and ``C = F^T F``): numpy's eigenvalues to
+    1e-13, and numpy's eigenvectors (up to their signs) where the eigenvalues are at least 1e-2
+    apart, relative."""
+    rng = np.random.default_rng(7)
+    A = rng.normal(size=(500, 3, 3))
+    C = np.concatenate(
+        [to_voigt(A @ np.swapaxes(A, -1, -2) + 0.1 * np.eye(3)), C_of(deformations(0.3, 500))],
+        axis=1,
+    )
+    c, N = check_eigh3(C)
+    _, v = np.linalg.eigh(to_mat(C))  # v[k, i, a]
+    apart = np.diff(c, axis=0) >= 1e-2 * c[2]
+    for a, ok in ((0, apart[0]), (1, apart[0] & apart[1]), (2, apart[1])):
+        cos = np.abs(np.einsum("ik,ki->k", N[a], v[:, :, a]))
+        assert ok.sum() > 200
+        np.testing.assert_allclose(cos[ok], 1.0, rtol=0, atol=1e-12)
+
+
+def test_eigh3_of_diagonal_matrices_is_exact() -> None:
+    """Zero off-diagonals (I, repeated, zero and negative entries): no rotation, so the
+    eigenvalues are the sorted diagonal and the eigenvectors the matching unit vectors, exactly
+    (nothing divided by a zero off-diagonal)."""
+    d = np.array(
+        [
+            [1.0, 1.0, 1.0],
+            [3.0, 1.0, 2.0],
+            [2.0, 2.0, 1.0],
+            [0.0, 0.0, 0.0],
+            [5.0, -1.0, 0.0],
+            [1e6, 1.0, 1e-6],
+            [1.0, 1.0 + 1e-15, 1.0],
+        ]
+    )
+    C = np.zeros((6, len(d)))
+    C[:3] = d.T
+    c, N = check_eigh3(C)
+    order = np.argsort(d, axis=1, kind="stable")
+    np.testing.assert_array_equal(c, np.take_along_axis(d, order, axis=1).T)
+    np.testing.assert_array_equal(N, np.moveaxis(np.eye(3)[order], 0, -1))
+    np.testing.assert_array_equal(N[..., 0], np.eye(3))  # C = I: N = I
+
+
+@pytest.mark.parametrize("split", [0.0, 1e-12, 1e-9, 1e-6])
+def test_eigh3_of_repeated_and_nearly_repeated_eigenvalues(split: float) -> None:
+    """Hydrostatic, uniaxial and equibiaxial states (two or three equal eigenvalues, split by
+    +-split) in random frames: the checks of ``check_eigh3``, the eigenvalues the exact ones,
+    and the projector on the eigenspace of the nearly equal pair the exact one."""
+    c_exact = equal_eigenvalue_states(0.2, split)
+    C = spectral_states(c_exact, seed=5)
+    c, N = check_eigh3(C)
+    c_exact = np.sort(np.tile(c_exact, (5, 1)), axis=1).T
+    assert np.all(np.abs(c - c_exact) <= 1e-13 * c_exact[2])
+    # The pair within 3 split of each other (a distinct third eigenvalue): its projector.
+    for a, b, other in ((0, 1, 2), (1, 2, 0)):
+        pair = (c[b] - c[a] <= (3 * split + 1e-12) * c[b]) & (np.abs(c[other] - c[a]) > 0.1 * c[2])
+        assert pair.sum() >= 10
+        P = np.einsum("ik,jk->kij", N[a], N[a]) + np.einsum("ik,jk->kij", N[b], N[b])
+        Nc = N[other]
+        P_exact = np.eye(3) - np.einsum("ik,jk->kij", Nc, Nc)
+        np.testing.assert_allclose(P[pair], P_exact[pair], rtol=0, atol=1e-13)
+
+
+def test_eigh3_of_widely_spread_eigenvalues() -> None:
+    """Eigenvalue ratios up to 1e6, two of them equal or not, in random frames."""
+    c = np.array(
+        [[1e-6, 1e-3, 1.0], [1.0, 1.0, 1e6], [1e-6, 1e-6, 1.0], [1e-3, 1.0, 1e3], [2e3, 1e-3, 7.0]]
+    )
+    check_eigh3(spectral_states(c, seed=9))
+    check_eigh3(spectral_states(c * 1e-3, seed=9))
+
+
+def test_eigh3_point_by_point_and_any_layout() -> None:
+    """Each point is decomposed on its own (the same bits alone or in a batch); a strided or
+    integer input is accepted; an empty batch gives empty arrays."""
+    C = C_of(deformations(0.2, 8, seed=2))
+    c, N = eigh3(C)
+    for k in range(C.shape[1]):
+        ck, Nk = eigh3(C[:, k : k + 1])
+        np.testing.assert_array_equal(ck[:, 0], c[:, k])
+        np.testing.assert_array_equal(Nk[..., 0], N[..., k])
+    c2, N2 = eigh3(np.repeat(C, 2, axis=1)[:, ::2])
+    np.testing.assert_array_equal(c2, c)
+    np.testing.assert_array_equal(N2, N)
+    ci, _ = eigh3(np.array([[2, 1, 1, 0, 0, 0]]).T)
+    np.testing.assert_array_equal(ci[:, 0], [1.0, 1.0, 2.0])
+    c0, N0 = eigh3(np.zeros((6, 0)))
+    assert c0.shape == (3, 0) and N0.shape == (3, 3, 0)
 
 
 # --------------------------------------------------------------------------------------------

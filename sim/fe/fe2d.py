@@ -70,6 +70,9 @@ class Discretization(PatternAccess):
     """
 
     dim = 2
+    #: the material tangent is computed with the stress, in the same pass (full Newton uses it
+    #: at every iteration); ``sim.fe.fe3d`` computes it on demand
+    lazy_tangent = False
     #: the obstacles' plane (horizontal, vertical coordinate): every obstacle (plate, wedge,
     #: base) is a cylinder normal to it; here the section itself
     obstacle_axes = (0, 1)

@@ -43,6 +43,10 @@ class Discretization3D(PatternAccess):
     Elements are reordered so that each layer is a contiguous slice."""
 
     dim = 3
+    #: the material tangent is computed only when the tangent is assembled (``_tangent``):
+    #: with modified Newton most evaluations are never factorised, so asking for the tangent
+    #: costs nothing until it is used
+    lazy_tangent = True
     #: the obstacles' plane (horizontal, vertical coordinate): every obstacle is a cylinder
     #: along x, across the finger -- the wedge's edge runs across the pad
     obstacle_axes = (2, 1)
@@ -195,17 +199,21 @@ class Discretization3D(PatternAccess):
         if not min_J > 1e-8:  # also catches NaN from an overflowing trial
             return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
         C = _kernels.right_cauchy_green(F, VOIGT)
-        S, D, new_states = layer_stresses(
-            self.materials, self.slices, C, states, dt_s, tangent, frozen_history
+        S, _, new_states = layer_stresses(
+            self.materials, self.slices, C, states, dt_s, False, frozen_history
         )
-        if not np.all(np.isfinite(S)) or (tangent and not np.all(np.isfinite(D))):
+        if not np.all(np.isfinite(S)):
             return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
         pat = self.pattern
         r = _kernels.internal_forces(F, S, self.dN, self.w, VOIGT, pat.scatter_r, pat.n_free + 1)
-        args = (F, S, D) if tangent else None
+        args = (F, S, C, states, dt_s, frozen_history) if tangent else None
         return Evaluation(r[:-1], args, new_states, ok=True, min_J=min_J, _assemble=self._tangent)
 
-    def _tangent(self, F: np.ndarray, S: np.ndarray, D: np.ndarray) -> np.ndarray:
+    def _tangent(self, F, S, C, states, dt_s: float, frozen_history: bool) -> np.ndarray:
+        """The tangent's data, its material part computed here (``lazy_tangent``): the same
+        law on the same ``C`` and history as the residual's, so the same bits as computed
+        beside it. A non-finite material tangent gives non-finite data (the solve fails)."""
+        _, D, _ = layer_stresses(self.materials, self.slices, C, states, dt_s, True, frozen_history)
         pat = self.pattern
         data = _kernels.stiffness(F, S, D, self.dN, self.w, VOIGT, pat.scatter_K, pat.nnz + 1)
         return data[:-1]

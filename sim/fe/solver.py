@@ -121,6 +121,12 @@ class NewtonOptions:
     # rule above gives up below a halving over six), so a kept one never drags a step toward
     # the stall rule; there it made 7 factorisations of full Newton's 12, to the same state
     reuse_ratio: float = 0.25
+    # With reuse: a kept factorisation also serves where the contact set has changed since it
+    # was made, corrected exactly for the change of the contact's stiffness (a few surface
+    # nodes' blocks: Woodbury's identity, ``_ContactCorrected``), from a step's first iteration
+    # on; at most `contact_update_dofs` changed dofs, else a fresh factorisation.
+    contact_update: bool = False
+    contact_update_dofs: int = 96
 
 
 @dataclass(frozen=True)
@@ -218,6 +224,9 @@ class Body:
         self._solver = None  # a sim.fe._linear.LinearSolver, made at the first factorisation
         self._stale = False  # the kept factorisation failed a line search: factorise afresh
         self._factored_active: np.ndarray | None = None  # the indenter's contact at that time
+        self._factored_blocks: np.ndarray | None = None  # the contact's stiffness at that time
+        self._corrected = None  # (key, _ContactCorrected) of the last contact update
+        self._x2 = None  # (key, solution, solver) of the last bordered column (force control)
         #: the sparse direct solver by name (``sim.fe._linear.SOLVERS``); None: by the size
         self.linear_solver: str | None = None
         self.timings: dict[str, float] = dict.fromkeys(TIMED, 0.0)
@@ -306,21 +315,82 @@ class Body:
                 ok = sdof[i] >= 0
                 r[sdof[i][ok]] -= (f * n[:, i])[ok]
             if data is not None:
-                # a node exactly on the obstacle (p = 0: a surface node lying on the base in
-                # the reference state) is stiff too, so that Newton's step does not push it in
-                # unopposed (the generalised derivative of the penalty's kink from that side)
-                ka = np.where(p >= 0, k, 0.0)
-                c = 0.0 if curv is None else np.where(act, p * curv, 0.0)
                 for (i, j), pos in self._kpos.items():
-                    nn = n[:, i] * n[:, j]
-                    # kappa (n n^T - c (P - n n^T)), P the projector on the curvature's plane
-                    val = ka * (nn - c * (self._inplane[i] * (i == j) - nn))
+                    val = self._penalty_stiffness(p, n, curv, k, i, j)
                     ok = pos >= 0
                     data[pos[ok]] += val[ok]
             if is_indenter:
                 force = float(np.sum(-f * n[:, 1]))  # vertical force on the indenter (up > 0)
                 coupling = np.where(act, k, 0.0)
         return force, coupling
+
+    def _penalty_stiffness(self, p, n, curv, k, i: int, j: int) -> np.ndarray:
+        """Entry (i, j) of each surface node's penalty stiffness against one obstacle:
+        ``kappa (n n^T - c (P - n n^T))``, ``c = p / rho`` on a rounded surface, P the projector
+        on the curvature's plane. A node exactly on the obstacle (p = 0: a surface node lying on
+        the base in the reference state) is stiff too, so that Newton's step does not push it
+        in unopposed (the generalised derivative of the penalty's kink from that side)."""
+        ka = np.where(p >= 0, k, 0.0)
+        c = 0.0 if curv is None else np.where(p > 0, p * curv, 0.0)
+        nn = n[:, i] * n[:, j]
+        return ka * (nn - c * (self._inplane[i] * (i == j) - nn))
+
+    def _contact_blocks(self, parts) -> np.ndarray:
+        """The contact's stiffness per surface node, (m, dim, dim): what ``_add_contact`` adds
+        to the tangent at the contact state ``parts`` (``_contact``)."""
+        dim = self.disc.dim
+        out = np.zeros((len(self.kappa_nodes), dim, dim))
+        for p, n, curv, is_indenter in parts:
+            if not np.any(p >= 0):
+                continue
+            k = self.kappa_indenter if is_indenter else self.kappa_nodes
+            for i in range(dim):
+                for j in range(dim):
+                    out[:, i, j] += self._penalty_stiffness(p, n, curv, k, i, j)
+        return out
+
+    def _contact_corrected(self, parts) -> _ContactCorrected | None:
+        """The kept factorisation corrected for the contact's stiffness that changed since it
+        was made (``NewtonOptions.contact_update``); None if more than
+        ``contact_update_dofs`` free dofs changed (then a fresh factorisation is cheaper)."""
+        blocks = self._contact_blocks(parts)
+        changed = np.flatnonzero(np.any(blocks != self._factored_blocks, axis=(1, 2)))
+        dim = self.disc.dim
+        dofs = np.stack([self._sdof[i][changed] for i in range(dim)], axis=1)  # (c, dim)
+        delta = blocks[changed] - self._factored_blocks[changed]
+        ok = dofs >= 0
+        n_dofs = int(np.sum(ok))
+        D = np.zeros((n_dofs, n_dofs))  # block diagonal: one block per changed node
+        at = 0
+        for c in range(len(changed)):
+            keep = np.flatnonzero(ok[c])
+            D[at : at + len(keep), at : at + len(keep)] = delta[c][np.ix_(keep, keep)]
+            at += len(keep)
+        # only the dofs the change touches (a flat plate's: the normal one of each node)
+        touched = np.any(D != 0.0, axis=0) | np.any(D != 0.0, axis=1)
+        dofs, D = dofs[ok][touched], D[np.ix_(touched, touched)]
+        if len(dofs) > self.options.contact_update_dofs:
+            return None
+        key = (self.factorizations, dofs.tobytes(), D.tobytes())
+        if self._corrected is not None and self._corrected[0] == key:
+            return self._corrected[1]  # the same change as the last iteration's: kept
+        t0 = time.perf_counter()
+        out = _ContactCorrected(self._solver, dofs, D, self.disc.n_free)
+        self.timings["triangular solves"] += time.perf_counter() - t0
+        out = out if out.ok else None
+        self._corrected = (key, out)
+        return out
+
+    def _bordered_column(self, solver, kcol: np.ndarray) -> np.ndarray:
+        """``solver.solve(kcol)``, the force control's second right-hand side: kept while
+        the factorisation (and its contact correction) and the plate's coupling are those of
+        the last solve, where modified Newton gives the same system again."""
+        key = (self.factorizations, id(solver), kcol.tobytes())
+        if self._x2 is not None and self._x2[0] == key and self._x2[2] is solver:
+            return self._x2[1]
+        x2 = solver.solve(kcol)
+        self._x2 = (key, x2, solver)
+        return x2
 
     # ------------------------------------------------------------------ evaluation
     def _evaluate(self, u, control, d, dt, tangent, frozen=False):
@@ -346,7 +416,7 @@ class Body:
                 self.timings["tangent assembly"] += time.perf_counter() - t0
                 return out
 
-        return r, data, force, coupling, rd, ev.states
+        return r, data, force, coupling, rd, ev.states, parts
 
     def _norm(self, r, rd):
         return max(float(np.max(np.abs(r))) if r.size else 0.0, abs(rd))
@@ -364,6 +434,9 @@ class Body:
         if not opts.reuse_factorization or self._stale:
             self._stale = False
             return False
+        if opts.contact_update:  # the contact's change is corrected for (_contact_corrected)
+            kept = self._factored_blocks is not None
+            return kept and (len(norms) < 2 or norms[-1] <= opts.reuse_ratio * norms[-2])
         same_contact = self._factored_active is not None and np.array_equal(
             active, self._factored_active
         )
@@ -424,7 +497,7 @@ class Body:
             return StepResult(False, 0, "inverted element at start of step")
         norms: list[float] = []
         for it in range(1, opts.max_iterations + 1):
-            r, data, force, coupling, rd, states = ev
+            r, data, force, coupling, rd, states, parts = ev
             if control.kind == "force" and not np.any(coupling > 0):
                 # the plate lost contact: re-seat it on the highest point with a small overlap
                 s = disc.surface_nodes
@@ -450,11 +523,19 @@ class Body:
                 return StepResult(False, it - 1, "stalled")
             active = coupling > 0
             fresh = not self._may_reuse(norms, active)
+            solver = None
+            if not fresh:
+                solver = self._contact_corrected(parts) if opts.contact_update else self._solver
+                fresh = solver is None
             if fresh:
-                solver = self._factor(data())
+                tangent = data()
+                if not np.all(np.isfinite(tangent)):  # a lazy material tangent (sim.fe.fe3d)
+                    self.newton_iterations += it
+                    return StepResult(False, it, "non-finite tangent")
+                solver = self._factor(tangent)
                 self._factored_active = active
-            else:
-                solver = self._solver
+                if opts.contact_update:
+                    self._factored_blocks = self._contact_blocks(parts)
             t0 = time.perf_counter()
             with np.errstate(all="ignore"):  # a singular tangent is caught below
                 du = solver.solve(-r)
@@ -464,7 +545,7 @@ class Body:
                     kcol = np.zeros(disc.n_free)
                     ok = dof_y >= 0
                     kcol[dof_y[ok]] = -coupling[ok]
-                    x2 = solver.solve(kcol)
+                    x2 = self._bordered_column(solver, kcol)
                     c = float(np.sum(coupling))
                     dd = (-rd - kcol @ du) / (c - kcol @ x2)
                     du = du - x2 * dd
@@ -525,7 +606,8 @@ class Body:
             u_try = u.copy()
             u_try.reshape(-1)[free] += alpha * du
             d_try = d + alpha * dd
-            trial = self._evaluate(u_try, control, d_try, dt, bt == 0, frozen_history)
+            with_tangent = bt == 0 or self.disc.lazy_tangent  # lazy: free until assembled
+            trial = self._evaluate(u_try, control, d_try, dt, with_tangent, frozen_history)
             if trial is None:
                 alpha = 0.5 * (a_lo + alpha)
                 continue
@@ -629,3 +711,35 @@ class Body:
         self.states = [LayerState(s.S0.copy(), s.H.copy()) for s in states]
         self._last = None
         self._last_control = None
+
+
+class _ContactCorrected:
+    """Solves with a kept factorisation of ``K0`` as if it held today's contact stiffness,
+    ``K = K0 + P D P^T`` (``D`` the change of the contact's blocks on the free dofs ``dofs``, P
+    their unit columns), by Woodbury's identity:
+    ``K^-1 b = y - Z (I + D P^T Z)^-1 D P^T y`` with ``y = K0^-1 b``, ``Z = K0^-1 P`` (one solve
+    with ``len(dofs)`` right-hand sides, made once). ``ok`` is False where ``I + D P^T Z`` is
+    singular (K itself is then singular or nearly so)."""
+
+    def __init__(self, solver: Any, dofs: np.ndarray, D: np.ndarray, n_free: int) -> None:
+        self._solver = solver
+        self._dofs = dofs
+        self._D = D
+        s = len(dofs)
+        self._Z = None
+        self.ok = True
+        if s == 0:
+            return
+        P = np.zeros((n_free, s))
+        P[dofs, np.arange(s)] = 1.0
+        self._Z = solver.solve_many(P)
+        M = np.eye(s) + D @ self._Z[dofs]
+        with np.errstate(all="ignore"):
+            self.ok = bool(np.isfinite(np.linalg.cond(M)) and np.linalg.cond(M) < 1e12)
+        self._M = M
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        y = self._solver.solve(b)
+        if self._Z is None:
+            return y
+        return y - self._Z @ np.linalg.solve(self._M, self._D @ y[self._dofs])
