@@ -12,7 +12,9 @@ shared: ``sim.geometry.build_pad_mesh`` with the tests' TINY or COARSE options o
 ``MeshOptions3D()``.
 
 - ``ours``: the project's 3D model (``sim.fe.Discretization3D`` + ``sim.fe.solver.Body`` +
-  ``Plate``), 27-node hexahedra, pure displacement, as ``our_plate_force`` in the tests;
+  ``Plate``), 27-node hexahedra, pure displacement, as ``our_plate_force`` in the tests but
+  with Newton as ``fingertip simulate --model 3d`` runs it (``sim.fe.model_newton``: modified
+  Newton with the contact update);
 - ``FElupe``: ``sim.verification.felupe_pad.solve_plate`` (what ``felupe_plate_force`` calls)
   with ``--formulation``: ``q1p0`` (default; FElupe's standard nearly incompressible
   hexahedron, the mean-dilatation Q1/P0 on the 2 x 2 x 2 split of our elements: an
@@ -117,7 +119,7 @@ def child_ours(mesh: str, step_mm: float) -> dict:
     """Our quarter-pad plate force, as ``our_plate_force`` in ``tests/test_fe3d_felupe.py``
     (re-implemented: the tests are not importable), at FElupe's plate positions."""
     t0 = time.perf_counter()
-    from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate
+    from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate, model_newton
     from sim.geometry import PadGeometry, build_pad_mesh
     from sim.materials._material import material_from_table
 
@@ -125,7 +127,8 @@ def child_ours(mesh: str, step_mm: float) -> dict:
     pmesh = build_pad_mesh(PadGeometry(), (), mesh_options(mesh))
     t_mesh = time.perf_counter() - t1
     mat = material_from_table({"model": "neo_hookean", "mu_MPa": MU, "nu": NU})
-    body = Body(Discretization3D(pmesh, [mat]), Plate(), NewtonOptions())
+    # Newton as the 3D model runs it (sim.simulate): modified, with the contact update
+    body = Body(Discretization3D(pmesh, [mat]), Plate(), model_newton(NewtonOptions(), 3))
     top = body.top_height()
     d = 0.0
     forces, steps, cuts = [], 0, 0

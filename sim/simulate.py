@@ -5,7 +5,6 @@ re-exported here for the imports that name ``sim.simulate``."""
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from dataclasses import dataclass, field
 from typing import Any
@@ -14,7 +13,7 @@ import numpy as np
 
 from .design import Design
 from .errors import SimulationError
-from .fe import Body, Discretization
+from .fe import Body, Discretization, model_newton
 from .metrics import (
     DIAGNOSTIC_KEYS,
     METRICS,
@@ -260,10 +259,7 @@ def _run(
 ) -> tuple[Body, ProtocolResult | ProtocolFailure]:
     """``protocol`` on a fresh body of ``disc``: the body and its result, or how it failed."""
     opts = getattr(options, protocol.name)
-    newton = options.newton
-    if disc.dim == 3:  # a factorisation costs as much as a few residuals: modified Newton,
-        # kept across changes of the contact set (docs/fe_speed.md, "Contact update")
-        newton = dataclasses.replace(newton, reuse_factorization=True, contact_update=True)
+    newton = model_newton(options.newton, disc.dim)
     body = Body(
         disc,
         protocol.make_indenter(opts),

@@ -20,6 +20,7 @@ from .solver import (
     Control,
     NewtonOptions,
     StepResult,
+    model_newton,
     residual_tolerance,
     youngs_moduli,
 )
@@ -39,6 +40,7 @@ __all__ = [
     "Plate",
     "StepResult",
     "Wedge",
+    "model_newton",
     "residual_tolerance",
     "youngs_moduli",
 ]

@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -39,6 +39,7 @@ __all__ = [
     "Control",
     "NewtonOptions",
     "StepResult",
+    "model_newton",
     "residual_tolerance",
     "youngs_moduli",
 ]
@@ -127,6 +128,16 @@ class NewtonOptions:
     # on; at most `contact_update_dofs` changed dofs, else a fresh factorisation.
     contact_update: bool = False
     contact_update_dofs: int = 96
+
+
+def model_newton(options: NewtonOptions, dim: int) -> NewtonOptions:
+    """Newton as a model of ``dim`` dimensions runs it: in 3D, where a factorisation costs as
+    much as a few residual evaluations, modified Newton kept across changes of the contact set
+    (``reuse_factorization``, ``contact_update``; docs/fe_speed.md, "Contact update"); the 2D
+    model runs full Newton (its records were made so)."""
+    if dim == 3:
+        return replace(options, reuse_factorization=True, contact_update=True)
+    return options
 
 
 @dataclass(frozen=True)

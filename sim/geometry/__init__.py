@@ -11,7 +11,14 @@ The helpers of a mesh (Jacobians, face areas, ``level``, ...) are imported from 
 """
 
 from .mesh2d import DEFAULT_MESH, FingertipMesh, MeshOptions, build_mesh
-from .mesh3d import COARSE_MESH_3D, DEFAULT_MESH_3D, MeshOptions3D, PadMesh, build_pad_mesh
+from .mesh3d import (
+    COARSE_MESH_3D,
+    DEFAULT_MESH_3D,
+    MeshOptions3D,
+    PadMesh,
+    build_pad_mesh,
+    extruded_section_mesh,
+)
 from .pad import HALF_LENGTH_RANGE_MM, LENGTH_EXPONENT_RANGE, REFERENCE_PAD, PadGeometry
 from .section import REFERENCE_GEOMETRY, Geometry
 
@@ -31,4 +38,5 @@ __all__ = [
     "PadMesh",
     "build_mesh",
     "build_pad_mesh",
+    "extruded_section_mesh",
 ]

@@ -72,6 +72,7 @@ __all__ = [
     "boundary_faces",
     "build_pad_mesh",
     "element_volumes",
+    "extruded_section_mesh",
     "face_areas",
     "jacobian_determinants",
     "scaled_jacobians",
@@ -293,6 +294,65 @@ def build_pad_mesh(
     for arr in out.interfaces:
         arr.setflags(write=False)
     return out
+
+
+def extruded_section_mesh(pmesh: PadMesh, thickness_mm: float) -> PadMesh:
+    """The 2D model's half section as a slab of Q2 hexahedra: the face z = 0 of ``pmesh`` (its
+    9-node quadrilaterals, the section x >= 0 with its layers) extruded by one element of
+    ``thickness_mm`` along z. With u_z = 0 at every node (the caller's boundary condition) the
+    slab is in plane strain exactly, as the middle of a long extrusion is, so its forces per
+    unit thickness must equal the 2D model's line loads up to the two discretisations' errors
+    (``tests/test_fe3d.py``). Node sets as ``build_pad_mesh``'s; ``sym_z`` is the face z = 0,
+    ``surface_faces`` the extruded outer curve; ``interfaces`` the extruded interfaces."""
+    X = np.asarray(pmesh.nodes)
+    on_plane = X[:, 2] == 0.0
+    faces, parents = [], []
+    for f in (4, 5):  # the zeta faces of each element: the one lying on z = 0, if any
+        nodes = np.asarray(pmesh.hexes)[:, _q2.FACE_NODES[f]]
+        hit = np.all(on_plane[nodes], axis=1)
+        faces.append(nodes[hit])
+        parents.append(np.flatnonzero(hit))
+    faces, parents = np.concatenate(faces), np.concatenate(parents)
+    section = np.unique(faces)  # the section's nodes, renumbered 0 .. n2 - 1 per plane
+    local = -np.ones(len(X), dtype=np.int64)
+    local[section] = np.arange(len(section))
+    n2 = len(section)
+    nodes = np.concatenate(
+        [X[section] + [0.0, 0.0, z] for z in (0.0, thickness_mm / 2, thickness_mm)]
+    )
+    # hexahedron node a at reference (xi, eta, zeta): the face node at (s, t) = (xi, eta) on
+    # the plane of zeta (-1: z = 0); faces point out of their element (towards -z), so the
+    # slab's elements are mirrored in s to keep a positive Jacobian
+    face_at = {tuple(pt): k for k, pt in enumerate(_q2.FACE_REFERENCE_POINTS.astype(int))}
+    pick = np.array([face_at[(-int(x), int(y))] for x, y, _ in _q2.REFERENCE_POINTS])
+    plane = np.array([int(z) + 1 for _, _, z in _q2.REFERENCE_POINTS])
+    hexes = local[faces][:, pick] + plane * n2
+    if np.any(jacobian_determinants(nodes, hexes) <= 0.0):
+        raise ValueError("the extruded section has an inverted element")
+    outer = np.zeros(len(nodes), dtype=bool)
+    curve = local[np.intersect1d(section, np.asarray(pmesh.surface_nodes))]
+    outer[np.concatenate([curve + k * n2 for k in range(3)])] = True
+    surface = []
+    for f in range(4):  # the side faces of each element on the outer curve, outward
+        nodes_f = hexes[:, _q2.FACE_NODES[f]]
+        surface.append(nodes_f[np.all(outer[nodes_f], axis=1)])
+
+    def extruded(ids: np.ndarray) -> np.ndarray:
+        ids = local[np.intersect1d(section, ids)]
+        return np.concatenate([ids + k * n2 for k in range(3)])
+
+    return PadMesh(
+        nodes=nodes,
+        hexes=hexes,
+        layer=np.asarray(pmesh.layer)[parents],
+        base=np.flatnonzero(nodes[:, 1] == 0.0),
+        sym_x=np.flatnonzero(nodes[:, 0] == 0.0),
+        sym_z=np.flatnonzero(nodes[:, 2] == 0.0),
+        surface_faces=np.concatenate(surface),
+        interfaces=tuple(extruded(ids) for ids in pmesh.interfaces),
+        geometry=pmesh.geometry,
+        thicknesses_mm=pmesh.thicknesses_mm,
+    )
 
 
 @dataclass(frozen=True, eq=False)
