@@ -116,3 +116,24 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith(f"fingertip: error: {words}"), err
     assert not (tmp_path / "new").exists() and not any((tmp_path / "taken").iterdir())
+
+
+def test_options_added_since_the_source_take_their_defaults(tmp_path):
+    """A source sweep made before an option existed (its config lacks the field, as solver
+    2.4's lacks ``newton.contact_update``) is carried over, the new field at its default (which
+    reproduces it); the source's own option values are kept."""
+    space = tmp_path / "space.toml"
+    space.write_text(TINY)
+    old = tmp_path / "old"
+    _previous_solver_config(old, space)
+    config = read_config(old)
+    for field in ("contact_update", "contact_update_dofs"):
+        del config["options"]["newton"][field]
+    write_config(old, config)
+    config["options"]["newton"]["rtol"] = 1e-7
+    write_config(old, config)
+    migrate(old, tmp_path / "new")  # no records: nothing carried, the folder written
+    new = read_config(tmp_path / "new")
+    assert new["solver_version"] == SOLVER_VERSION
+    assert new["options"]["newton"]["rtol"] == 1e-7
+    assert new["options"]["newton"]["contact_update"] is False

@@ -58,9 +58,17 @@ VERIFY_RTOL = 1e-9
 CHANGED_OPTIONS = {("validity", "stop_at_violation")}
 
 
-def _comparable(options: dict) -> dict:
+def _comparable(options: dict, known: dict | None = None) -> dict:
+    """The options that must agree between a source sweep and this solver: all but
+    ``CHANGED_OPTIONS`` and, with ``known`` (the source's), the fields the source's solver did
+    not have yet (options added since, whose defaults reproduce it: ``SAME_METRICS_AS``)."""
     return {
-        section: {k: v for k, v in fields.items() if (section, k) not in CHANGED_OPTIONS}
+        section: {
+            k: v
+            for k, v in fields.items()
+            if (section, k) not in CHANGED_OPTIONS
+            and (known is None or k in known.get(section, {}))
+        }
         for section, fields in options.items()
     }
 
@@ -90,7 +98,8 @@ def migrate(source: str | Path, target: str | Path) -> tuple[list[str], list[str
         )
     options = options_from_dict(old["options"])
     # the sections the model reads, in JSON form: those a sweep's config.json records
-    if _comparable(json.loads(json.dumps(options.as_dict()))) != _comparable(old["options"]):
+    ours = json.loads(json.dumps(options.as_dict()))
+    if _comparable(ours, old["options"]) != _comparable(old["options"]):
         raise DesignError("SOURCE", f"{source}: its options differ from this solver's in more "
                           "than the validity stop")  # fmt: skip
     if target.exists():
@@ -120,6 +129,7 @@ def migrate(source: str | Path, target: str | Path) -> tuple[list[str], list[str
             "by": "fingertip migrate-sweep",
         }
         carry.append((key, rec))
+    target.mkdir(parents=True)  # also when nothing is carried: the config and meta go there
     store = SweepStore(target)
     for key, rec in carry:
         store.write(key, rec)
