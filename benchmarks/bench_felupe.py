@@ -8,7 +8,7 @@ The problem (``tests/test_fe3d_felupe.py``'s): the elastic quarter pad (the refe
 plate pressed 1 mm into it from first touch at the apex, in plate increments of ``--step-mm``
 (the same plate positions in both codes: a uniform grid plus the recorded depths, a failed
 increment halved), the force on the quarter pad recorded at 0.25, 0.5 and 1 mm. The mesh is
-shared: ``sim.geometry.build_pad_mesh`` with the tests' TINY or COARSE options or the default
+shared: ``sim.geometry.build_pad_mesh`` with the tests' tiny or coarse options or the default
 ``MeshOptions3D()``.
 
 - ``ours``: the project's 3D model (``sim.fe.Discretization3D`` + ``sim.fe.solver.Body`` +
@@ -78,24 +78,19 @@ DOCUMENTED = {
 
 
 def mesh_options(name: str):
-    """The mesh options by name: TINY and COARSE are ``tests/test_fe3d_felupe.py``'s (repeated
-    here: the tests are not importable), ``default`` is ``MeshOptions3D()``."""
-    from sim.geometry import MeshOptions3D
+    """The mesh options by name: ``tiny`` is the FElupe comparison's smallest
+    (``sim.verification.felupe_pad.TINY_MESH_3D``, 76 elements, 2421 dofs), ``coarse``
+    ``sim.geometry.COARSE_MESH_3D`` (180 elements, 5373 dofs), ``default`` ``MeshOptions3D()``."""
+    from sim.geometry import COARSE_MESH_3D, MeshOptions3D
 
-    if name == "tiny":  # 76 elements, 2421 dofs
-        return MeshOptions3D(
-            h_apex_mm=1.5,
-            h_contact_mm=2.0,
-            grading=0.8,
-            h_max_mm=4.0,
-            layer_divisions=1,
-            around_divisions=1,
-        )
-    if name == "coarse":  # 180 elements, 5373 dofs
-        return MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
-    if name == "default":
-        return MeshOptions3D()
-    raise ValueError(f"mesh must be one of {MESHES}, got {name!r}")
+    if name == "tiny":  # sim.verification only here: it is no part of our whole process
+        from sim.verification.felupe_pad import TINY_MESH_3D
+
+        return TINY_MESH_3D
+    meshes = {"coarse": COARSE_MESH_3D, "default": MeshOptions3D()}
+    if name not in meshes:
+        raise ValueError(f"mesh must be one of {MESHES}, got {name!r}")
+    return meshes[name]
 
 
 def plate_positions(depths, step_mm: float) -> list[float]:

@@ -24,29 +24,21 @@ import numpy as np
 import pytest
 
 from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate
-from sim.geometry import MeshOptions3D, PadGeometry, build_pad_mesh
+from sim.geometry import COARSE_MESH_3D, MeshOptions3D, PadGeometry, build_pad_mesh
 from sim.materials._material import material_from_table
 
 fem = pytest.importorskip("felupe")
 
 from sim.verification import bulk_modulus, felupe_plate_force, q1_subcells  # noqa: E402
+from sim.verification.felupe_pad import TINY_MESH_3D  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
 
 MU, NU = 0.05, 0.49  # the study's defaults: a soft, nearly incompressible skin
 K = bulk_modulus(MU, NU)
 PAD = PadGeometry()  # the reference pad: 5.84 x 5.48 mm section, n = 1.5, c = 11 mm, m = 2
-#: 76 elements (2421 dofs): seconds per run in either code
-TINY = MeshOptions3D(
-    h_apex_mm=1.5,
-    h_contact_mm=2.0,
-    grading=0.8,
-    h_max_mm=4.0,
-    layer_divisions=1,
-    around_divisions=1,
-)
-#: 180 elements (5373 dofs), ``tests/test_fe3d.py``'s coarse mesh
-COARSE = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
+TINY = TINY_MESH_3D  # 76 elements (2421 dofs): seconds per run in either code
+COARSE = COARSE_MESH_3D  # 180 elements (5373 dofs), ``tests/test_fe3d.py``'s coarse mesh
 DEPTHS = (0.25, 0.5, 1.0)
 
 

@@ -111,6 +111,7 @@ from ..materials import NeoHookean
 
 __all__ = [
     "FORMULATIONS",
+    "TINY_MESH_3D",
     "PlateResult",
     "bulk_modulus",
     "felupe_plate_force",
@@ -126,6 +127,17 @@ DEFAULT_NU = 0.49
 PENALTY_FACTOR = 1e4
 #: FElupe's Newton tolerance: residual norm of the free dofs / that of the reactions
 NEWTON_TOL = 1e-8
+#: the comparison's smallest mesh of the reference pad: 76 elements (2421 dofs), seconds per
+#: run in either code (the tests' and ``benchmarks/bench_felupe.py``'s; the next one up is
+#: ``sim.geometry.COARSE_MESH_3D``: 180 elements, 5373 dofs)
+TINY_MESH_3D = MeshOptions3D(
+    h_apex_mm=1.5,
+    h_contact_mm=2.0,
+    grading=0.8,
+    h_max_mm=4.0,
+    layer_divisions=1,
+    around_divisions=1,
+)
 
 _HEX8 = ((0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0), (0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1))
 
