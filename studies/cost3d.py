@@ -8,7 +8,8 @@ Simulates the design with the 3D model on ``COARSE_MESH_3D.refined(level)`` (1.4
 thread, and prints per protocol the steps, Newton iterations, factorisations and residual
 evaluations (counts, which do not depend on the machine's load), the seconds by part of the
 solver (which do: a benchmark needs a quiet machine), and for the tapping the taps, whether
-they settled, the residual of the periodic state after each tap and the metrics of the last.
+they settled, the residual of the periodic state after each tap, how each next tap's start was
+made (Anderson, the per-term jump, or plain tapping) and the metrics of the last.
 """
 
 from __future__ import annotations
@@ -53,6 +54,9 @@ def main() -> None:
         if name == "tapping":
             residuals = ", ".join(f"{r:.2g}" for r in info["residual_history"])
             print(f"    taps {info['taps']}, settled {info['settled']}, residuals {residuals}")
+            # how each next tap's start was made (sim.protocols.periodic.PeriodicState.used):
+            # "plain" counts taps whose accelerated start could not be equilibrated
+            print(f"    next taps from: {info['accelerated']}")
             for phase in ("loaded", "rest"):
                 part = [c for c in info["cost"] if c["phase"] == phase]
                 sums = {
