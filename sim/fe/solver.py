@@ -746,7 +746,8 @@ class _ContactCorrected:
         self._Z = solver.solve_many(P)
         M = np.eye(s) + D @ self._Z[dofs]
         with np.errstate(all="ignore"):
-            self.ok = bool(np.isfinite(np.linalg.cond(M)) and np.linalg.cond(M) < 1e12)
+            cond = float(np.linalg.cond(M))
+        self.ok = bool(np.isfinite(cond) and cond < 1e12)
         self._M = M
 
     def solve(self, b: np.ndarray) -> np.ndarray:
