@@ -112,7 +112,9 @@ def plate_positions(depths, step_mm: float) -> list[float]:
 # ---------------------------------------------------------------------------- children
 def child_ours(mesh: str, step_mm: float) -> dict:
     """Our quarter-pad plate force, as ``our_plate_force`` in ``tests/test_fe3d_felupe.py``
-    (re-implemented: the tests are not importable), at FElupe's plate positions."""
+    at FElupe's plate positions: ``sim.verification.press_plate``'s loop written out, because
+    importing ``sim.verification`` (scipy.optimize and the verification cases, ~0.7 s) is no
+    part of our model's whole process, and the steps and cuts are counted here."""
     t0 = time.perf_counter()
     from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate, model_newton
     from sim.geometry import PadGeometry, build_pad_mesh

@@ -25,7 +25,7 @@ import argparse  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from sim.fe import Body, Control, Discretization, Discretization3D, Plate  # noqa: E402
+from sim.fe import Body, Discretization, Discretization3D, Plate  # noqa: E402
 from sim.geometry import (  # noqa: E402
     COARSE_MESH_3D,
     Geometry,
@@ -36,26 +36,12 @@ from sim.geometry import (  # noqa: E402
     extruded_section_mesh,
 )
 from sim.materials._material import material_from_table  # noqa: E402
+from sim.verification import press_plate  # noqa: E402
 
 PAD = PadGeometry(Geometry(5.84, 5.48, 1.5), half_length_mm=8.0, length_exponent=2.0)
 DEPTHS = (0.25, 0.5, 1.0)
 THICKNESS_MM = 0.5
-
-
-def plate_forces(body: Body, step_mm: float = 0.05) -> np.ndarray:
-    """The indenter's force (model units) at ``DEPTHS`` from first touch."""
-    top = body.top_height()
-    d, out = 0.0, []
-    for target in DEPTHS:
-        while d < target - 1e-12:
-            dd = min(step_mm, target - d)
-            while not body.advance(d + dd, Control.position(top - d - dd)).converged:
-                dd *= 0.5
-                if dd < 1e-4:
-                    raise RuntimeError(f"the plate step at {d} mm failed")
-            d += dd
-        out.append(body.force)
-    return np.array(out)
+STEP_MM = 0.05
 
 
 def plane_strain(X: np.ndarray) -> np.ndarray:
@@ -78,7 +64,7 @@ def main() -> None:
     finest = None
     for level in args.levels2d:
         disc = Discretization(build_mesh(PAD.section, (), MeshOptions().refined(level)), [mat])
-        finest = plate_forces(Body(disc, Plate()))
+        finest = press_plate(Body(disc, Plate()), DEPTHS, STEP_MM, min_step_mm=1e-4)
         cells = " | ".join(f"{f:.6f}" for f in finest)
         print(f"| 2D, P2 triangles | {level:g} | {disc.n_free} | {cells} |", flush=True)
     for level in args.levels3d:
@@ -86,7 +72,7 @@ def main() -> None:
         disc = Discretization3D(
             extruded_section_mesh(pmesh, THICKNESS_MM), [mat], fixed=plane_strain
         )
-        per_mm = plate_forces(Body(disc, Plate())) / THICKNESS_MM
+        per_mm = press_plate(Body(disc, Plate()), DEPTHS, STEP_MM, min_step_mm=1e-4) / THICKNESS_MM
         cells = " | ".join(
             f"{f:.6f} ({100 * (f / g - 1):+.2f} %)" for f, g in zip(per_mm, finest, strict=True)
         )

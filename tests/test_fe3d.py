@@ -227,19 +227,6 @@ def test_contact_update_keeps_factorisations_across_contact_changes():
     np.testing.assert_allclose(updated.indenter_position, kept.indenter_position, atol=1e-5)
 
 
-def _plate_forces(body: Body, depths, step_mm: float = 0.1) -> np.ndarray:
-    """The indenter's force (model units) at ``depths`` (mm from first touch), the plate moved
-    in increments of ``step_mm``."""
-    top = body.top_height()
-    d, out = 0.0, []
-    for target in depths:
-        while d < target - 1e-12:
-            d = min(d + step_mm, target)
-            assert body.advance(d, Control.position(top - d)).converged
-        out.append(body.force)
-    return np.array(out)
-
-
 def test_a_plane_strain_slab_carries_the_2d_line_load():
     """The 2D section extruded into a slab of Q2 hexahedra (``extruded_section_mesh``) with
     u_z = 0 everywhere: plane strain, the middle of a long extrusion. Its plate force per unit
@@ -250,12 +237,12 @@ def test_a_plane_strain_slab_carries_the_2d_line_load():
     depend on the slab's thickness (to Newton's tolerance, which is per node)."""
     from sim.fe import Discretization
     from sim.geometry import DEFAULT_MESH_3D, MeshOptions, build_mesh, extruded_section_mesh
+    from sim.verification import press_plate
 
     mat = material_from_table({"model": "neo_hookean", "mu_MPa": 0.05, "nu": 0.49})
     depths = (0.5, 1.0)
-    line_load = _plate_forces(
-        Body(Discretization(build_mesh(PAD.section, (), MeshOptions()), [mat]), Plate()), depths
-    )
+    flat = Body(Discretization(build_mesh(PAD.section, (), MeshOptions()), [mat]), Plate())
+    line_load = press_plate(flat, depths, 0.1)
 
     def plane_strain(X: np.ndarray) -> np.ndarray:
         mask = np.zeros(X.shape, dtype=bool)
@@ -268,7 +255,7 @@ def test_a_plane_strain_slab_carries_the_2d_line_load():
     for thickness in (0.5, 2.0):
         slab = extruded_section_mesh(build_pad_mesh(PAD, (), DEFAULT_MESH_3D), thickness)
         body = Body(Discretization3D(slab, [mat], fixed=plane_strain), Plate())
-        per_mm[thickness] = _plate_forces(body, depths) / thickness
+        per_mm[thickness] = press_plate(body, depths, 0.1) / thickness
     rel = per_mm[0.5] / line_load - 1.0
     print(f"slab / 2D line load - 1 at {depths} mm: {rel}")
     assert np.all(np.abs(rel) < 0.01), rel

@@ -23,13 +23,18 @@ import os
 import numpy as np
 import pytest
 
-from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate
+from sim.fe import Body, Discretization3D, NewtonOptions, Plate
 from sim.geometry import COARSE_MESH_3D, MeshOptions3D, PadGeometry, build_pad_mesh
 from sim.materials._material import material_from_table
 
 fem = pytest.importorskip("felupe")
 
-from sim.verification import bulk_modulus, felupe_plate_force, q1_subcells  # noqa: E402
+from sim.verification import (  # noqa: E402
+    bulk_modulus,
+    felupe_plate_force,
+    press_plate,
+    q1_subcells,
+)
 from sim.verification.felupe_pad import TINY_MESH_3D  # noqa: E402
 
 pytestmark = pytest.mark.filterwarnings("ignore::DeprecationWarning")
@@ -44,23 +49,13 @@ DEPTHS = (0.25, 0.5, 1.0)
 
 def our_plate_force(options: MeshOptions3D, depths, step_mm: float = 0.125) -> np.ndarray:
     """Our quarter-pad plate force (N) at ``depths`` (mm from first touch), the plate moved
-    in increments of ``step_mm``, a failed step halved."""
+    in increments of ``step_mm``, a failed step halved (``press_plate``)."""
     pmesh = build_pad_mesh(PAD, (), options)
     mat = material_from_table({"model": "neo_hookean", "mu_MPa": MU, "nu": NU})
     body = Body(Discretization3D(pmesh, [mat]), Plate(), NewtonOptions())
-    top = body.top_height()
-    d = t = 0.0
-    out = []
-    for target in depths:
-        while d < target - 1e-12:
-            dd = min(step_mm, target - d)
-            while not body.advance(t + dd, Control.position(top - d - dd)).converged:
-                dd *= 0.5
-                assert dd > 1e-3, f"our plate step at {d} mm failed"
-            d, t = d + dd, t + dd
-        out.append(body.force)
+    forces = press_plate(body, depths, step_mm)
     assert body.base_contact_nodes() == 0  # FElupe's model has no base contact
-    return np.array(out)
+    return forces
 
 
 def test_the_trilinear_split_fills_each_element():

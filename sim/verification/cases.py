@@ -11,7 +11,7 @@ code from ``sim.materials`` other than reading the laws' parameters.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -824,6 +824,29 @@ class FelupeComparison:
     @property
     def relative_difference(self) -> np.ndarray:
         return self.felupe / self.ours - 1.0
+
+
+def press_plate(
+    body: Body, depths_mm: Sequence[float], step_mm: float, min_step_mm: float = 1e-3
+) -> np.ndarray:
+    """The indenter's force (the model's units) at each of ``depths_mm`` from first touch, the
+    plate moved down in increments of ``step_mm`` (the simulated time equal to the depth), a
+    step that fails halved down to ``min_step_mm``: the quasi-static press of the verification
+    cases and the 3D comparisons (against FElupe, against the 2D model)."""
+    from sim.fe import Control
+
+    top = body.top_height()
+    d, out = 0.0, []
+    for target in depths_mm:
+        while d < target - 1e-12:
+            dd = min(step_mm, target - d)
+            while not body.advance(d + dd, Control.position(top - d - dd)).converged:
+                dd *= 0.5
+                if dd < min_step_mm:
+                    raise RuntimeError(f"the plate step at {d} mm failed")
+            d += dd
+        out.append(body.force)
+    return np.array(out)
 
 
 def felupe_plate_comparison(
