@@ -129,7 +129,8 @@ class NewtonOptions:
     contact_update: bool = False
     # 96: a bound on the update's one multi-right-hand-side solve and its dense s x s system,
     # not tuned: the 3D tapping of studies/cost3d.py's stiff_skin_soft_core (coarse pad) made
-    # 391 updates with 2837 right-hand sides, about 7 touched dofs each, so it rarely binds
+    # 391 updates with 2837 right-hand sides (an ad hoc count of the PARDISO calls, not kept),
+    # about 7 touched dofs each, so it rarely binds
     contact_update_dofs: int = 96
 
 
