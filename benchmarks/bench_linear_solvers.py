@@ -26,8 +26,11 @@ Systems:
   conditioning of a 3D Q2 tangent of that size.
 
 Solvers: ``qdldl`` (LDL^T, AMD ordering; the FE's solver), ``superlu`` (scipy's LU, of the
-full matrix), ``pardiso`` (MKL PARDISO through pypardiso, symmetric indefinite, mtype -2;
-needs ``pip install pypardiso``), ``cholmod`` (CHOLMOD's supernodal Cholesky through
+full matrix), ``pardiso`` (MKL PARDISO through pypardiso, symmetric indefinite, mtype -2,
+as the FE runs it: ``sim.fe._linear.Pardiso`` with its settings ``PARDISO_IPARM``),
+``pardiso-defaults``, ``pardiso-md``, ``pardiso-bk`` (the same with PARDISO's default
+settings, with minimum degree ordering, with Bunch-Kaufman pivoting: ``PARDISO_VARIANTS``),
+``cholmod`` (CHOLMOD's supernodal Cholesky through
 cholespy, for symmetric positive definite systems only: it cannot factorise an indefinite
 tangent; needs ``pip install cholespy``). A solver that is not installed is reported as such.
 """
@@ -49,7 +52,14 @@ from collections.abc import Callable  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-SOLVERS = ("qdldl", "superlu", "pardiso", "cholmod")
+#: PARDISO as the FE runs it and with one setting changed (iparm, 1-based as in Intel's manual)
+PARDISO_VARIANTS = {
+    "pardiso": {},
+    "pardiso-defaults": {1: 0},  # PARDISO's defaults: METIS, Bunch-Kaufman pivoting
+    "pardiso-md": {2: 0},  # minimum degree ordering
+    "pardiso-bk": {21: 1},  # Bunch-Kaufman 1 x 1 and 2 x 2 pivoting
+}
+SOLVERS = ("qdldl", "superlu", *PARDISO_VARIANTS, "cholmod")
 #: the solvers without supernodes: beyond ``--slow-max-dofs`` they take minutes a system
 SLOW = ("qdldl", "superlu")
 SYSTEMS = ("2d", "2d-x2", "3d-6", "3d-9", "3d-12", "3d-15", "pad")
@@ -118,7 +128,7 @@ def _import(solver: str) -> None:
     modules = {
         "qdldl": "qdldl",
         "superlu": "scipy.sparse.linalg",
-        "pardiso": "pypardiso",
+        **{name: "pypardiso" for name in PARDISO_VARIANTS},
         "cholmod": "cholespy",
     }
     __import__(modules[solver])
@@ -135,7 +145,7 @@ def measure(solver: str, name: str, path: str, repeats: int) -> dict:
     upper.sort_indices()
     out = {"solver": solver, "system": name, "dofs": n, "nnz_upper": int(upper.nnz)}
     _import(solver)
-    if solver == "pardiso":  # MKL maps its code on first use: load it on a 1x1 system first
+    if solver.startswith("pardiso"):  # MKL maps its code on first use: load it on a 1x1 system first
         from pypardiso import spsolve
 
         spsolve(sp.identity(1, format="csr"), np.ones(1))
@@ -158,31 +168,19 @@ def measure(solver: str, name: str, path: str, repeats: int) -> dict:
         refactor = _best_ms(lambda: spla.splu(A, permc_spec="MMD_AT_PLUS_A"), repeats)
         solve = _best_ms(lambda: lu.solve(b), repeats)
         x = lu.solve(b)
-    elif solver == "pardiso":
-        from pypardiso import PyPardisoSolver
+    elif solver in PARDISO_VARIANTS:
+        from sim.fe._linear import Pardiso
 
-        ps = PyPardisoSolver(mtype=-2)  # real symmetric indefinite: the upper triangle, CSR
-        up = sp.triu(A, format="csr")
-        up.sort_indices()
-        rhs = b[:, None].copy()
-        ps._check_A(up)  # pypardiso's own checks and its CSR/CSC flag
+        ps = Pardiso()  # the FE's own solver: its settings (sim.fe._linear.PARDISO_IPARM)
+        for k, value in PARDISO_VARIANTS[solver].items():
+            ps._ps.iparm[k - 1] = value  # 1-based, as in Intel's manual
         t0 = time.perf_counter()
-        ps.set_phase(12)
-        ps._call_pardiso(up, rhs)
+        ps.factor(upper)
         first = time.perf_counter() - t0
-
-        def numeric():
-            ps.set_phase(22)
-            ps._call_pardiso(up, rhs)
-
-        def substitute():
-            ps.set_phase(33)
-            return ps._call_pardiso(up, rhs)
-
-        refactor = _best_ms(numeric, repeats)
-        solve = _best_ms(substitute, repeats)
-        x = substitute().ravel()
-        ps.free_memory(everything=True)
+        refactor = _best_ms(lambda: ps.refactor(upper.data), repeats)
+        solve = _best_ms(lambda: ps.solve(b), repeats)
+        x = ps.solve(b)
+        out["factor_entries"] = int(ps._ps.iparm[17])
     elif solver == "cholmod":
         from cholespy import CholeskySolverD, MatrixType
 
@@ -234,7 +232,7 @@ def main() -> None:
 
     tmp = tempfile.TemporaryDirectory()
     header = (
-        f"{'system':7s} {'dofs':>7s} {'solver':8s} {'first ms':>9s} {'refactor ms':>11s} "
+        f"{'system':7s} {'dofs':>7s} {'solver':16s} {'first ms':>9s} {'refactor ms':>11s} "
         f"{'solve ms':>9s} {'held MB':>8s} {'peak MB':>8s} {'rel. residual':>13s}"
     )
     print(header)
@@ -245,19 +243,19 @@ def main() -> None:
         sp.save_npz(path, A)
         for solver in args.solvers:
             if solver in SLOW and A.shape[0] > args.slow_max_dofs:
-                print(f"{name:7s} {A.shape[0]:7d} {solver:8s} skipped (> --slow-max-dofs)")
+                print(f"{name:7s} {A.shape[0]:7d} {solver:16s} skipped (> --slow-max-dofs)")
                 continue
             cmd = [sys.executable, __file__, "--one", solver, name, path]
             cmd += ["--repeats", str(args.repeats)]
             proc = subprocess.run(cmd, capture_output=True, text=True)
             if proc.returncode != 0:
                 last = (proc.stderr.strip().splitlines() or ["failed"])[-1]
-                print(f"{name:7s} {'':>7s} {solver:8s} {last[:80]}")
+                print(f"{name:7s} {'':>7s} {solver:16s} {last[:80]}")
                 continue
             r = json.loads(proc.stdout.strip().splitlines()[-1])
             rows.append(r)
             print(
-                f"{name:7s} {r['dofs']:7d} {solver:8s} {r['first_ms']:9.1f} "
+                f"{name:7s} {r['dofs']:7d} {solver:16s} {r['first_ms']:9.1f} "
                 f"{r['refactor_ms']:11.1f} {r['solve_ms']:9.2f} {r['held_mb']:8.0f} "
                 f"{r['peak_mb']:8.0f} "
                 f"{r['rel_residual']:13.1e}",

@@ -89,8 +89,11 @@ def run(folder: Path, indices: range) -> dict:
 def compare(reference: dict[int, dict], new: dict[int, dict], floor: float) -> None:
     changes: dict[str, list[float]] = {m: [] for m in METRICS}
     worst: dict[str, str] = {}
-    flipped = []
+    flipped, missing = [], []
     for i, now in new.items():
+        if i not in reference:  # a sweep still running has not reached every design
+            missing.append(i)
+            continue
         ref = reference[i]
         for m in METRICS:
             old, value = ref.get(m, math.nan), now.get(m, math.nan)
@@ -107,6 +110,8 @@ def compare(reference: dict[int, dict], new: dict[int, dict], floor: float) -> N
         c = changes[m]
         if c:
             print(f"{m:34s} {len(c):4d} {max(c):9.2e} {statistics.median(c):9.2e}  {worst[m]}")
+    if missing:
+        print(f"not in the reference (not compared): designs {', '.join(map(str, missing))}")
     print(f"validity or settling changed: {len(flipped)}")
     for line in flipped:
         print("  " + line)

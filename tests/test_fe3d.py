@@ -146,6 +146,33 @@ def test_pardiso_and_qdldl_give_the_same_step(pressed):
     assert bodies[0]._solver.name == "pardiso" and bodies[1]._solver.name == "qdldl"
 
 
+def test_pardiso_orders_by_nested_dissection(pressed):
+    """``PARDISO_IPARM``: the pressed pad's tangent factorised by the FE's PARDISO solves it
+    to rounding, with a smaller factor (PARDISO's own count, iparm(18)) than the same solver
+    with minimum degree ordering, which it used while its settings' flag was set alone."""
+    pytest.importorskip("pypardiso")
+    import scipy.sparse as sp
+
+    from sim.fe._linear import Pardiso
+
+    disc = pressed.disc
+    ev = disc.evaluate(pressed.u, pressed.states, 0.0, frozen_history=True)
+    upper = disc.upper_matrix(ev.tangent()).tocsc()
+    K = upper + sp.triu(upper, k=1).T
+    b = np.random.default_rng(0).standard_normal(K.shape[0])
+    entries = {}
+    for ordering in ("as set", 0):  # iparm(2): the FE's setting; 0, minimum degree
+        solver = Pardiso()
+        if ordering == 0:
+            solver._ps.iparm[1] = ordering
+        solver.factor(upper)
+        x = solver.solve(b)
+        assert np.linalg.norm(K @ x - b) <= 1e-10 * np.linalg.norm(b)
+        entries[ordering] = int(solver._ps.iparm[17])
+    print(f"factor entries: as set {entries['as set']}, minimum degree {entries[0]}")
+    assert 0 < entries["as set"] < entries[0]
+
+
 def test_modified_newton_saves_factorisations_for_the_same_answer():
     """``NewtonOptions.reuse_factorization``: the press of ``pressed`` with the factorisation
     kept while the residual falls fast: fewer factorisations, the same state to the order of

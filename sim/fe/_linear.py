@@ -33,6 +33,31 @@ __all__ = ["SOLVERS", "LinearSolver", "default_solver", "make_solver"]
 PARDISO_FROM_DOFS = 5000
 
 
+def _pardiso_iparm() -> np.ndarray:
+    """PARDISO's settings (``iparm``, 0-based here, 1-based in Intel's manual: iparm(k) is
+    ``[k - 1]``); every entry not named is 0.
+
+    - iparm(1) = 1: these values, not PARDISO's defaults.
+    - iparm(2) = 2: nested dissection ordering (METIS). On the pad's tangent (10 622 dofs) it
+      needs 2.6 GFlop a factorisation against minimum degree's (0) 4.6, and a factor of 4.4
+      against 5.4 million entries (PARDISO's own counts, iparm(18) and (19)).
+    - iparm(10) = 8: pivots below 1e-8 of the matrix's norm are perturbed (the manual's
+      default for symmetric indefinite matrices).
+    - iparm(18) = -1: PARDISO reports the factor's entries (information only).
+    - iparm(21) = 0: 1 x 1 diagonal pivoting. Bunch-Kaufman's 1 x 1 and 2 x 2 pivots (1, the
+      default) took about twice as long a factorisation on the pad's tangent; a tangent the
+      diagonal pivots cannot factorise accurately shows as a Newton step that does not reduce
+      the residual, which Newton's line search and step cuts already handle.
+
+    The figures: ``python benchmarks/bench_linear_solvers.py --systems pad``."""
+    iparm = np.zeros(64, dtype=np.int32)
+    iparm[0], iparm[1], iparm[9], iparm[17], iparm[20] = 1, 2, 8, -1, 0
+    return iparm
+
+
+PARDISO_IPARM = _pardiso_iparm()
+
+
 class LinearSolver:
     """Factorise once per pattern, then refactorise and solve (see the module docstring)."""
 
@@ -89,7 +114,7 @@ class Pardiso(LinearSolver):
         if found and "PYPARDISO_MKL_RT" not in os.environ:
             os.environ["PYPARDISO_MKL_RT"] = found
         self._ps = PyPardisoSolver(mtype=-2)  # real symmetric indefinite
-        self._ps.set_iparm(1, 2)  # nested dissection ordering (METIS), PARDISO's default
+        self._ps.iparm[:] = PARDISO_IPARM
         _one_thread(self._ps)
         self._csr = None
 
