@@ -23,7 +23,11 @@ The weak form (Bonet & Wood, *Nonlinear Continuum Mechanics for Finite Element A
 ``F_iI dN_aI`` for a normal pair (the variation of the Green-Lagrange strain).
 
 The loops run in a fixed order: the same inputs give the same bits whatever else runs.
-Compiled on first use and cached on disk by numba (``cache=True``).
+Compiled on first use and cached on disk by numba (``cache=True``). Each public kernel hands
+the dimension to its loops as the constant 2 or 3, so that they are compiled with fixed trip
+counts: unrolled by the compiler, the same arithmetic in the same order (the same bits) in a
+fraction of the time of loops over ``d`` read from the arrays' shapes (docs/fe_speed.md,
+"Kernels compiled per dimension").
 """
 
 from __future__ import annotations
@@ -49,7 +53,14 @@ VOIGT = {
 @nb.njit(cache=True)
 def deformation_gradient(u: np.ndarray, conn: np.ndarray, dN: np.ndarray) -> np.ndarray:
     """``F`` (d, d, E, Q) for nodal displacements ``u`` (n_nodes, d)."""
-    E, Q, A, d = dN.shape
+    if dN.shape[3] == 3:
+        return _deformation_gradient(u, conn, dN, 3)
+    return _deformation_gradient(u, conn, dN, 2)
+
+
+@nb.njit(cache=True)
+def _deformation_gradient(u: np.ndarray, conn: np.ndarray, dN: np.ndarray, d: int) -> np.ndarray:
+    E, Q, A, _ = dN.shape
     F = np.empty((d, d, E, Q))
     for e in range(E):
         for q in range(Q):
@@ -65,7 +76,14 @@ def deformation_gradient(u: np.ndarray, conn: np.ndarray, dN: np.ndarray) -> np.
 @nb.njit(cache=True)
 def right_cauchy_green(F: np.ndarray, voigt: np.ndarray) -> np.ndarray:
     """``C = F^T F`` (nv, E, Q) in the Voigt order ``voigt``."""
-    d, _, E, Q = F.shape
+    if F.shape[0] == 3:
+        return _right_cauchy_green(F, voigt, 3)
+    return _right_cauchy_green(F, voigt, 2)
+
+
+@nb.njit(cache=True)
+def _right_cauchy_green(F: np.ndarray, voigt: np.ndarray, d: int) -> np.ndarray:
+    _, _, E, Q = F.shape
     nv = voigt.shape[0]
     C = np.empty((nv, E, Q))
     for e in range(E):
@@ -100,7 +118,23 @@ def internal_forces(
 ) -> np.ndarray:
     """The assembled internal forces ``r_ai = sum_q w P_iJ dN_aJ`` (``n_out`` slots, the last
     one the sentinel of ``scatter_r``)."""
-    E, Q, A, d = dN.shape
+    if dN.shape[3] == 3:
+        return _internal_forces(F, S, dN, w, voigt, scatter_r, n_out, 3)
+    return _internal_forces(F, S, dN, w, voigt, scatter_r, n_out, 2)
+
+
+@nb.njit(cache=True)
+def _internal_forces(
+    F: np.ndarray,
+    S: np.ndarray,
+    dN: np.ndarray,
+    w: np.ndarray,
+    voigt: np.ndarray,
+    scatter_r: np.ndarray,
+    n_out: int,
+    d: int,
+) -> np.ndarray:
+    E, Q, A, _ = dN.shape
     r = np.zeros(n_out)
     Sf = np.empty((d, d))
     P = np.empty((d, d))
@@ -129,14 +163,23 @@ def internal_forces(
 
 @nb.njit(cache=True)
 def _first_elasticity(
-    F: np.ndarray, S: np.ndarray, D: np.ndarray, voigt: np.ndarray, e: int, q: int, out: np.ndarray
+    F: np.ndarray,
+    S: np.ndarray,
+    D: np.ndarray,
+    voigt: np.ndarray,
+    e: int,
+    q: int,
+    out: np.ndarray,
+    Df: np.ndarray,
+    X: np.ndarray,
+    Sf: np.ndarray,
+    d: int,
 ) -> None:
     """``A_iJkL = F_iI D_IJKL F_kK + delta_ik S_JL`` (= dP_iJ/dF_kL) at point (e, q) into
     ``out`` (d, d, d, d); ``D_IJKL = D[v(I, J), v(K, L)]`` (engineering shear: dS_IJ =
-    sum_KL D_IJKL dE_KL over both orders of a shear pair)."""
-    d = F.shape[0]
+    sum_KL D_IJKL dE_KL over both orders of a shear pair). ``Df``, ``X`` (d, d, d, d) and
+    ``Sf`` (d, d): work arrays."""
     nv = voigt.shape[0]
-    Df = np.empty((d, d, d, d))
     for v in range(nv):
         II, JJ = voigt[v, 0], voigt[v, 1]
         for x in range(nv):
@@ -146,7 +189,7 @@ def _first_elasticity(
             Df[JJ, II, KK, LL] = val
             Df[II, JJ, LL, KK] = val
             Df[JJ, II, LL, KK] = val
-    X = np.empty((d, d, d, d))  # X_iJKL = F_iI D_IJKL
+    # X_iJKL = F_iI D_IJKL
     for i in range(d):
         for J in range(d):
             for K in range(d):
@@ -155,7 +198,6 @@ def _first_elasticity(
                     for II in range(d):
                         s += F[i, II, e, q] * Df[II, J, K, L]
                     X[i, J, K, L] = s
-    Sf = np.empty((d, d))
     _full_stress(S, voigt, e, q, Sf)
     for i in range(d):
         for J in range(d):
@@ -187,15 +229,35 @@ def stiffness(
     holds both parts), computed per element as one matrix product: ``T[(a, i, k), (q, L)] =
     w dN_aJ A_iJkL`` times ``N[(q, L), b] = dN_bL``; the product is BLAS's (``np.dot``), the
     bulk of the work for a 27-node hexahedron."""
-    E, Q, A, d = dN.shape
+    if dN.shape[3] == 3:
+        return _stiffness(F, S, D, dN, w, voigt, scatter_K, n_out, 3)
+    return _stiffness(F, S, D, dN, w, voigt, scatter_K, n_out, 2)
+
+
+@nb.njit(cache=True)
+def _stiffness(
+    F: np.ndarray,
+    S: np.ndarray,
+    D: np.ndarray,
+    dN: np.ndarray,
+    w: np.ndarray,
+    voigt: np.ndarray,
+    scatter_K: np.ndarray,
+    n_out: int,
+    d: int,
+) -> np.ndarray:
+    E, Q, A, _ = dN.shape
     n = A * d
     data = np.zeros(n_out)
     T = np.empty((A * d * d, Q * d))
     N = np.empty((Q * d, A))
     Aq = np.empty((d, d, d, d))
+    Df = np.empty((d, d, d, d))
+    X = np.empty((d, d, d, d))
+    Sf = np.empty((d, d))
     for e in range(E):
         for q in range(Q):
-            _first_elasticity(F, S, D, voigt, e, q, Aq)
+            _first_elasticity(F, S, D, voigt, e, q, Aq, Df, X, Sf, d)
             wq = w[e, q]
             for a in range(A):
                 for i in range(d):
