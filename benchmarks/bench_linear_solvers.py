@@ -145,7 +145,7 @@ def measure(solver: str, name: str, path: str, repeats: int) -> dict:
     upper.sort_indices()
     out = {"solver": solver, "system": name, "dofs": n, "nnz_upper": int(upper.nnz)}
     _import(solver)
-    if solver.startswith("pardiso"):  # MKL maps its code on first use: load it on a 1x1 system first
+    if solver.startswith("pardiso"):  # MKL maps its code on first use: a 1x1 system first
         from pypardiso import spsolve
 
         spsolve(sp.identity(1, format="csr"), np.ones(1))
