@@ -1066,7 +1066,8 @@ def _add_migrate_sweep(p: argparse.ArgumentParser) -> None:
     p.description = (
         "Carry a sweep of an earlier solver version (one whose results this solver reproduces, "
         "sim.metrics.SAME_METRICS_AS) over to this one: the designs that completed within the "
-        "validity limits are kept as they are, the others are left for the resumed sweep. "
+        "validity limits are kept as they are, and those beyond them when the source stopped at "
+        "the limits as this solver does; the others are left for the resumed sweep. "
         "Inputs: SOURCE, the earlier sweep folder; TARGET, the new sweep folder to write."
     )
     p.add_argument(

@@ -137,3 +137,53 @@ def test_options_added_since_the_source_take_their_defaults(tmp_path):
     assert new["solver_version"] == SOLVER_VERSION
     assert new["options"]["newton"]["rtol"] == 1e-7
     assert new["options"]["newton"]["contact_update"] is False
+
+
+@pytest.mark.parametrize("source_stopped", [True, False])
+def test_designs_beyond_the_limits_carry_over_when_the_source_stopped_there(
+    tmp_path, source_stopped
+):
+    """A design beyond the validity limits is carried when the source's protocols stopped at
+    the limits as ours do (the record is what this solver computes), and left to the resumed
+    sweep when the source ran past them (this solver stops early: another record). Records
+    made by hand (no FE): which ones the migration takes is the question here; that a carried
+    record is reproduced is ``--verify``'s (the slow test above)."""
+    from sim.design import load_space
+    from sim.options import options_from_dict
+    from sim.provenance import json_safe
+    from sim.sweep import sample_points
+    from sim.sweep.run import record_key
+
+    space = tmp_path / "space.toml"
+    space.write_text(TINY)
+    old = tmp_path / "old"
+    _previous_solver_config(old, space)
+    config = read_config(old)
+    config["options"]["validity"]["stop_at_violation"] = source_stopped
+    write_config(old, config)
+    options = options_from_dict(config["options"])
+    sp = load_space(space)
+    store = SweepStore(old)
+    expected = set()
+    for i, point in enumerate(sample_points(sp, 6, 0, "sobol")):
+        valid, status = i % 2 == 0, "failed" if i == 5 else "ok"
+        stopped = "tapping: stopped at t = 1 s" if source_stopped and not valid else ""
+        rec = {
+            "params": json_safe(point),
+            "solver_version": SAME_METRICS_AS[0],
+            "status": status,
+            "metrics": {},
+            "diagnostics": {"valid": valid, "stopped": stopped},
+            "curves": {},
+        }
+        key = record_key(point, options, sp.catalogue)
+        store.write(key, rec)
+        if status == "ok" and (valid or source_stopped):
+            expected.add(key)
+    kept, _, _ = migrate(old, tmp_path / "new")
+    after = SweepStore(tmp_path / "new").load()
+    assert {r["migrated"]["key"] for r in after.values()} == expected
+    assert len(kept) == len(expected) == (5 if source_stopped else 3)
+    for rec in after.values():  # the stop the source recorded is kept
+        assert rec["diagnostics"]["stopped"] == ("" if rec["diagnostics"]["valid"] else
+                                                 "tapping: stopped at t = 1 s")  # fmt: skip

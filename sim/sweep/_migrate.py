@@ -14,11 +14,16 @@ record is carried over under its new key, unchanged but for
 - ``migrated``: the source folder, the record's old key and solver version, which the record
   keeps (``solver_version``: the solver that computed it).
 
-Every other record (a failed protocol, or a design beyond the limits, whose 2.3 result stops
-early and has no metrics) is left out: resuming the sweep in the new folder with its command
-(:func:`resume_command`) computes it with this solver. :func:`verify` re-simulates K
-carried-over designs (drawn with a seed) and gives each one's largest difference from its
-record, which must stay within ``VERIFY_RTOL``.
+A design beyond the limits is carried too when the source's protocols already stopped at the
+first step beyond them (``stop_at_violation`` in the source's options, as in ours): its record
+is then what this solver computes, within the tolerance ``SAME_METRICS_AS`` stands for (bit
+for bit where the versions between compute the same bits, as 2D from 2.4 to 2.6).
+
+Every other record (a failed protocol, or a design beyond the limits of a source that ran
+past them, whose result now stops early and has no metrics) is left out: resuming the sweep in
+the new folder with its command (:func:`resume_command`) computes it with this solver.
+:func:`verify` re-simulates K carried-over designs (drawn with a seed) and gives each one's
+largest difference from its record, which must stay within ``VERIFY_RTOL``.
 
 Only a source made with options that differ from the new ones in ``stop_at_violation`` alone,
 by a solver in ``sim.metrics.SAME_METRICS_AS``, is accepted.
@@ -73,11 +78,12 @@ def _comparable(options: dict, known: dict | None = None) -> dict:
     }
 
 
-def carried(record: dict) -> bool:
-    """Whether this solver reproduces the record bit for bit: every protocol completed, within
-    the validity limits (then no protocol ever stops early)."""
+def carried(record: dict, stopped_alike: bool = False) -> bool:
+    """Whether this solver reproduces the record: every protocol completed, within the
+    validity limits (then no protocol ever stops early) or, with ``stopped_alike`` (the
+    source's protocols stopped at the first step beyond the limits, as ours do), beyond them."""
     diag = record.get("diagnostics") or {}
-    return record.get("status") == "ok" and diag.get("valid") is True
+    return record.get("status") == "ok" and (diag.get("valid") is True or stopped_alike)
 
 
 def migrate(source: str | Path, target: str | Path) -> tuple[list[str], list[str], dict]:
@@ -111,9 +117,13 @@ def migrate(source: str | Path, target: str | Path) -> tuple[list[str], list[str
     points = sample_points(space, old["n"], old["seed"], old["sampler"])
     keys = [record_key(p, options, space.catalogue) for p in points]
     wanted = set(keys)
+    stop = ("validity", "stop_at_violation")
+    stopped_alike = bool(old["options"].get(stop[0], {}).get(stop[1])) and bool(
+        ours[stop[0]][stop[1]]
+    )
     carry = []
     for old_key, rec in sorted(SweepStore(source).load().items()):
-        if not carried(rec):
+        if not carried(rec, stopped_alike):
             continue
         key = record_key(rec["params"], options, space.catalogue)
         if key not in wanted:
@@ -121,7 +131,8 @@ def migrate(source: str | Path, target: str | Path) -> tuple[list[str], list[str
                               "sweep's sample")  # fmt: skip
         rec = dict(rec)
         rec.pop("key", None)
-        rec["diagnostics"] = {**rec["diagnostics"], "stopped": ""}
+        rec["diagnostics"] = dict(rec["diagnostics"])
+        rec["diagnostics"].setdefault("stopped", "")  # the column 2.3 added: nothing stopped
         rec["migrated"] = {
             "from": str(source),
             "key": old_key,
