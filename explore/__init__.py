@@ -7,6 +7,7 @@ Public API::
     run(OptimizeConfig(...), out, from_scratch=N)      # fingertip run (--from-scratch)
     closeness(metrics, targets), objectives(c)         # the documented closeness score
     write_figures(run_dir), write_report(run_dir)      # fingertip report
+    check_in_3d(run_dir, targets, options_3d(opts), tolerance=0.05)  # --model 3d: the answers
     Candidate, Confirmation, Summary                   # the data of a run folder
 
 Importing this package is cheap; Optuna, torch and matplotlib load on first use. With two
@@ -23,6 +24,7 @@ from ._objective import WEDGE_REFERENCE_N, WEDGE_WEIGHT, Closeness, closeness, o
 from ._types import Candidate, Confirmation, Summary
 
 if TYPE_CHECKING:
+    from ._check3d import check_in_3d, options_3d
     from ._config import DEFAULT_CHECKPOINT, OptimizeConfig
     from ._pipeline import optimize, run
     from ._plots import write_figures
@@ -37,15 +39,19 @@ __all__ = [
     "Confirmation",
     "OptimizeConfig",
     "Summary",
+    "check_in_3d",
     "closeness",
     "objectives",
     "optimize",
+    "options_3d",
     "run",
     "write_figures",
     "write_report",
 ]
 
 _LAZY = {
+    "check_in_3d": "_check3d",
+    "options_3d": "_check3d",
     "DEFAULT_CHECKPOINT": "_config",
     "OptimizeConfig": "_config",
     "optimize": "_pipeline",

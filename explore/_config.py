@@ -62,7 +62,8 @@ class OptimizeConfig:
     or a sag over the targets' limit) compete for the answers, flagged as such; ``screen``:
     designs of a quasi-random sample the surrogate scores at the start of every study, whose
     best (``SearchSettings.screen_keep``) seed the sampler (``explore._search.screen``), so
-    ``trials`` counts the sampler's trials after them.
+    ``trials`` counts the sampler's trials after them; ``model``: "3d" simulates every answer
+    with the 3D pad too (``explore._check3d``, answers_3d.json).
     """
 
     surrogate: str = str(DEFAULT_CHECKPOINT)
@@ -109,6 +110,9 @@ class OptimizeConfig:
     # 2^16 designs: ~2-3 s per study at the surrogate's ~65 000 designs/s on one thread
     # (benchmarks/bench_predict.py), so a round of four studies stays within 30 s (issue 15)
     screen: int = 65536
+    # "3d": every answer is also simulated with the 3D pad (explore._check3d); the search and
+    # its confirmations stay the 2D model's, so a run may be resumed with either
+    model: str = "2d"
 
     def check(self) -> None:
         def at_least(name: str, value: int, low: int) -> None:
@@ -128,6 +132,8 @@ class OptimizeConfig:
         at_least("family_trials", self.family_trials, 0)
         at_least("screen", self.screen, 0)
         check_seed(self.seed, "--seed", uses=self.rounds)
+        if self.model not in ("2d", "3d"):
+            raise DesignError("--model", f"must be 2d or 3d, got {self.model!r}")
         if self.mode not in ("single", "multi"):
             raise DesignError("--mode", f"must be single or multi, got {self.mode!r}")
         for name in ("tolerance", "max_disagreement"):
@@ -138,7 +144,7 @@ class OptimizeConfig:
 
 # ----------------------------------------------------------------------------- config.json
 #: configuration entries that never change the answer: a run may be resumed with others
-_FREE = ("workers",)
+_FREE = ("workers", "model")
 #: what config.json held beside the configuration before studies.json (``explore._run_folder``)
 _OLD_LOG = ("studies",)
 

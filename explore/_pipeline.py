@@ -104,6 +104,15 @@ def optimize(
     wall_time_s, timings = run_time(out)
     timing = write_summary(out, summary, wall_time_s, timings, resumed)
     write_answer_files(out)
+    if config.model == "3d":
+        from ._check3d import check_in_3d, options_3d
+        from ._rounds import user_tables
+
+        check_in_3d(
+            out, s.targets, options_3d(s.options), tolerance=config.tolerance,
+            workers=config.workers, progress=progress, materials=user_tables(s.catalogue),
+            catalogue=s.catalogue,
+        )  # fmt: skip
     return dataclasses.replace(summary, timing=timing)
 
 

@@ -28,7 +28,7 @@ from sim.provenance import nan_if_none, write_if_changed
 
 from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
 from ._plots import FIGURES, RunData, load_run, run_options, run_targets, write_figures
-from ._run_folder import ANSWERS, screened_designs
+from ._run_folder import ANSWERS, read_answers_3d, screened_designs
 from ._summary import ANSWER_WORDS, READING_WORDS, LayerMaterial, layer_materials
 from ._types import Confirmation
 
@@ -567,6 +567,65 @@ def _answers_section(run: RunData, targets: Targets | None) -> list[str]:
     return lines
 
 
+def _answers_3d_section(run: RunData, targets: Targets | None) -> list[str]:
+    """``--model 3d``: each answer simulated with the 3D pad (answers_3d.json), set against the
+    targets; nothing when the run's answers were not."""
+    data = read_answers_3d(run.run_dir)
+    answers = data.get("answers") or {}
+    if not answers:
+        return []
+    reading = targets.reading if targets is not None else "from_undeformed_top"
+    lines = [
+        "## The answers as 3D fingertips",
+        "",
+        "Each answer above simulated with the 3D pad (its section and layers, the pad's default "
+        "length and profile; `fingertip run --model 3d`, `answers_3d.json`): the same design "
+        "as a fingertip rather than a plane-strain section times 10 mm. The answers were chosen "
+        f"in 2D; displacements read {READING_WORDS[reading]}.",
+        "",
+        "| answer | d(1 N) mm | d(4 N) mm | hysteresis N mm | error vs targets (1 N, 4 N, "
+        "hysteresis) | change from 2D | contact area at 1 N / 4 N mm² | credible in 3D |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for kind, a in answers.items():
+        label = f"[{kind}]({ANSWERS}/{kind}.toml)"
+        if not a:
+            continue
+        if a.get("status") != "ok":
+            lines.append(f"| {label} | FE failed: {a.get('reason') or '?'} | | | | | | |")
+            continue
+        fe = a.get("fe_metrics") or {}
+        metric = targets.metric if targets is not None else (lambda m: m)
+        errors = a.get("errors_vs_targets") or {}
+        change = a.get("change_from_2d") or {}
+        d = a.get("diagnostics") or {}
+        why = "yes" if a.get("credible") else (
+            "no: " + ", ".join(
+                w for w, bad in (("unsettled", not d.get("settled")),
+                                 ("beyond the validity limits", not d.get("valid")))
+                if bad
+            ) or "no: sag"
+        )  # fmt: skip
+        lines.append(
+            f"| {label} | {_fmt(fe.get(metric('disp_at_1N_mm')))} | "
+            f"{_fmt(fe.get(metric('disp_at_4N_mm')))} | {_fmt(fe.get('hysteresis_Nmm'))} | "
+            + ", ".join(_pct(errors.get(m)) for m in TAPPING)
+            + " | "
+            + ", ".join(_pct(change.get(m)) for m in TAPPING)
+            + f" | {_fmt(fe.get('contact_area_at_1N_mm2'))} / "
+            f"{_fmt(fe.get('contact_area_at_4N_mm2'))} | {why} |"
+        )
+    wall = data.get("fe_wall_time_s")
+    lines += [
+        "",
+        '"Change from 2D" is the 3D value over the 2D one, less 1 (the 2D displacements read '
+        "from the undeformed top; the hysteresis per 10 mm of finger in 2D, the whole pad's in "
+        f"3D). The 3D simulations took {_fmt(wall)} s (one core each).",
+        "",
+    ]
+    return lines
+
+
 #: a round's ``best_fe_score`` when it confirmed no credible design (summary.json: null)
 _NO_CREDIBLE = "no credible design"
 
@@ -741,6 +800,7 @@ def write_report(run_dir: str | Path) -> Path:
         *_intro(run, targets),
         *_targets_section(targets, run.summary.get("tolerance")),
         *_answers_section(run, targets),
+        *_answers_3d_section(run, targets),
         *_rounds_section(run),
         *_confirmations_section(run, targets),
         *_notes_section(run),

@@ -51,7 +51,7 @@ from ._search import (
 from ._summary import credible, target_met
 from ._types import Candidate, Confirmation
 
-__all__ = ["Search", "choose", "fe_alongside", "fe_only_screen", "run_rounds"]
+__all__ = ["Search", "choose", "fe_alongside", "fe_only_screen", "run_rounds", "user_tables"]
 
 
 @dataclass(eq=False)
@@ -326,7 +326,7 @@ def _confirm_round(
     with run.timed("fe_s"):
         new = confirm(
             chosen, run.out, s.targets, s.options, workers=run.config.workers,
-            progress=run.progress, materials=_user_tables(s.catalogue), catalogue=s.catalogue,
+            progress=run.progress, materials=user_tables(s.catalogue), catalogue=s.catalogue,
         )  # fmt: skip
     known = {c.key for c in run.confirmations}
     run.confirmations += [c for c in new if c.key not in known]
@@ -451,7 +451,7 @@ def _round_info(
     }
 
 
-def _user_tables(catalogue: dict) -> dict | None:
+def user_tables(catalogue: dict) -> dict | None:
     """The user materials of a merged catalogue as tables, for the FE worker processes."""
     from sim.materials import material_tables, user_materials
 

@@ -359,6 +359,24 @@ def write_summary(
     return timing
 
 
+#: the answers simulated with the 3D pad (``fingertip run --model 3d``, ``explore._check3d``)
+ANSWERS_3D = "answers_3d.json"
+
+
+def read_answers_3d(out: Path) -> dict[str, Any]:
+    """answers_3d.json ({} if the run's answers were not simulated in 3D)."""
+    if not (out / ANSWERS_3D).is_file():
+        return {}
+    data = read_json(out / ANSWERS_3D)
+    return data if isinstance(data, dict) else {}
+
+
+def write_answers_3d(out: Path, data: dict[str, Any]) -> None:
+    """answers_3d.json: each answer's 3D result against the targets (``explore._check3d``);
+    left as it is when unchanged."""
+    write_if_changed(out / ANSWERS_3D, json_text(data, indent=1) + "\n")
+
+
 def read_answer(source: Path, name: str) -> dict[str, Any]:
     """Answer ``name`` of a search run: ``source`` is the run folder or its summary.json. Every
     problem is one ``DesignError`` naming ``--answer`` (an unknown name: with the run's names;

@@ -663,6 +663,7 @@ def _optimize_config(args: argparse.Namespace):
         "family_trials": args.family_trials,
         "allow_untrusted": True if args.allow_untrusted else None,
         "screen": args.screen,
+        "model": args.model,
     }
     base = OptimizeConfig()
     return OptimizeConfig(
@@ -702,6 +703,7 @@ def _finish(summary, out) -> int:
         )
     for note in summary.notes:
         print(f"  {note}")
+    _print_answers_3d(Path(out), labels)
     if summary.timing.get("timings"):
         print(_time_line(summary.timing))
     answers = [p for k in summary.answers if (p := answer_path(Path(out), k)).is_file()]
@@ -709,6 +711,28 @@ def _finish(summary, out) -> int:
         print("answers: " + ", ".join(str(a) for a in answers))
     print(f"report: {report}")
     return 0
+
+
+def _print_answers_3d(out, labels: dict[str, str]) -> None:
+    """The answers' 3D results (``--model 3d``: answers_3d.json), one line each."""
+    from explore._run_folder import read_answers_3d
+
+    answers = read_answers_3d(out).get("answers") or {}
+    for kind, label in labels.items():
+        a = answers.get(kind)
+        if not a:
+            continue
+        if a.get("status") != "ok":
+            print(f"{label} (3D pad): the FE failed ({a.get('reason')})")
+            continue
+        errs = ", ".join(
+            f"{m} {100 * e:+.1f} %{'' if a['within_tolerance'][m] else ' (outside)'}"
+            for m, e in a["errors_vs_targets"].items()
+        )
+        fe = a["fe_metrics"]
+        area = "/".join(f"{fe.get(f'contact_area_at_{f}N_mm2') or math.nan:.3g}" for f in (1, 4))
+        flag = "" if a.get("credible") else " [not credible in 3D: see answers_3d.json]"
+        print(f"{label} (3D pad){flag}: {errs}; contact area at 1 N / 4 N {area} mm^2")
 
 
 def _time_line(timing: dict) -> str:
@@ -804,6 +828,13 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
         action="store_true",
         help="let designs that are not credible (beyond the validity limits, unsettled, or "
         "sagging over the targets' limit) compete for the answers, flagged as such",
+    )
+    p.add_argument(
+        "--model",
+        metavar="{2d,3d}",
+        help="3d: also simulate every answer with the 3D pad (the pad's default length and "
+        "profile), set against the targets in answers_3d.json and the report; the search and "
+        "its confirmations stay 2D (default 2d)",
     )
     _add_catalogue_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
