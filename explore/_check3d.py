@@ -3,7 +3,8 @@
 The search and its confirmations are the 2D model's (the shipped surrogate is a 2D one). With
 ``--model 3d`` every answer the run found (best, gel, foam, buildable) is then simulated with
 every protocol by the 3D model: its section and layers as in the answer, the pad's length and
-profile at their defaults (``sim.geometry.pad``), the run's other FE options. Each record is
+profile at their defaults (``sim.geometry.pad``), the run's other FE options, and every
+protocol run to its end, beyond the validity limits too (:func:`options_3d`). Each record is
 written to ``fe3d/records/<key>.json`` as it finishes (the key of
 ``sim.sweep.run.record_key``: a killed run recomputes nothing it has), and each answer's 3D
 result is set against the targets as its 2D result is (``explore._summary``): its relative
@@ -45,8 +46,10 @@ RECORDS_3D = Path("fe3d") / "records"
 
 
 def options_3d(options: SimOptions) -> SimOptions:
-    """The run's FE options with the 3D model (its mesh ``mesh3d``, the rest as they are)."""
-    return dataclasses.replace(options, model=ModelOptions("3d"))
+    """The run's FE options with the 3D model (its mesh ``mesh3d``) and every protocol run to
+    its end (``without_validity_stop``): an answer beyond the validity limits in 3D keeps its
+    metrics, flagged not credible with the limit it broke, where a sweep would stop it."""
+    return dataclasses.replace(options, model=ModelOptions("3d")).without_validity_stop()
 
 
 def _point(answer: Mapping[str, Any]) -> dict[str, Any]:

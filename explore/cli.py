@@ -731,7 +731,11 @@ def _print_answers_3d(out, labels: dict[str, str]) -> None:
         )
         fe = a["fe_metrics"]
         area = "/".join(f"{fe.get(f'contact_area_at_{f}N_mm2') or math.nan:.3g}" for f in (1, 4))
-        flag = "" if a.get("credible") else " [not credible in 3D: see answers_3d.json]"
+        d = a.get("diagnostics") or {}
+        why = [w for w, bad in (("unsettled", d.get("settled") is False),
+                                (f"beyond the validity limits: {d.get('violations')}",
+                                 d.get("valid") is False)) if bad]  # fmt: skip
+        flag = "" if a.get("credible") else f" [not credible: {'; '.join(why) or 'sag'}]"
         print(f"{label} (3D pad){flag}: {errs}; contact area at 1 N / 4 N {area} mm^2")
 
 

@@ -110,3 +110,10 @@ def test_a_model_other_than_2d_or_3d_is_one_line(capsys, tmp_path):
     assert code == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["fingertip: error: --model: must be 2d or 3d, got '4d'"]
+
+
+def test_the_3d_options_run_every_protocol_to_its_end():
+    """An answer beyond the limits in 3D keeps its metrics (flagged), where a sweep stops."""
+    options = options_3d(SimOptions())
+    assert options.dimension == "3d" and SimOptions().validity.stop_at_violation
+    assert not options.validity.stop_at_violation
