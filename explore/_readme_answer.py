@@ -5,9 +5,10 @@ The block between ``<!-- answer:start -->`` and ``<!-- answer:end -->`` in READM
 output of :func:`render` on the run folder's ``summary.json`` and ``confirmations.json``: the
 command, the run's time and phases, how many designs FE confirmed and how many were credible,
 and one table row per answer (best credible, best gel, best foam core, best buildable) with
-both displacement readings, the sag, the hysteresis and the errors against the targets. The
-prose around the block (what the numbers mean) stays hand-written: re-read it when the block
-changes.
+both displacement readings, the sag, the hysteresis and the errors against the targets; for a
+run made with ``--model 3d``, a second table of the same answers as 3D fingertips
+(answers_3d.json). The prose around the block (what the numbers mean) stays hand-written:
+re-read it when the block changes.
 """
 
 from __future__ import annotations
@@ -18,7 +19,14 @@ from pathlib import Path
 from sim.options import options_from_dict
 from sim.protocols import shown_hysteresis
 
-from ._run_folder import read_config, read_studies, read_summary, read_trials, screened_designs
+from ._run_folder import (
+    read_answers_3d,
+    read_config,
+    read_studies,
+    read_summary,
+    read_trials,
+    screened_designs,
+)
 
 __all__ = ["END", "LABELS", "START", "describe", "render", "replace_block"]
 
@@ -102,8 +110,10 @@ def render(folder: str | Path) -> str:
     confirmations = json.loads((folder / "confirmations.json").read_text())
     credible = sum(1 for c in confirmations if c.get("trusted"))
     t = summary.get("timings") or {}
+    three = read_answers_3d(folder)
+    model = " --model 3d" if three else ""
     lines = [
-        f"`fingertip run --out {folder.as_posix()}`: {len(summary['rounds'])} rounds, "
+        f"`fingertip run{model} --out {folder.as_posix()}`: {len(summary['rounds'])} rounds, "
         f"{summary['wall_time_s']:.0f} s (search {t.get('search_s', 0):.0f} s, FE "
         f"{t.get('fe_s', 0):.0f} s, retraining {t.get('retrain_s', 0):.0f} s); "
         f"{len(confirmations)} designs confirmed with full FE, {credible} of them trusted."
@@ -130,7 +140,49 @@ def render(folder: str | Path) -> str:
             f"{top['disp_at_4N_mm']:.2f} | {r['sag_mm']:.2f} | "
             f"{hysteresis:.3g} | {errors} |"
         )
+    if three:
+        lines += _rows_3d(summary, three)
     return "\n".join(lines) + "\n"
+
+
+def _rows_3d(summary: dict, three: dict) -> list[str]:
+    """The answers as 3D fingertips (answers_3d.json, ``explore._check3d``): one row each."""
+    answers = three.get("answers") or {}
+    designs = {k: a for k, a in answers.items() if a}
+    unique = {a["fe_record"] for a in designs.values()}
+    lines = [
+        "",
+        f"The same answers as 3D fingertips (the pad's default length and profile; "
+        f"{len(unique)} 3D simulations, {three.get('fe_wall_time_s', 0):.0f} s of one core in "
+        "all, every protocol run to its end):",
+        "",
+        "| answer | 1 N / 4 N from touch (mm) | hysteresis (N mm) | errors | 1 N from the top: "
+        "change from 2D | contact area 1 N / 4 N (mm²) | credible in 3D |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for kind, label in LABELS.items():
+        a = answers.get(kind)
+        if not a:
+            continue
+        fe = a.get("fe_metrics") or {}
+        if a.get("status") != "ok" or fe.get("disp_at_1N_from_touch_mm") is None:
+            lines.append(f"| {label} | no tapping result: {a.get('reason') or '?'} | | | | | |")
+            continue
+        errors = ", ".join(_percent(e) for e in a["errors_vs_targets"].values())
+        d = a.get("diagnostics") or {}
+        why = "yes" if a.get("credible") else (
+            "no: " + ("; ".join(w for w, bad in (
+                ("unsettled", d.get("settled") is False),
+                (str(d.get("violations")), d.get("valid") is False),
+            ) if bad) or "sag")
+        )  # fmt: skip
+        lines.append(
+            f"| {label} | {fe['disp_at_1N_from_touch_mm']:.2f} / "
+            f"{fe['disp_at_4N_from_touch_mm']:.2f} | {fe['hysteresis_Nmm']:.3g} | {errors} | "
+            f"{_percent(a['change_from_2d']['disp_at_1N_mm'])} | "
+            f"{fe['contact_area_at_1N_mm2']:.0f} / {fe['contact_area_at_4N_mm2']:.0f} | {why} |"
+        )
+    return lines
 
 
 def replace_block(text: str, block: str) -> str:
