@@ -45,10 +45,9 @@ def _layer(material: dict | str) -> str:
         return material
     mu = 1000.0 * material["mu_MPa"][0]
     g = sum(material.get("prony_g", []))
-    taus = ", ".join(f"{1000 * t:.3g}" for t in material.get("prony_tau_s", []))
     kind = "foam" if material.get("model") == "hyperfoam" else "gel"
     nu = f", ν {material['nu']:.2f}" if kind == "foam" else ""
-    relax = f", relaxing {100 * g:.0f} % (terms at {taus} ms)" if g > 0 else ", elastic"
+    relax = f", relaxing {100 * g:.0f} %" if g > 0 else ", elastic"  # its terms: the design file
     return f"{kind} μ0 {mu:.3g} kPa, α {material['alpha'][0]:.3g}{nu}{relax}"
 
 
@@ -124,11 +123,15 @@ def render(folder: str | Path) -> str:
         "hysteresis (N mm) | errors |",
         "|---|---|---|---|---|---|---|",
     ]
+    rows = _shared_rows(summary["answers"])
     for kind, label in LABELS.items():
         a = summary["answers"].get(kind)
         if a is None:
             lines.append(f"| {label} | none credible confirmed by FE | | | | | |")
             continue
+        if kind not in rows:  # the same design as an answer above: in its row
+            continue
+        label = rows[kind]
         r = a["readings"]
         touch, top = r["from_first_touch"], r["from_undeformed_top"]
         errors = ", ".join(_percent(e) for e in a["errors_vs_targets"].values())
@@ -145,25 +148,39 @@ def render(folder: str | Path) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _shared_rows(answers: dict) -> dict[str, str]:
+    """The row label of each answer that opens a row: answers that are one design (the same
+    FE record) share the first one's row, "best credible = best gel"."""
+    first: dict[str, str] = {}
+    labels: dict[str, list[str]] = {}
+    for kind, label in LABELS.items():
+        a = answers.get(kind)
+        if a:
+            opener = first.setdefault(a["fe_record"], kind)
+            labels.setdefault(opener, []).append(label)
+    return {kind: " = ".join(names) for kind, names in labels.items()}
+
+
 def _rows_3d(summary: dict, three: dict) -> list[str]:
     """The answers as 3D fingertips (answers_3d.json, ``explore._check3d``): one row each."""
     answers = three.get("answers") or {}
-    designs = {k: a for k, a in answers.items() if a}
-    unique = {a["fe_record"] for a in designs.values()}
+    unique = {a["fe_record"] for a in answers.values() if a}
     lines = [
         "",
-        f"The same answers as 3D fingertips (the pad's default length and profile; "
-        f"{len(unique)} 3D simulations, {three.get('fe_wall_time_s', 0):.0f} s of one core in "
-        "all, every protocol run to its end):",
+        "The same answers as 3D fingertips (the pad's default length and profile, every "
+        f"protocol run to its end; {len(unique)} designs, "
+        f"{three.get('fe_wall_time_s', 0):.0f} s of one core in all):",
         "",
-        "| answer | 1 N / 4 N from touch (mm) | hysteresis (N mm) | errors | 1 N from the top: "
-        "change from 2D | contact area 1 N / 4 N (mm²) | credible in 3D |",
+        "| answer | 1 N / 4 N from touch (mm) | hysteresis (N mm) | errors | change from 2D at "
+        "1 N | contact area 1 N / 4 N (mm²) | credible in 3D |",
         "|---|---|---|---|---|---|---|",
     ]
-    for kind, label in LABELS.items():
+    rows = _shared_rows(answers)
+    for kind in LABELS:
         a = answers.get(kind)
-        if not a:
+        if not a or kind not in rows:
             continue
+        label = rows[kind]
         fe = a.get("fe_metrics") or {}
         if a.get("status") != "ok" or fe.get("disp_at_1N_from_touch_mm") is None:
             lines.append(f"| {label} | no tapping result: {a.get('reason') or '?'} | | | | | |")
@@ -173,7 +190,7 @@ def _rows_3d(summary: dict, three: dict) -> list[str]:
         why = "yes" if a.get("credible") else (
             "no: " + ("; ".join(w for w, bad in (
                 ("unsettled", d.get("settled") is False),
-                (str(d.get("violations")), d.get("valid") is False),
+                ("beyond the validity limits", d.get("valid") is False),
             ) if bad) or "sag")
         )  # fmt: skip
         lines.append(

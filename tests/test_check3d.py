@@ -124,10 +124,10 @@ def test_the_readme_block_shows_the_3d_answers(checked):
 
     _, data, _, _, _ = checked
     lines = _rows_3d({}, data)
-    assert "1 3D simulations" in lines[1]  # best and buildable: one design
+    assert "1 designs" in lines[1]  # best and buildable: one design
     best = data["answers"]["best"]
     fe = best["fe_metrics"]
-    row = next(line for line in lines if line.startswith("| best credible |"))
+    row = next(line for line in lines if line.startswith("| best credible = best buildable |"))
     assert f"{fe['disp_at_1N_from_touch_mm']:.2f} / {fe['disp_at_4N_from_touch_mm']:.2f}" in row
     assert f"{fe['contact_area_at_1N_mm2']:.0f} / {fe['contact_area_at_4N_mm2']:.0f}" in row
     assert row.endswith("| yes |") == bool(best["credible"])

@@ -634,7 +634,7 @@ def test_the_readme_answer_block_has_its_markers():
 
     text = (REPO / "README.md").read_text()
     block = text.split("<!-- answer:start -->\n", 1)[1].split("<!-- answer:end -->", 1)[0]
-    assert "| best credible |" in block and "fingertip run --out" in block
+    assert "| best credible" in block and "fingertip run --model 3d --out" in block
     assert replace_block(text, block) == text  # the block round-trips
 
 
