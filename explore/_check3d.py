@@ -26,7 +26,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from sim.design import Targets
+from sim.design import Targets, with_every_layer
 from sim.materials import Material
 from sim.metrics import METRICS_3D
 from sim.options import ModelOptions, SimOptions
@@ -53,8 +53,9 @@ def options_3d(options: SimOptions) -> SimOptions:
 
 
 def _point(answer: Mapping[str, Any]) -> dict[str, Any]:
-    """The answer's design point as the searches hold it (inactive: NaN)."""
-    return {k: (math.nan if v is None else v) for k, v in answer["point"].items()}
+    """The answer's design point as the searches hold it (inactive: NaN), every layer entry
+    present (``with_every_layer``: as ``explore._confirm`` keys and simulates a point)."""
+    return with_every_layer({k: (math.nan if v is None else v) for k, v in answer["point"].items()})
 
 
 def _candidate(answer: Mapping[str, Any]) -> Candidate:

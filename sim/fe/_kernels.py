@@ -227,8 +227,9 @@ def stiffness(
 
     ``K_aibk = sum_q w dN_aJ A_iJkL dN_bL`` with the first elasticity tensor ``A`` (which
     holds both parts), computed per element as one matrix product: ``T[(a, i, k), (q, L)] =
-    w dN_aJ A_iJkL`` times ``N[(q, L), b] = dN_bL``; the product is BLAS's (``np.dot``), the
-    bulk of the work for a 27-node hexahedron."""
+    w dN_aJ A_iJkL`` times ``N[(q, L), b] = dN_bL``; the product is BLAS's (``np.dot``).
+    (While ``d`` was read from the arrays' shapes, building ``T`` took most of the time, not
+    the product: hence the constant ``d`` of each dimension, the module's docstring.)"""
     if dN.shape[3] == 3:
         return _stiffness(F, S, D, dN, w, voigt, scatter_K, n_out, 3)
     return _stiffness(F, S, D, dN, w, voigt, scatter_K, n_out, 2)
