@@ -258,7 +258,8 @@ def main() -> None:
                 f"{name:7s} {r['dofs']:7d} {solver:16s} {r['first_ms']:9.1f} "
                 f"{r['refactor_ms']:11.1f} {r['solve_ms']:9.2f} {r['held_mb']:8.0f} "
                 f"{r['peak_mb']:8.0f} "
-                f"{r['rel_residual']:13.1e}",
+                f"{r['rel_residual']:13.1e}"
+                + (f"  factor entries {r['factor_entries']}" if "factor_entries" in r else ""),
                 flush=True,
             )
     if args.json:

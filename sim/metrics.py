@@ -31,7 +31,7 @@ SOLVER_VERSION = "2.6"
 SAME_METRICS_AS = ("2.5", "2.4", "2.3", "2.2", "2.1")
 # 2.6: 3D only: PARDISO orders by nested dissection (METIS), as its settings' comment said;
 #      it had ordered by minimum degree (the settings' flag iparm(1) was set to 2 where
-#      iparm(2) was meant): 40 % fewer flops a factorisation of the pad's tangent
+#      iparm(2) was meant): a refactorisation of the pad's tangent 81.7 against 122.5 ms
 #      (sim.fe._linear.PARDISO_IPARM). The 2D model's systems (at most 3 550 dofs in the
 #      default space's sweeps) are factorised by qdldl: the same bits.
 # 2.5: 3D only (the 2D model computes the same bits: studies/same_metrics.py): modified Newton

@@ -38,18 +38,20 @@ def _pardiso_iparm() -> np.ndarray:
     ``[k - 1]``); every entry not named is 0.
 
     - iparm(1) = 1: these values, not PARDISO's defaults.
-    - iparm(2) = 2: nested dissection ordering (METIS). On the pad's tangent (10 622 dofs) it
-      needs 2.6 GFlop a factorisation against minimum degree's (0) 4.6, and a factor of 4.4
-      against 5.4 million entries (PARDISO's own counts, iparm(18) and (19)).
+    - iparm(2) = 2: nested dissection ordering (METIS). On the pad's tangent (10 622 dofs) its
+      factor has 4.4 million entries against minimum degree's (0) 5.4 (PARDISO's own count,
+      iparm(18)), and a refactorisation took 81.7 against 122.5 ms (quiet).
     - iparm(10) = 8: pivots below 1e-8 of the matrix's norm are perturbed (the manual's
       default for symmetric indefinite matrices).
     - iparm(18) = -1: PARDISO reports the factor's entries (information only).
     - iparm(21) = 0: 1 x 1 diagonal pivoting. Bunch-Kaufman's 1 x 1 and 2 x 2 pivots (1, the
-      default) took about twice as long a factorisation on the pad's tangent; a tangent the
+      default) took 1.7 times as long a refactorisation (136.9 ms on the pad's tangent, 47.5
+      against 28.7 ms on the 6 x 6 x 6 Q2 block, quiet); a tangent the
       diagonal pivots cannot factorise accurately shows as a Newton step that does not reduce
       the residual, which Newton's line search and step cuts already handle.
 
-    The figures: ``python benchmarks/bench_linear_solvers.py --systems pad``."""
+    The figures: ``python benchmarks/bench_linear_solvers.py --systems pad 3d-6 --solvers
+    pardiso pardiso-defaults pardiso-md pardiso-bk --repeats 5`` (docs/fe_speed.md)."""
     iparm = np.zeros(64, dtype=np.int32)
     iparm[0], iparm[1], iparm[9], iparm[17], iparm[20] = 1, 2, 8, -1, 0
     return iparm
