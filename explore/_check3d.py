@@ -39,7 +39,7 @@ from ._run_folder import read_summary, write_answers_3d
 from ._summary import credible, target_errors
 from ._types import Candidate
 
-__all__ = ["RECORDS_3D", "check_in_3d", "options_3d"]
+__all__ = ["RECORDS_3D", "check_in_3d", "not_credible", "options_3d"]
 
 #: where a run folder keeps its answers' 3D records
 RECORDS_3D = Path("fe3d") / "records"
@@ -160,3 +160,15 @@ def _result(
         "diagnostics": conf.diagnostics,
         "change_from_2d": moved,
     }
+
+
+def not_credible(result: Mapping[str, Any], violations: bool = False) -> list[str]:
+    """Why a 3D result of :func:`check_in_3d` is not credible, in words ([] when it is):
+    unsettled, beyond the validity limits (with ``violations``: which), or its sag."""
+    if result.get("credible"):
+        return []
+    d = result.get("diagnostics") or {}
+    limits = "beyond the validity limits" + (f": {d.get('violations')}" if violations else "")
+    why = [w for w, bad in (("unsettled", d.get("settled") is False),
+                            (limits, d.get("valid") is False)) if bad]  # fmt: skip
+    return why or ["sag over the targets' limit"]

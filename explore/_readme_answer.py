@@ -19,6 +19,7 @@ from pathlib import Path
 from sim.options import options_from_dict
 from sim.protocols import shown_hysteresis
 
+from ._check3d import not_credible
 from ._run_folder import (
     read_answers_3d,
     read_config,
@@ -144,7 +145,7 @@ def render(folder: str | Path) -> str:
             f"{hysteresis:.3g} | {errors} |"
         )
     if three:
-        lines += _rows_3d(summary, three)
+        lines += _rows_3d(three)
     return "\n".join(lines) + "\n"
 
 
@@ -161,7 +162,7 @@ def _shared_rows(answers: dict) -> dict[str, str]:
     return {kind: " = ".join(names) for kind, names in labels.items()}
 
 
-def _rows_3d(summary: dict, three: dict) -> list[str]:
+def _rows_3d(three: dict) -> list[str]:
     """The answers as 3D fingertips (answers_3d.json, ``explore._check3d``): one row each."""
     answers = three.get("answers") or {}
     unique = {a["fe_record"] for a in answers.values() if a}
@@ -186,13 +187,7 @@ def _rows_3d(summary: dict, three: dict) -> list[str]:
             lines.append(f"| {label} | no tapping result: {a.get('reason') or '?'} | | | | | |")
             continue
         errors = ", ".join(_percent(e) for e in a["errors_vs_targets"].values())
-        d = a.get("diagnostics") or {}
-        why = "yes" if a.get("credible") else (
-            "no: " + ("; ".join(w for w, bad in (
-                ("unsettled", d.get("settled") is False),
-                ("beyond the validity limits", d.get("valid") is False),
-            ) if bad) or "sag")
-        )  # fmt: skip
+        why = "no: " + "; ".join(not_credible(a)) if not_credible(a) else "yes"
         lines.append(
             f"| {label} | {fe['disp_at_1N_from_touch_mm']:.2f} / "
             f"{fe['disp_at_4N_from_touch_mm']:.2f} | {fe['hysteresis_Nmm']:.3g} | {errors} | "

@@ -26,6 +26,7 @@ from sim.protocols import ValidityOptions, shown_hysteresis
 from sim.protocols.validity import binding_strain_limit, strain_limits, strain_summary
 from sim.provenance import nan_if_none, write_if_changed
 
+from ._check3d import not_credible
 from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
 from ._plots import FIGURES, RunData, load_run, run_options, run_targets, write_figures
 from ._run_folder import ANSWERS, read_answers_3d, screened_designs
@@ -598,14 +599,7 @@ def _answers_3d_section(run: RunData, targets: Targets | None) -> list[str]:
         metric = targets.metric if targets is not None else (lambda m: m)
         errors = a.get("errors_vs_targets") or {}
         change = a.get("change_from_2d") or {}
-        d = a.get("diagnostics") or {}
-        why = "yes" if a.get("credible") else (
-            "no: " + ", ".join(
-                w for w, bad in (("unsettled", not d.get("settled")),
-                                 ("beyond the validity limits", not d.get("valid")))
-                if bad
-            ) or "no: sag"
-        )  # fmt: skip
+        why = "no: " + ", ".join(not_credible(a)) if not_credible(a) else "yes"
         lines.append(
             f"| {label} | {_fmt(fe.get(metric('disp_at_1N_mm')))} | "
             f"{_fmt(fe.get(metric('disp_at_4N_mm')))} | {_fmt(fe.get('hysteresis_Nmm'))} | "

@@ -715,6 +715,7 @@ def _finish(summary, out) -> int:
 
 def _print_answers_3d(out, labels: dict[str, str]) -> None:
     """The answers' 3D results (``--model 3d``: answers_3d.json), one line each."""
+    from explore._check3d import not_credible
     from explore._run_folder import read_answers_3d
 
     answers = read_answers_3d(out).get("answers") or {}
@@ -731,11 +732,8 @@ def _print_answers_3d(out, labels: dict[str, str]) -> None:
         )
         fe = a["fe_metrics"]
         area = "/".join(f"{fe.get(f'contact_area_at_{f}N_mm2') or math.nan:.3g}" for f in (1, 4))
-        d = a.get("diagnostics") or {}
-        why = [w for w, bad in (("unsettled", d.get("settled") is False),
-                                (f"beyond the validity limits: {d.get('violations')}",
-                                 d.get("valid") is False)) if bad]  # fmt: skip
-        flag = "" if a.get("credible") else f" [not credible: {'; '.join(why) or 'sag'}]"
+        why = not_credible(a, violations=True)
+        flag = f" [not credible: {'; '.join(why)}]" if why else ""
         print(f"{label} (3D pad){flag}: {errs}; contact area at 1 N / 4 N {area} mm^2")
 
 

@@ -123,7 +123,7 @@ def test_the_readme_block_shows_the_3d_answers(checked):
     from explore._readme_answer import _rows_3d
 
     _, data, _, _, _ = checked
-    lines = _rows_3d({}, data)
+    lines = _rows_3d(data)
     assert "1 designs" in lines[1]  # best and buildable: one design
     best = data["answers"]["best"]
     fe = best["fe_metrics"]
