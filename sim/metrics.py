@@ -20,15 +20,21 @@ __all__ = [
 ]
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
-SOLVER_VERSION = "2.6"
+SOLVER_VERSION = "2.7"
 #: Earlier solver versions whose metrics this one reproduces within its tolerances: a surrogate
 #: trained on their FE results is as good as one trained on this version's (2.1 -> 2.2 changed
 #: only when Newton gives up on a step; docs/fe_speed.md, "Newton"; 2.2 -> 2.3 only the
 #: designs beyond the validity limits, which lose their metrics, and a surrogate learns metrics
 #: from settled, valid designs; 2.3 -> 2.4 other sub-steps where a contact changes, the metrics
 #: within their time-discretisation error; 2.4 -> 2.5 the 2D model bit for bit, the 3D one
-#: within Newton's tolerance; 2.5 -> 2.6 the same, PARDISO's ordering).
-SAME_METRICS_AS = ("2.5", "2.4", "2.3", "2.2", "2.1")
+#: within Newton's tolerance; 2.5 -> 2.6 the same, PARDISO's ordering; 2.6 -> 2.7 the same,
+#: Newton's step solved for the contact set it leads to).
+SAME_METRICS_AS = ("2.6", "2.5", "2.4", "2.3", "2.2", "2.1")
+# 2.7: 3D only: each Newton step is solved again for the contact set its own linearised
+#      penetrations give (NewtonOptions.active_set_solves, Body._settle_active_set), and a
+#      kept factorisation is corrected for at most 32 changed dofs (was 96); the metrics within
+#      Newton's tolerance of 2.6 (a default-space design: every metric within 2.2e-6), the
+#      three corner designs 10-29 % faster (docs/fe_speed.md). The 2D model: the same bits.
 # 2.6: 3D only: PARDISO orders by nested dissection (METIS), as its settings' comment said;
 #      it had ordered by minimum degree (the settings' flag iparm(1) was set to 2 where
 #      iparm(2) was meant): a refactorisation of the pad's tangent 81.7 against 122.5 ms

@@ -254,6 +254,83 @@ def test_contact_update_keeps_factorisations_across_contact_changes():
     np.testing.assert_allclose(updated.indenter_position, kept.indenter_position, atol=1e-5)
 
 
+def _pressed_body(opts: NewtonOptions) -> Body:
+    """The viscoelastic pad of the contact-update test pressed by force control to 1 N."""
+    pmesh = build_pad_mesh(PAD, (), COARSE)
+    table = {"model": "neo_hookean", "mu_MPa": 0.05, "nu": 0.49}
+    mat = material_from_table({**table, "prony_g": [0.3], "prony_tau_s": [0.5]})
+    body = Body(Discretization3D(pmesh, [mat]), Plate(), opts)
+    scale = 1.0 / body.disc.force_scale(10.0)
+    for k, f in enumerate(np.linspace(0.1, 1.0, 8)):
+        assert body.advance(0.05 * (k + 1), Control.force(f * scale)).converged
+    return body
+
+
+def test_a_direction_for_a_contact_set_solves_that_sets_linear_penalty():
+    """``Body._solve_for_set``: Newton's direction for a chosen contact set (nodes entering
+    and leaving the plate's patch) from the kept factorisation corrected by Woodbury's
+    identity is the solution of the system assembled directly: the material's tangent plus
+    kappa n n^T on the set's nodes, the material's residual plus the linear penalty
+    -kappa p n on them (a node outside the plate pulled in: p < 0), position control."""
+    import scipy.sparse.linalg as spla
+
+    opts = NewtonOptions(reuse_factorization=True, contact_update=True)
+    body = _pressed_body(opts)
+    disc = body.disc
+    control = Control.position(body.indenter_position - 0.05)
+    r, data, _, _, _, _, parts = body._evaluate(body.u, control, control.value, 0.01, True)
+    body._factor(data())
+    body._factored_blocks = body._contact_blocks(parts)
+    p = parts[1][0]  # the plate
+    now = p >= 0
+    gap = np.where(now, np.inf, -p)
+    entering = np.argsort(gap)[:5]  # the five nearest nodes outside the patch
+    leaving = np.flatnonzero(now)[:2]
+    assert np.all(p[entering] < 0) and len(leaving) == 2
+    plate_set = now.copy()
+    plate_set[entering] = True
+    plate_set[leaving] = False
+    masks = [parts[0][0] >= 0, plate_set]
+    du, dd = body._solve_for_set(parts, data, masks, r, control)
+    assert dd == 0.0
+
+    ev = disc.evaluate(body.u, body.states, 0.01)  # the body alone, no contact
+    K = disc.pattern.matrix(ev.tangent()).tolil()
+    b = ev.residual.copy()
+    for (pk, nk, _, is_plate), mask in zip(parts, masks, strict=True):
+        kappa = body.kappa_indenter if is_plate else body.kappa_nodes
+        for node in np.flatnonzero(mask):
+            dofs = [body._sdof[i][node] for i in range(3)]
+            for i, di in enumerate(dofs):
+                if di < 0:
+                    continue
+                b[di] -= kappa[node] * pk[node] * nk[node, i]
+                for j, dj in enumerate(dofs):
+                    if dj >= 0:
+                        K[di, dj] += kappa[node] * nk[node, i] * nk[node, j]
+    expected = spla.spsolve(K.tocsc(), -b)
+    np.testing.assert_allclose(du, expected, rtol=0, atol=1e-8 * np.abs(expected).max())
+
+
+def test_active_set_solves_reach_the_same_state_in_fewer_iterations():
+    """``NewtonOptions.active_set_solves``: the press of the contact-update test, its patch
+    growing over surface nodes at every step, solved again for the contact set each Newton
+    step leads to: the same states (to the order of the Newton tolerance), and the rim's
+    nodes no longer cost iterations."""
+    bodies = [
+        _pressed_body(
+            NewtonOptions(reuse_factorization=True, contact_update=True, active_set_solves=k)
+        )
+        for k in (0, 4)
+    ]
+    plain, settled = bodies
+    print(f"Newton iterations: {plain.newton_iterations} -> {settled.newton_iterations}")
+    assert settled.newton_iterations < plain.newton_iterations
+    size = np.abs(plain.u).max()
+    np.testing.assert_allclose(settled.u, plain.u, rtol=0, atol=1e-5 * size)
+    np.testing.assert_allclose(settled.indenter_position, plain.indenter_position, atol=1e-5)
+
+
 def test_a_plane_strain_slab_carries_the_2d_line_load():
     """The 2D section extruded into a slab of Q2 hexahedra (``extruded_section_mesh``) with
     u_z = 0 everywhere: plane strain, the middle of a long extrusion. Its plate force per unit

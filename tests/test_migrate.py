@@ -139,6 +139,28 @@ def test_options_added_since_the_source_take_their_defaults(tmp_path):
     assert new["options"]["newton"]["contact_update"] is False
 
 
+def test_the_resume_command_names_the_options_the_folder_keeps(tmp_path):
+    """An option the folder keeps at another value than today's default (as a 2D sweep keeps
+    ``newton.contact_update_dofs = 96`` from before its default became 32) is in the printed
+    command as ``--set``; those options applied to the defaults give the folder's options."""
+    from sim.options import SimOptions, apply_overrides, options_from_dict
+    from sim.sweep._migrate import resume_command
+
+    space = tmp_path / "space.toml"
+    space.write_text(TINY)
+    old = tmp_path / "old"
+    _previous_solver_config(old, space)
+    config = read_config(old)
+    config["options"]["newton"]["contact_update_dofs"] = 96
+    config["options"]["newton"]["rtol"] = 1e-7
+    command = resume_command(tmp_path / "new", config)
+    assert command.startswith(f"fingertip sweep --n 6 --out {tmp_path / 'new'} --seed 0 ")
+    sets = dict(part.split("=") for part in command.split(" --set ")[1:])
+    assert sets == {"newton.contact_update_dofs": "96", "newton.rtol": "1e-07"}
+    expected = options_from_dict(config["options"])
+    assert apply_overrides(SimOptions(), sets) == expected
+
+
 @pytest.mark.parametrize("source_stopped", [True, False])
 def test_designs_beyond_the_limits_carry_over_when_the_source_stopped_there(
     tmp_path, source_stopped

@@ -127,11 +127,16 @@ class NewtonOptions:
     # nodes' blocks: Woodbury's identity, ``_ContactCorrected``), from a step's first iteration
     # on; at most `contact_update_dofs` changed dofs, else a fresh factorisation.
     contact_update: bool = False
-    # 96: a bound on the update's one multi-right-hand-side solve and its dense s x s system,
-    # not tuned: the 3D tapping of studies/cost3d.py's stiff_skin_soft_core (coarse pad) made
-    # 391 updates with 2837 right-hand sides (an ad hoc count of the PARDISO calls, not kept),
-    # about 7 touched dofs each, so it rarely binds
-    contact_update_dofs: int = 96
+    # 32: the update costs one solve with s right-hand sides (s changed dofs), a fresh
+    # factorisation of the pad's tangent about as much as 25-40 of them (its assembly
+    # included). With the active-set solves below, which change dozens of the rim's dofs at
+    # once, a bound of 96 spent more in solves than it saved (docs/fe_speed.md, "Newton's step
+    # for the contact set it leads to"): soft_fast 42.7 s against 37.1 s with 32, quiet
+    contact_update_dofs: int = 32
+    # With contact_update: solve each Newton step again for the contact set the step itself
+    # leads to, at most this many times (``Body._settle_active_set``); 0: never. Off in 2D (its
+    # records were made without), on in 3D (``model_newton``).
+    active_set_solves: int = 0
 
 
 def model_newton(options: NewtonOptions, dim: int) -> NewtonOptions:
@@ -140,7 +145,7 @@ def model_newton(options: NewtonOptions, dim: int) -> NewtonOptions:
     (``reuse_factorization``, ``contact_update``; docs/fe_speed.md, "Contact update"); the 2D
     model runs full Newton (its records were made so)."""
     if dim == 3:
-        return replace(options, reuse_factorization=True, contact_update=True)
+        return replace(options, reuse_factorization=True, contact_update=True, active_set_solves=4)
     return options
 
 
@@ -368,7 +373,11 @@ class Body:
         """The kept factorisation corrected for the contact's stiffness that changed since it
         was made (``NewtonOptions.contact_update``); None if more than
         ``contact_update_dofs`` free dofs changed (then a fresh factorisation is cheaper)."""
-        blocks = self._contact_blocks(parts)
+        return self._corrected_for(self._contact_blocks(parts))
+
+    def _corrected_for(self, blocks: np.ndarray) -> _ContactCorrected | None:
+        """The kept factorisation corrected to hold the contact blocks ``blocks`` (m, dim, dim)
+        instead of those it was made with; None as in ``_contact_corrected``."""
         changed = np.flatnonzero(np.any(blocks != self._factored_blocks, axis=(1, 2)))
         dim = self.disc.dim
         dofs = np.stack([self._sdof[i][changed] for i in range(dim)], axis=1).ravel()
@@ -388,6 +397,124 @@ class Body:
         self.timings["triangular solves"] += time.perf_counter() - t0
         out = out if out.ok else None
         self._corrected = (key, out)
+        return out
+
+    def _newton_step(self, solver, r, rd, coupling, control) -> tuple[np.ndarray, float]:
+        """Newton's direction ``K du = -r``; under force control bordered by the plate's force
+        balance ``rd`` (its position's change ``dd`` an unknown, tied to the nodes it touches
+        by their ``coupling``)."""
+        with np.errstate(all="ignore"):  # a singular tangent is caught by the caller
+            du = solver.solve(-r)
+            dd = 0.0
+            if control.kind == "force":
+                dof_y = self._sdof[1]
+                kcol = np.zeros(self.disc.n_free)
+                ok = dof_y >= 0
+                kcol[dof_y[ok]] = -coupling[ok]
+                x2 = self._bordered_column(solver, kcol)
+                c = float(np.sum(coupling))
+                dd = (-rd - kcol @ du) / (c - kcol @ x2)
+                du = du - x2 * dd
+        return du, dd
+
+    def _settle_active_set(
+        self,
+        parts,
+        data: Callable,
+        r: np.ndarray,
+        rd: float,
+        control: Control,
+        du: np.ndarray,
+        dd: float,
+    ) -> tuple[np.ndarray, float, float] | None:
+        """Newton's direction for the contact set that the direction itself leads to
+        (``NewtonOptions.active_set_solves``).
+
+        The tangent holds the penalty of the nodes in contact now. A node that Newton's step
+        moves into an obstacle is held by it only at the next iteration, after the step has
+        driven it deep into the stiff penalty (and one the step pulls out is held back by it
+        meanwhile): on the rim of the 3D plate's contact patch, dozens of nodes, Newton then
+        chatters for several iterations, its residual jumping by 100x where a rim node went in.
+        Instead the step is solved again for the contact set its linearised penetrations
+        ``p - n . du + n_y dd`` give: each node of that set under the linear penalty force
+        ``kappa p`` (negative for one not yet in contact: it reaches the obstacle within the
+        step), the others free; until the set repeats, at most ``active_set_solves`` times (the
+        primal-dual active-set iteration on the linearised contact problem: Hintermüller, Ito &
+        Kunisch 2002, SIAM J. Optim. 13:865-888). Each solve is the kept factorisation
+        corrected for that set (``_ContactCorrected``), or where that changes more than
+        ``contact_update_dofs`` dofs a fresh factorisation of the tangent ``data`` with the
+        set's contact stiffness (then kept). Returns the direction, its
+        indenter change and its slope ``g0`` on the true residual, or None where the set does
+        not change, the correction is not possible or the direction does not descend."""
+        dim = self.disc.dim
+        force_control = control.kind == "force"
+        masks = [p >= 0 for p, *_ in parts]  # the set the tangent holds
+        out = None
+        for _ in range(self.options.active_set_solves):
+            step = np.zeros((len(self.kappa_nodes), dim))
+            for i, dofs in enumerate(self._sdof):
+                ok = dofs >= 0
+                step[ok, i] = du[dofs[ok]]
+            new = []
+            for p, n, _, is_indenter in parts:
+                p_lin = p - np.einsum("ij,ij->i", n, step)
+                if is_indenter and force_control:
+                    p_lin = p_lin + n[:, 1] * dd  # the indenter moves up by dd
+                new.append(p_lin >= 0)
+            if all(np.array_equal(a, b) for a, b in zip(new, masks, strict=True)):
+                break
+            masks = new
+            solved = self._solve_for_set(parts, data, masks, r, control)
+            if solved is None:
+                return None
+            du, dd = solved
+            if not (np.all(np.isfinite(du)) and np.isfinite(dd)):
+                return None
+            with np.errstate(all="ignore"):
+                g0 = float(du @ r) + dd * rd
+            out = (du, dd, g0) if np.isfinite(g0) and g0 < 0.0 else None
+        return out
+
+    def _solve_for_set(
+        self, parts, data: Callable, masks: list[np.ndarray], r: np.ndarray, control: Control
+    ) -> tuple[np.ndarray, float] | None:
+        """Newton's direction with each obstacle's contact set ``masks`` (``_settle_active_set``):
+        the residual's and the tangent's contact parts replaced by the linear penalty on those
+        nodes; None where the tangent ``data`` is not finite."""
+        dim = self.disc.dim
+        r2 = r.copy()
+        blocks = np.zeros((len(self.kappa_nodes), dim, dim))
+        force, coupling = 0.0, np.zeros(len(self.kappa_nodes))
+        held_parts = []
+        for (p, n, curv, is_indenter), m in zip(parts, masks, strict=True):
+            k = self.kappa_indenter if is_indenter else self.kappa_nodes
+            f = np.where(m, k * p, 0.0)  # the linear penalty on the set
+            change = f - np.where(p > 0, k * p, 0.0)  # against the forces r holds
+            for i in range(dim):
+                ok = self._sdof[i] >= 0
+                r2[self._sdof[i][ok]] -= (change * n[:, i])[ok]
+            held = np.where(m, np.maximum(p, 0.0), -1.0)  # stiff where in the set
+            held_parts.append((held, n, curv, is_indenter))
+            for i in range(dim):
+                for j in range(dim):
+                    blocks[:, i, j] += self._penalty_stiffness(held, n, curv, k, i, j)
+            if is_indenter:
+                force = float(np.sum(-f * n[:, 1]))
+                coupling = np.where(m, k, 0.0)
+        t0 = time.perf_counter()
+        solver = self._corrected_for(blocks)
+        self.timings["triangular solves"] += time.perf_counter() - t0
+        if solver is None:  # too many changes to correct for: factorise with the set
+            tangent = data(held_parts)
+            if not np.all(np.isfinite(tangent)):
+                return None
+            solver = self._factor(tangent)
+            self._factored_active = coupling > 0
+            self._factored_blocks = blocks
+        t0 = time.perf_counter()
+        rd2 = control.value - force if control.kind == "force" else 0.0
+        out = self._newton_step(solver, r2, rd2, coupling, control)
+        self.timings["triangular solves"] += time.perf_counter() - t0
         return out
 
     def _bordered_column(self, solver, kcol: np.ndarray) -> np.ndarray:
@@ -418,10 +545,10 @@ class Body:
         data = None
         if tangent:
 
-            def data() -> np.ndarray:  # assembled only when a factorisation needs it
+            def data(contact=parts) -> np.ndarray:  # assembled when a factorisation needs it
                 t0 = time.perf_counter()
                 out = ev.tangent()  # assembled for this factorisation only: add to it in place
-                self._add_contact(np.zeros_like(r), out, parts)
+                self._add_contact(np.zeros_like(r), out, contact)
                 self.timings["tangent assembly"] += time.perf_counter() - t0
                 return out
 
@@ -546,18 +673,7 @@ class Body:
                 if opts.contact_update:
                     self._factored_blocks = self._contact_blocks(parts)
             t0 = time.perf_counter()
-            with np.errstate(all="ignore"):  # a singular tangent is caught below
-                du = solver.solve(-r)
-                dd = 0.0
-                if control.kind == "force":
-                    dof_y = self._sdof[1]
-                    kcol = np.zeros(disc.n_free)
-                    ok = dof_y >= 0
-                    kcol[dof_y[ok]] = -coupling[ok]
-                    x2 = self._bordered_column(solver, kcol)
-                    c = float(np.sum(coupling))
-                    dd = (-rd - kcol @ du) / (c - kcol @ x2)
-                    du = du - x2 * dd
+            du, dd = self._newton_step(solver, r, rd, coupling, control)
             self.timings["triangular solves"] += time.perf_counter() - t0
             if not (np.all(np.isfinite(du)) and np.isfinite(dd)):
                 self.newton_iterations += it
@@ -567,6 +683,10 @@ class Body:
             if not np.isfinite(g0):
                 self.newton_iterations += it
                 return StepResult(False, it, "singular tangent")
+            if opts.active_set_solves and opts.contact_update:
+                settled = self._settle_active_set(parts, data, r, rd, control, du, dd)
+                if settled is not None:
+                    du, dd, g0 = settled
             accepted = self._line_search(u, d, du, dd, g0, control, dt, frozen_history)
             if accepted is None and not fresh:  # the kept factorisation misled: a fresh one
                 self._stale = True

@@ -35,13 +35,14 @@ import json
 import math
 import random
 from collections.abc import Iterator
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from ..design import space_from_dict
 from ..errors import DesignError
 from ..metrics import SAME_METRICS_AS, SOLVER_VERSION
-from ..options import options_from_dict
+from ..options import SimOptions, options_from_dict
 from ..provenance import json_safe, provenance
 from .folder import SweepStore, read_config, write_config, write_meta
 from .run import evaluate_point, record_key, sample_points, sweep_config
@@ -153,9 +154,25 @@ def migrate(source: str | Path, target: str | Path) -> tuple[list[str], list[str
 
 
 def resume_command(target: str | Path, config: dict) -> str:
-    """The ``fingertip sweep`` command that computes the designs left out of ``target``."""
+    """The ``fingertip sweep`` command that computes the designs left out of ``target``: with
+    ``--model 3d`` for a 3D sweep and a ``--set`` for every option the folder keeps at another
+    value than this solver's default (the source's value of an option whose default changed
+    since, e.g. ``newton.contact_update_dofs``, which a 2D run does not read)."""
+    options = options_from_dict(config["options"])
+    default = replace(SimOptions(), model=options.model).as_dict()
+    sets = [
+        f" --set {section}.{name}={value}"
+        for section, fields in options.as_dict().items()
+        if section != "model"
+        for name, value in fields.items()
+        if value != default[section][name]
+    ]
     sampler = f" --sampler {config['sampler']}" if config["sampler"] != "sobol" else ""
-    return f"fingertip sweep --n {config['n']} --out {target} --seed {config['seed']}{sampler}"
+    model = " --model 3d" if options.dimension == "3d" else ""
+    return (
+        f"fingertip sweep{model} --n {config['n']} --out {target} --seed {config['seed']}"
+        f"{sampler}{''.join(sets)}"
+    )
 
 
 def _numbers(tree: Any, path: str = "") -> Iterator[tuple[str, Any]]:
