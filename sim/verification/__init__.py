@@ -4,7 +4,8 @@ the ``test`` extra, on first use).
 
 - ``cases``: closed-form stresses of every law in homogeneous modes, plane-strain Hertz contact,
   a manufactured solution on the curved P2 mesh, global equilibrium, the comparison with FElupe;
-- ``felupe_pad``: the plate's force on the elastic 3D quarter pad, computed by FElupe.
+- ``felupe_pad``: the plate's force on the elastic 3D quarter pad, computed by FElupe;
+- ``hertz3d``: Hertz contact of a sphere pressed by the plate, on the 3D model.
 """
 
 from .cases import (
@@ -48,6 +49,7 @@ from .felupe_pad import (
     solve_plate,
     subcells,
 )
+from .hertz3d import HertzRow3D, hertz_sphere_3d
 
 __all__ = [
     "FORMULATIONS",
@@ -56,6 +58,7 @@ __all__ = [
     "Balance",
     "FelupeComparison",
     "HertzResult",
+    "HertzRow3D",
     "MMSResult",
     "ManufacturedSolution",
     "ModeError",
@@ -73,6 +76,7 @@ __all__ = [
     "hand_moduli",
     "hertz_case",
     "hertz_line_contact",
+    "hertz_sphere_3d",
     "law_cases",
     "mms_case",
     "nodal_contact_pressure",
