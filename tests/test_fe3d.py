@@ -228,34 +228,9 @@ def test_contact_corrected_solve_is_the_new_matrixs_solve():
         np.testing.assert_allclose(unchanged.solve(b), np.linalg.solve(K0.toarray(), b))
 
 
-def test_contact_update_keeps_factorisations_across_contact_changes():
-    """``NewtonOptions.contact_update``: force-controlled steps of a viscoelastic pad whose
-    patch grows over surface nodes step by step keep one factorisation across the changes,
-    corrected for the contact; fewer factorisations for the same states (to the order of the
-    Newton tolerance)."""
-    pmesh = build_pad_mesh(PAD, (), COARSE)
-    table = {"model": "neo_hookean", "mu_MPa": 0.05, "nu": 0.49}
-    mat = material_from_table({**table, "prony_g": [0.3], "prony_tau_s": [0.5]})
-    disc = Discretization3D(pmesh, [mat])
-    bodies = []
-    for update in (False, True):
-        opts = NewtonOptions(reuse_factorization=True, contact_update=update)
-        body = Body(disc, Plate(), opts)
-        scale = 1.0 / disc.force_scale(10.0)
-        for k, f in enumerate(np.linspace(0.1, 1.0, 8)):
-            assert body.advance(0.05 * (k + 1), Control.force(f * scale)).converged
-        bodies.append(body)
-    kept, updated = bodies
-    n_kept, n_updated = kept.factorizations, updated.factorizations
-    print(f"factorisations: contact set must match {n_kept}, updated {n_updated}")
-    assert updated.factorizations < kept.factorizations
-    size = np.abs(kept.u).max()
-    np.testing.assert_allclose(updated.u, kept.u, rtol=0, atol=1e-5 * size)
-    np.testing.assert_allclose(updated.indenter_position, kept.indenter_position, atol=1e-5)
-
-
 def _pressed_body(opts: NewtonOptions) -> Body:
-    """The viscoelastic pad of the contact-update test pressed by force control to 1 N."""
+    """A viscoelastic pad pressed by force control to 1 N in 8 steps, its patch growing over
+    surface nodes at every step."""
     pmesh = build_pad_mesh(PAD, (), COARSE)
     table = {"model": "neo_hookean", "mu_MPa": 0.05, "nu": 0.49}
     mat = material_from_table({**table, "prony_g": [0.3], "prony_tau_s": [0.5]})
@@ -264,6 +239,23 @@ def _pressed_body(opts: NewtonOptions) -> Body:
     for k, f in enumerate(np.linspace(0.1, 1.0, 8)):
         assert body.advance(0.05 * (k + 1), Control.force(f * scale)).converged
     return body
+
+
+def test_contact_update_keeps_factorisations_across_contact_changes():
+    """``NewtonOptions.contact_update``: force-controlled steps of a viscoelastic pad whose
+    patch grows over surface nodes step by step keep one factorisation across the changes,
+    corrected for the contact; fewer factorisations for the same states (to the order of the
+    Newton tolerance)."""
+    kept, updated = (
+        _pressed_body(NewtonOptions(reuse_factorization=True, contact_update=update))
+        for update in (False, True)
+    )
+    n_kept, n_updated = kept.factorizations, updated.factorizations
+    print(f"factorisations: contact set must match {n_kept}, updated {n_updated}")
+    assert updated.factorizations < kept.factorizations
+    size = np.abs(kept.u).max()
+    np.testing.assert_allclose(updated.u, kept.u, rtol=0, atol=1e-5 * size)
+    np.testing.assert_allclose(updated.indenter_position, kept.indenter_position, atol=1e-5)
 
 
 def test_a_direction_for_a_contact_set_solves_that_sets_linear_penalty():
