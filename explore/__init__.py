@@ -20,7 +20,14 @@ from __future__ import annotations
 from importlib import import_module
 from typing import TYPE_CHECKING
 
-from ._objective import WEDGE_REFERENCE_N, WEDGE_WEIGHT, Closeness, closeness, objectives
+from ._objective import (
+    WEDGE_REFERENCE_3D_N,
+    WEDGE_REFERENCE_N,
+    WEDGE_WEIGHT,
+    Closeness,
+    closeness,
+    objectives,
+)
 from ._types import Candidate, Confirmation, Summary
 
 if TYPE_CHECKING:
@@ -32,6 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "DEFAULT_CHECKPOINT",
+    "WEDGE_REFERENCE_3D_N",
     "WEDGE_REFERENCE_N",
     "WEDGE_WEIGHT",
     "Candidate",

@@ -8,8 +8,10 @@ protocol run to its end, beyond the validity limits too (:func:`options_3d`). Ea
 written to ``fe3d/records/<key>.json`` as it finishes (the key of
 ``sim.sweep.run.record_key``: a killed run recomputes nothing it has), and each answer's 3D
 result is set against the targets as its 2D result is (``explore._summary``): its relative
-error on each tapping target and their root mean square (not the FE score, whose wedge term is
-scaled to the 2D model's force per 10 mm of finger), whether it is credible (settled, within
+error on each tapping target and their root mean square, its FE score as the 2D one's with the
+wedge's effort taken against the 3D model's own reference (``WEDGE_REFERENCE_3D_N``: the
+paper's silicone as the default pad, where the 2D score's reference is its section's force per
+10 mm of finger), whether it is credible (settled, within
 the validity limits, within the sag limit), the contact patch at 1 N and 4 N, and how far each
 tapping metric moved from the 2D result. The file is ``answers_3d.json``
 (``explore._run_folder``); ``report.md`` shows it.
@@ -34,7 +36,7 @@ from sim.provenance import json_safe
 from sim.sweep import record_key
 
 from ._confirm import compare, run_fe
-from ._objective import TAPPING
+from ._objective import TAPPING, WEDGE_REFERENCE_3D_N, closeness
 from ._run_folder import read_summary, write_answers_3d
 from ._summary import credible, target_errors
 from ._types import Candidate
@@ -137,6 +139,7 @@ def _result(
     fe = record.get("metrics", {}) or {}
     ok = conf.status == "ok" and math.isfinite(conf.fe_score)
     errors = target_errors(conf, targets) if ok else {}
+    score = closeness(fe, targets, wedge_reference_N=WEDGE_REFERENCE_3D_N)
     fe2d = answer.get("fe_metrics") or {}
     moved = {}
     for m in TAPPING:
@@ -149,11 +152,12 @@ def _result(
         "n_dofs": record.get("n_dofs"),
         "wall_time_s": record.get("wall_time_s"),
         "fe_metrics": {m: fe.get(m) for m in (*conf.fe_metrics, *METRICS_3D)},
-        # the tapping targets only: the FE score's wedge term is scaled to the 2D model's force
-        # per 10 mm of finger (explore._objective), the 3D force is the whole pad's
         "tapping_rms_error": math.sqrt(sum(e * e for e in errors.values()) / len(errors))
         if errors
         else None,
+        # the FE score with the wedge's effort against the 3D reference (the whole pad's force)
+        "wedge_effort": float(score.wedge_effort) if ok else None,
+        "fe_score": float(score.score) if ok else None,
         "errors_vs_targets": errors,
         "within_tolerance": {m: abs(e) <= tolerance for m, e in errors.items()},
         "credible": credible(conf, targets),

@@ -30,6 +30,7 @@ TRUST_NAMES = tuple(TRUST_OUTPUTS)
 
 __all__ = [
     "OBJECTIVE_NAMES",
+    "WEDGE_REFERENCE_3D_N",
     "WEDGE_REFERENCE_N",
     "WEDGE_WEIGHT",
     "Closeness",
@@ -40,6 +41,12 @@ __all__ = [
 ]
 
 WEDGE_REFERENCE_N = 2.35  # silicone GLS 40 on the reference geometry (docs/validation.md)
+#: The same reference for the 3D model, whose wedge force is the whole pad's (N): silicone GLS 40
+#: on the reference outline as the default pad (c = 11 mm, m = 2), the simulations' mesh,
+#: `fingertip simulate --material silicone_gls40 --model 3d --protocol wedge` (solver 2.7:
+#: 0.6060 N). A straight edge across the curved pad touches it over a few millimetres only,
+#: so the pad takes a quarter of the plane-strain section's force per 10 mm.
+WEDGE_REFERENCE_3D_N = 0.606
 WEDGE_WEIGHT = 0.1
 #: the names of the multi-objective triple of :func:`objectives`, in its order
 OBJECTIVE_NAMES = ("compliance_error", "hysteresis_error", "wedge_effort")
