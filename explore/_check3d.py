@@ -139,7 +139,7 @@ def _result(
     fe = record.get("metrics", {}) or {}
     ok = conf.status == "ok" and math.isfinite(conf.fe_score)
     errors = target_errors(conf, targets) if ok else {}
-    score = closeness(fe, targets, wedge_reference_N=WEDGE_REFERENCE_3D_N)
+    score = closeness(fe, targets, wedge_reference_N=WEDGE_REFERENCE_3D_N) if ok else None
     fe2d = answer.get("fe_metrics") or {}
     moved = {}
     for m in TAPPING:
@@ -156,8 +156,8 @@ def _result(
         if errors
         else None,
         # the FE score with the wedge's effort against the 3D reference (the whole pad's force)
-        "wedge_effort": float(score.wedge_effort) if ok else None,
-        "fe_score": float(score.score) if ok else None,
+        "wedge_effort": float(score.wedge_effort) if score else None,
+        "fe_score": float(score.score) if score else None,
         "errors_vs_targets": errors,
         "within_tolerance": {m: abs(e) <= tolerance for m, e in errors.items()},
         "credible": credible(conf, targets),

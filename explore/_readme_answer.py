@@ -187,7 +187,8 @@ def _rows_3d(three: dict) -> list[str]:
             lines.append(f"| {label} | no tapping result: {a.get('reason') or '?'} | | | | | |")
             continue
         errors = ", ".join(_percent(e) for e in a["errors_vs_targets"].values())
-        why = "no: " + "; ".join(not_credible(a)) if not_credible(a) else "yes"
+        reasons = not_credible(a)
+        why = "no: " + "; ".join(reasons) if reasons else "yes"
         lines.append(
             f"| {label} | {fe['disp_at_1N_from_touch_mm']:.2f} / "
             f"{fe['disp_at_4N_from_touch_mm']:.2f} | {fe['hysteresis_Nmm']:.3g} | {errors} | "

@@ -599,7 +599,8 @@ def _answers_3d_section(run: RunData, targets: Targets | None) -> list[str]:
         metric = targets.metric if targets is not None else (lambda m: m)
         errors = a.get("errors_vs_targets") or {}
         change = a.get("change_from_2d") or {}
-        why = "no: " + ", ".join(not_credible(a)) if not_credible(a) else "yes"
+        reasons = not_credible(a)
+        why = "no: " + ", ".join(reasons) if reasons else "yes"
         lines.append(
             f"| {label} | {_fmt(fe.get(metric('disp_at_1N_mm')))} | "
             f"{_fmt(fe.get(metric('disp_at_4N_mm')))} | {_fmt(fe.get('hysteresis_Nmm'))} | "

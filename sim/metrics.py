@@ -33,8 +33,9 @@ SAME_METRICS_AS = ("2.6", "2.5", "2.4", "2.3", "2.2", "2.1")
 # 2.7: 3D only: each Newton step is solved again for the contact set its own linearised
 #      penetrations give (NewtonOptions.active_set_solves, Body._settle_active_set), and a
 #      kept factorisation is corrected for at most 32 changed dofs (was 96); the metrics within
-#      Newton's tolerance of 2.6 (a default-space design: every metric within 2.2e-6), the
-#      three corner designs 10-29 % faster (docs/fe_speed.md). The 2D model: the same bits.
+#      Newton's tolerance of 2.6 (a default-space design: every metric within 2.2e-6);
+#      soft_fast and slow_creep 14 and 31 % faster, stiff_skin_soft_core 7 % slower (quiet,
+#      back to back: docs/fe_speed.md). The 2D model: the same bits.
 # 2.6: 3D only: PARDISO orders by nested dissection (METIS), as its settings' comment said;
 #      it had ordered by minimum degree (the settings' flag iparm(1) was set to 2 where
 #      iparm(2) was meant): a refactorisation of the pad's tangent 81.7 against 122.5 ms

@@ -127,11 +127,12 @@ class NewtonOptions:
     # nodes' blocks: Woodbury's identity, ``_ContactCorrected``), from a step's first iteration
     # on; at most `contact_update_dofs` changed dofs, else a fresh factorisation.
     contact_update: bool = False
-    # 32: the update costs one solve with s right-hand sides (s changed dofs), a fresh
-    # factorisation of the pad's tangent about as much as 25-40 of them (its assembly
-    # included). With the active-set solves below, which change dozens of the rim's dofs at
-    # once, a bound of 96 spent more in solves than it saved (docs/fe_speed.md, "Newton's step
-    # for the contact set it leads to"): soft_fast 42.7 s against 37.1 s with 32, quiet
+    # 32: the update costs one solve with s right-hand sides (s changed dofs); a fresh
+    # refactorisation of the pad's tangent costs about 23 solves (81.7 against 3.6 ms, quiet:
+    # docs/fe_speed.md, PARDISO's ordering), more with its assembly. With the active-set solves
+    # below, which change dozens of the rim's dofs at once, a bound of 96 spent more in solves
+    # than it saved (docs/fe_speed.md, "Newton's step for the contact set it leads to"):
+    # soft_fast 42.7 s against 37.1 s with 32, quiet
     contact_update_dofs: int = 32
     # With contact_update: solve each Newton step again for the contact set the step itself
     # leads to, at most this many times (``Body._settle_active_set``); 0: never. Off in 2D (its
@@ -399,6 +400,14 @@ class Body:
         self._corrected = (key, out)
         return out
 
+    def _surface_step(self, du: np.ndarray) -> np.ndarray:
+        """The surface nodes' part (m, dim) of ``du`` on the free dofs (0 on a fixed dof)."""
+        step = np.zeros((len(self.kappa_nodes), self.disc.dim))
+        for i, dofs in enumerate(self._sdof):
+            ok = dofs >= 0
+            step[ok, i] = du[dofs[ok]]
+        return step
+
     def _newton_step(self, solver, r, rd, coupling, control) -> tuple[np.ndarray, float]:
         """Newton's direction ``K du = -r``; under force control bordered by the plate's force
         balance ``rd`` (its position's change ``dd`` an unknown, tied to the nodes it touches
@@ -446,15 +455,11 @@ class Body:
         set's contact stiffness (then kept). Returns the direction, its
         indenter change and its slope ``g0`` on the true residual, or None where the set does
         not change, the correction is not possible or the direction does not descend."""
-        dim = self.disc.dim
         force_control = control.kind == "force"
         masks = [p >= 0 for p, *_ in parts]  # the set the tangent holds
         out = None
         for _ in range(self.options.active_set_solves):
-            step = np.zeros((len(self.kappa_nodes), dim))
-            for i, dofs in enumerate(self._sdof):
-                ok = dofs >= 0
-                step[ok, i] = du[dofs[ok]]
+            step = self._surface_step(du)
             new = []
             for p, n, _, is_indenter in parts:
                 p_lin = p - np.einsum("ij,ij->i", n, step)
@@ -481,26 +486,22 @@ class Body:
         """Newton's direction with each obstacle's contact set ``masks`` (``_settle_active_set``):
         the residual's and the tangent's contact parts replaced by the linear penalty on those
         nodes; None where the tangent ``data`` is not finite."""
-        dim = self.disc.dim
         r2 = r.copy()
-        blocks = np.zeros((len(self.kappa_nodes), dim, dim))
         force, coupling = 0.0, np.zeros(len(self.kappa_nodes))
         held_parts = []
         for (p, n, curv, is_indenter), m in zip(parts, masks, strict=True):
             k = self.kappa_indenter if is_indenter else self.kappa_nodes
             f = np.where(m, k * p, 0.0)  # the linear penalty on the set
             change = f - np.where(p > 0, k * p, 0.0)  # against the forces r holds
-            for i in range(dim):
-                ok = self._sdof[i] >= 0
-                r2[self._sdof[i][ok]] -= (change * n[:, i])[ok]
-            held = np.where(m, np.maximum(p, 0.0), -1.0)  # stiff where in the set
-            held_parts.append((held, n, curv, is_indenter))
-            for i in range(dim):
-                for j in range(dim):
-                    blocks[:, i, j] += self._penalty_stiffness(held, n, curv, k, i, j)
+            for i, dofs in enumerate(self._sdof):
+                ok = dofs >= 0
+                r2[dofs[ok]] -= (change * n[:, i])[ok]
+            # the penetrations as the penalty's stiffness sees them: in the set or not
+            held_parts.append((np.where(m, np.maximum(p, 0.0), -1.0), n, curv, is_indenter))
             if is_indenter:
                 force = float(np.sum(-f * n[:, 1]))
                 coupling = np.where(m, k, 0.0)
+        blocks = self._contact_blocks(held_parts)
         t0 = time.perf_counter()
         solver = self._corrected_for(blocks)
         self.timings["triangular solves"] += time.perf_counter() - t0
@@ -771,12 +772,7 @@ class Body:
         obstacle along the line. A node that enters contact within the step makes g jump by
         orders of magnitude at the full step, and a secant of the total g then crawls towards
         the root (``_model_root`` uses this part exactly instead)."""
-        dim = self.disc.dim
-        s = self.disc.surface_nodes
-        step = np.zeros((len(s), dim))  # the line's direction at the surface nodes
-        for i, dofs in enumerate(self._sdof):
-            ok = dofs >= 0
-            step[ok, i] = du[dofs[ok]]
+        step = self._surface_step(du)  # the line's direction at the surface nodes
         axes = list(self._axes)
         xy0, dxy = self.plane_coordinates(u), step[:, axes]
         push = control.value if control.kind == "force" else 0.0
