@@ -20,7 +20,7 @@ __all__ = [
 ]
 
 #: Bumped whenever a change alters computed metrics (keys sweep records and checkpoints).
-SOLVER_VERSION = "2.7"
+SOLVER_VERSION = "2.8"
 #: Earlier solver versions whose metrics this one reproduces within its tolerances: a surrogate
 #: trained on their FE results is as good as one trained on this version's (2.1 -> 2.2 changed
 #: only when Newton gives up on a step; docs/fe_speed.md, "Newton"; 2.2 -> 2.3 only the
@@ -28,8 +28,15 @@ SOLVER_VERSION = "2.7"
 #: from settled, valid designs; 2.3 -> 2.4 other sub-steps where a contact changes, the metrics
 #: within their time-discretisation error; 2.4 -> 2.5 the 2D model bit for bit, the 3D one
 #: within Newton's tolerance; 2.5 -> 2.6 the same, PARDISO's ordering; 2.6 -> 2.7 the same,
-#: Newton's step solved for the contact set it leads to).
-SAME_METRICS_AS = ("2.6", "2.5", "2.4", "2.3", "2.2", "2.1")
+#: Newton's step solved for the contact set it leads to; 2.7 -> 2.8 the same, at most one
+#: fresh factorisation in those solves).
+SAME_METRICS_AS = ("2.7", "2.6", "2.5", "2.4", "2.3", "2.2", "2.1")
+# 2.8: 3D only: the active-set solves of a Newton iteration factorise afresh at most once (a
+#      set beyond the Woodbury bound again keeps the last set's direction), and the columns
+#      K0^-1 e_j of the Woodbury correction are kept for the factorisation's life
+#      (sim.fe.solver._KeptColumns: solved once per dof, not once per change). The three corner
+#      designs 24.8/36.4/139.4 -> 22.6/31.1/114.9 s, quiet, back to back (docs/fe_speed.md,
+#      "One fresh factorisation per active-set settle"). The 2D model: the same bits.
 # 2.7: 3D only: each Newton step is solved again for the contact set its own linearised
 #      penetrations give (NewtonOptions.active_set_solves, Body._settle_active_set), and a
 #      kept factorisation is corrected for at most 32 changed dofs (was 96); the metrics within

@@ -202,7 +202,7 @@ def test_contact_corrected_solve_is_the_new_matrixs_solve():
     import scipy.sparse as sp
 
     from sim.fe._linear import make_solver, pardiso_available
-    from sim.fe.solver import _ContactCorrected
+    from sim.fe.solver import _ContactCorrected, _KeptColumns
 
     rng = np.random.default_rng(0)
     n = 60
@@ -226,6 +226,17 @@ def test_contact_corrected_solve_is_the_new_matrixs_solve():
         np.testing.assert_allclose(corrected.solve(b), np.linalg.solve(K, b), rtol=1e-10)
         unchanged = _ContactCorrected(solver, dofs[:0], D[:0, :0], n)
         np.testing.assert_allclose(unchanged.solve(b), np.linalg.solve(K0.toarray(), b))
+        # with the columns kept for this factorisation: a second change sharing four of the
+        # dofs solves for the new ones only, and is still exact
+        kept = _KeptColumns()
+        _ContactCorrected(solver, dofs, D, n, kept)
+        dofs2 = np.array([17, 18, 19, 40, 52])
+        D2 = np.diag([5.0, 6.0, 7.0, -3.0, 9.0])
+        corrected2 = _ContactCorrected(solver, dofs2, D2, n, kept)
+        assert (kept.solved, kept.served) == (7 + 1, 4)
+        K2 = K0.toarray()
+        K2[np.ix_(dofs2, dofs2)] += D2
+        np.testing.assert_allclose(corrected2.solve(b), np.linalg.solve(K2, b), rtol=1e-10)
 
 
 def _pressed_body(opts: NewtonOptions) -> Body:

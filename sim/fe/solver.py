@@ -247,6 +247,7 @@ class Body:
         self._factored_active: np.ndarray | None = None  # the indenter's contact at that time
         self._factored_blocks: np.ndarray | None = None  # the contact's stiffness at that time
         self._corrected = None  # (key, _ContactCorrected) of the last contact update
+        self._kept_columns = _KeptColumns()  # of the kept factorisation (contact updates)
         self._x2 = None  # (key, solution, solver) of the last bordered column (force control)
         #: the sparse direct solver by name (``sim.fe._linear.SOLVERS``); None: by the size
         self.linear_solver: str | None = None
@@ -394,7 +395,7 @@ class Body:
         if self._corrected is not None and self._corrected[0] == key:
             return self._corrected[1]  # the same change as the last iteration's: kept
         t0 = time.perf_counter()
-        out = _ContactCorrected(self._solver, dofs, D, self.disc.n_free)
+        out = _ContactCorrected(self._solver, dofs, D, self.disc.n_free, self._kept_columns)
         self.timings["triangular solves"] += time.perf_counter() - t0
         out = out if out.ok else None
         self._corrected = (key, out)
@@ -452,12 +453,16 @@ class Body:
         Kunisch 2002, SIAM J. Optim. 13:865-888). Each solve is the kept factorisation
         corrected for that set (``_ContactCorrected``), or where that changes more than
         ``contact_update_dofs`` dofs a fresh factorisation of the tangent ``data`` with the
-        set's contact stiffness (then kept). Returns the direction, its
+        set's contact stiffness (then kept), once per call at most: a set that is again beyond
+        the bound keeps the last set's direction (on a default-space design whose rim moved
+        by dozens of nodes an iteration, each of the four solves had factorised afresh: more
+        factorisations than Newton iterations). Returns the direction, its
         indenter change and its slope ``g0`` on the true residual, or None where the set does
         not change, the correction is not possible or the direction does not descend."""
         force_control = control.kind == "force"
         masks = [p >= 0 for p, *_ in parts]  # the set the tangent holds
         out = None
+        factorizations = self.factorizations
         for _ in range(self.options.active_set_solves):
             step = self._surface_step(du)
             new = []
@@ -469,9 +474,12 @@ class Body:
             if all(np.array_equal(a, b) for a, b in zip(new, masks, strict=True)):
                 break
             masks = new
-            solved = self._solve_for_set(parts, data, masks, r, control)
+            # one fresh factorisation at most: a set that changes more than the correction's
+            # bound again is left for the next iteration (the direction of the last set)
+            may_factor = self.factorizations == factorizations
+            solved = self._solve_for_set(parts, data, masks, r, control, may_factor)
             if solved is None:
-                return None
+                return out if not may_factor else None
             du, dd = solved
             if not (np.all(np.isfinite(du)) and np.isfinite(dd)):
                 return None
@@ -481,7 +489,13 @@ class Body:
         return out
 
     def _solve_for_set(
-        self, parts, data: Callable, masks: list[np.ndarray], r: np.ndarray, control: Control
+        self,
+        parts,
+        data: Callable,
+        masks: list[np.ndarray],
+        r: np.ndarray,
+        control: Control,
+        may_factor: bool = True,
     ) -> tuple[np.ndarray, float] | None:
         """Newton's direction with each obstacle's contact set ``masks`` (``_settle_active_set``):
         the residual's and the tangent's contact parts replaced by the linear penalty on those
@@ -505,6 +519,8 @@ class Body:
         t0 = time.perf_counter()
         solver = self._corrected_for(blocks)
         self.timings["triangular solves"] += time.perf_counter() - t0
+        if solver is None and not may_factor:
+            return None
         if solver is None:  # too many changes to correct for: factorise with the set
             tangent = data(held_parts)
             if not np.all(np.isfinite(tangent)):
@@ -594,6 +610,7 @@ class Body:
         else:  # same pattern: new values, the symbolic analysis kept
             self._solver.refactor(np.take(data, self.disc.upper_data))
         self.factorizations += 1
+        self._kept_columns.clear()
         self.timings["LDL^T factorisation"] += time.perf_counter() - t0
         return self._solver
 
@@ -838,15 +855,60 @@ class Body:
         self._last_control = None
 
 
+class _KeptColumns:
+    """Columns ``K0^-1 e_j`` of one factorisation of ``K0``, solved once per dof ``j``.
+
+    The contact's changes against a kept factorisation are made of the same few dozen rim
+    dofs, iteration after iteration (on ``soft_fast``'s 3D tapping half of the columns the
+    corrections asked for had been solved before with the same factorisation). Made empty
+    with every new factorisation (``Body._factor``); holds at most ``capacity`` columns
+    (then emptied: the dofs of a patch's rim move on)."""
+
+    def __init__(self, capacity: int = 512) -> None:
+        self.capacity = capacity
+        self._columns: dict[int, np.ndarray] = {}
+        #: columns solved, and columns served from the store (counts)
+        self.solved = 0
+        self.served = 0
+
+    def clear(self) -> None:
+        self._columns.clear()
+
+    def columns(self, solver: Any, dofs: np.ndarray, n_free: int) -> np.ndarray:
+        """``K0^-1 P`` (n_free, len(dofs)), P the unit columns of ``dofs``: the missing ones
+        in one solve with as many right-hand sides."""
+        missing = [int(j) for j in dofs if int(j) not in self._columns]
+        if len(self._columns) + len(missing) > self.capacity:
+            self._columns.clear()
+            missing = [int(j) for j in dofs]
+        if missing:
+            P = np.zeros((n_free, len(missing)))
+            P[missing, np.arange(len(missing))] = 1.0
+            Z = solver.solve_many(P)
+            for k, j in enumerate(missing):
+                self._columns[j] = Z[:, k]
+        self.solved += len(missing)
+        self.served += len(dofs) - len(missing)
+        return np.column_stack([self._columns[int(j)] for j in dofs])
+
+
 class _ContactCorrected:
     """Solves with a kept factorisation of ``K0`` as if it held today's contact stiffness,
     ``K = K0 + P D P^T`` (``D`` the change of the contact's blocks on the free dofs ``dofs``, P
     their unit columns), by Woodbury's identity:
-    ``K^-1 b = y - Z (I + D P^T Z)^-1 D P^T y`` with ``y = K0^-1 b``, ``Z = K0^-1 P`` (one solve
-    with ``len(dofs)`` right-hand sides, made once). ``ok`` is False where ``I + D P^T Z`` is
+    ``K^-1 b = y - Z (I + D P^T Z)^-1 D P^T y`` with ``y = K0^-1 b``, ``Z = K0^-1 P`` (the
+    columns from ``kept``, a ``_KeptColumns`` of this factorisation; without one, one solve
+    with ``len(dofs)`` right-hand sides). ``ok`` is False where ``I + D P^T Z`` is
     singular (K itself is then singular or nearly so)."""
 
-    def __init__(self, solver: Any, dofs: np.ndarray, D: np.ndarray, n_free: int) -> None:
+    def __init__(
+        self,
+        solver: Any,
+        dofs: np.ndarray,
+        D: np.ndarray,
+        n_free: int,
+        kept: _KeptColumns | None = None,
+    ) -> None:
         self._solver = solver
         self._dofs = dofs
         self._D = D
@@ -855,9 +917,7 @@ class _ContactCorrected:
         self.ok = True
         if s == 0:
             return
-        P = np.zeros((n_free, s))
-        P[dofs, np.arange(s)] = 1.0
-        self._Z = solver.solve_many(P)
+        self._Z = (kept if kept is not None else _KeptColumns()).columns(solver, dofs, n_free)
         M = np.eye(s) + D @ self._Z[dofs]
         with np.errstate(all="ignore"):
             cond = float(np.linalg.cond(M))
