@@ -14,7 +14,7 @@ import explore.cli
 from sim.errors import DesignError
 from sim.metrics import SAME_METRICS_AS, SOLVER_VERSION
 from sim.sweep import SweepStore, read_config, write_config
-from sim.sweep._migrate import carried, migrate
+from sim.sweep._migrate import carried, largest_difference, migrate
 
 #: a strict strain limit, so that some of the tiny designs are beyond it (their tapping strains
 #: are 0.31-0.49 with the FAST options)
@@ -111,6 +111,14 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
         ),
         ([old, tmp_path / "taken"], f"TARGET: {tmp_path / 'taken'} exists"),
         ([old, tmp_path / "new", "--verify", "-1"], "--verify: must be >= 0"),
+        (
+            [old, tmp_path / "new", "--verify", "1", "--rtol", "0.01"],
+            "--rtol: must be in [0, 0.001]",
+        ),
+        (
+            [old, tmp_path / "new", "--verify", "1", "--rtol", "nan"],
+            "--rtol: must be in [0, 0.001]",
+        ),
     ):
         assert explore.cli.main(["migrate-sweep", *map(str, argv)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
@@ -209,3 +217,30 @@ def test_designs_beyond_the_limits_carry_over_when_the_source_stopped_there(
     for rec in after.values():  # the stop the source recorded is kept
         assert rec["diagnostics"]["stopped"] == ("" if rec["diagnostics"]["valid"] else
                                                  "tapping: stopped at t = 1 s")  # fmt: skip
+
+
+def test_a_tolerance_compares_metrics_and_validity_not_newtons_path():
+    """``--rtol``: a 3D solver that changed Newton's path gives other curves (sub-steps) and
+    counts, and metrics within Newton's tolerance; with ``metrics_only`` those metrics are
+    compared within it, and a change of validity or settling is never within any tolerance."""
+    rec = {
+        "status": "ok",
+        "metrics": {"disp_at_1N_mm": 0.78, "hysteresis_Nmm": 0.1176, "sag_mm": None},
+        "diagnostics": {"valid": True, "settled": True, "stopped": "", "tapping_taps": 13},
+        "curves": {"tapping": {"time_s": [0.0, 0.5, 1.0]}},
+    }
+    moved = {
+        "status": "ok",
+        "metrics": {"disp_at_1N_mm": 0.78 * (1 + 3e-7), "hysteresis_Nmm": 0.1176, "sag_mm": None},
+        "diagnostics": {"valid": True, "settled": True, "stopped": "", "tapping_taps": 12},
+        "curves": {"tapping": {"time_s": [0.0, 0.25, 0.5, 1.0]}},  # a cut step
+    }
+    assert largest_difference(rec, moved)[0] == float("inf")  # the curves' structure
+    worst, where = largest_difference(rec, moved, metrics_only=True)
+    assert worst == pytest.approx(3e-7, rel=1e-6) and where == "metrics.disp_at_1N_mm"
+    for name, value in (("valid", False), ("settled", False), ("stopped", "tapping")):
+        flipped = {**moved, "diagnostics": {**moved["diagnostics"], name: value}}
+        assert largest_difference(rec, flipped, metrics_only=True) == (
+            float("inf"),
+            f"diagnostics.{name}",
+        )

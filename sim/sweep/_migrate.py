@@ -48,6 +48,7 @@ from .folder import SweepStore, read_config, write_config, write_meta
 from .run import evaluate_point, record_key, sample_points, sweep_config
 
 __all__ = [
+    "MAX_METRICS_RTOL",
     "VERIFY_RTOL",
     "carried",
     "largest_difference",
@@ -60,6 +61,14 @@ __all__ = [
 #: ran every BLAS call on one thread (commit 2c735c2; the sweep's worker processes then summed
 #: dot products on two threads) can differ from today's bits by round-off
 VERIFY_RTOL = 1e-9
+#: the largest ``--rtol`` a migration's check may be given: the periodic state's own tolerance
+#: (``TappingOptions.settle_tol``, 1e-3), within which two runs of the taps are the same
+#: result; a solver that moves a metric further does not reproduce the old one
+MAX_METRICS_RTOL = 1e-3
+#: what the check with a tolerance compares: the status, the metrics, and these diagnostics
+#: exactly (the curves and the counts follow Newton's path, which a solver may change)
+METRICS_FIELDS = ("status", "metrics")
+JUDGED_DIAGNOSTICS = ("valid", "settled", "stopped")
 #: what may differ between the source's options and the new ones
 CHANGED_OPTIONS = {("validity", "stop_at_violation")}
 
@@ -187,11 +196,18 @@ def _numbers(tree: Any, path: str = "") -> Iterator[tuple[str, Any]]:
         yield path, tree
 
 
-def largest_difference(a: dict, b: dict) -> tuple[float, str]:
+def largest_difference(a: dict, b: dict, metrics_only: bool = False) -> tuple[float, str]:
     """The largest relative difference between two records' metrics, diagnostics and curves
-    (inf where their structure or a non-number differs) and where it is."""
+    (inf where their structure or a non-number differs) and where it is. ``metrics_only``:
+    the status and the metrics, and the validity and settling (``JUDGED_DIAGNOSTICS``, which
+    must be equal), not the curves and counts."""
+    if metrics_only:
+        for name in JUDGED_DIAGNOSTICS:
+            if a["diagnostics"].get(name) != b["diagnostics"].get(name):
+                return math.inf, f"diagnostics.{name}"
     worst, where = 0.0, ""
-    for field in ("status", "metrics", "diagnostics", "curves"):
+    fields = METRICS_FIELDS if metrics_only else ("status", "metrics", "diagnostics", "curves")
+    for field in fields:
         x, y = list(_numbers(a[field], field)), list(_numbers(b[field], field))
         if [p for p, _ in x] != [p for p, _ in y]:
             return math.inf, field
@@ -206,16 +222,22 @@ def largest_difference(a: dict, b: dict) -> tuple[float, str]:
 
 
 def verify(
-    target: str | Path, kept: list[str], config: dict, k: int, seed: int = 0
+    target: str | Path,
+    kept: list[str],
+    config: dict,
+    k: int,
+    seed: int = 0,
+    metrics_only: bool = False,
 ) -> list[tuple[str, float, str]]:
     """Re-simulate ``k`` of the carried designs ``kept`` (drawn with ``seed``); per design
-    (key, the largest relative difference from its record, where). Each must stay within
-    ``VERIFY_RTOL`` (0.0: bit for bit, as for records computed since FE runs BLAS on one
-    thread)."""
+    (key, the largest relative difference from its record, where; ``metrics_only`` as in
+    :func:`largest_difference`). Each must stay within ``VERIFY_RTOL`` (round-off, as for
+    records computed since FE runs BLAS on one thread), or within the tolerance the caller
+    gives for a solver that changed Newton's path (``fingertip migrate-sweep --rtol``)."""
     records = SweepStore(Path(target)).load()
     out = []
     for key in random.Random(seed).sample(kept, min(k, len(kept))):
         rec = records[key]
         new = json_safe(evaluate_point(rec["params"], config["options"]))
-        out.append((key, *largest_difference(new, rec)))
+        out.append((key, *largest_difference(new, rec, metrics_only)))
     return out
