@@ -334,6 +334,57 @@ def test_active_set_solves_reach_the_same_state_in_fewer_iterations():
     np.testing.assert_allclose(settled.indenter_position, plain.indenter_position, atol=1e-5)
 
 
+def test_active_set_solves_factorise_afresh_at_most_once_an_iteration():
+    """With a Woodbury bound of 16 dofs, changes of the contact set in the active-set solves
+    need fresh factorisations: a settle makes at most one (solver 2.8; a set beyond the bound
+    again keeps the last set's direction), so an iteration factorises at most twice, and the
+    press reaches the state of plain modified Newton. (Solver 2.7, which factorised for every
+    such set, made two in one settle here and failed the press's line search.)"""
+    from sim.fe.solver import Body as _Body
+
+    settles: list[int] = []
+    settle = _Body._settle_active_set
+
+    def counted(self, *args, **kwargs):
+        before = self.factorizations
+        out = settle(self, *args, **kwargs)
+        settles.append(self.factorizations - before)
+        return out
+
+    _Body._settle_active_set = counted
+    try:
+        opts = dict(reuse_factorization=True, contact_update=True, contact_update_dofs=16)
+        body = _pressed_body(NewtonOptions(**opts, active_set_solves=4))
+    finally:
+        _Body._settle_active_set = settle
+    plain = _pressed_body(NewtonOptions(**opts))
+    assert settles and max(settles) == 1  # the bound made some settles factorise
+    assert body.factorizations <= 2 * body.newton_iterations
+    size = np.abs(plain.u).max()
+    np.testing.assert_allclose(body.u, plain.u, rtol=0, atol=1e-5 * size)
+
+
+def test_kept_columns_are_emptied_when_full():
+    """``_KeptColumns`` holds at most ``capacity`` columns: a change that would overflow it
+    empties it and solves its own columns afresh, which are then exact."""
+    import scipy.sparse as sp
+
+    from sim.fe._linear import make_solver
+    from sim.fe.solver import _KeptColumns
+
+    n = 20
+    K = (sp.diags(np.arange(1.0, n + 1)) + sp.eye(n, k=1) + sp.eye(n, k=-1)).tocsc()
+    solver = make_solver("qdldl")
+    solver.factor(sp.triu(K).tocsc())
+    kept = _KeptColumns(capacity=3)
+    kept.columns(solver, np.array([0, 1]), n)
+    Z = kept.columns(solver, np.array([1, 5]), n)  # one new: fits (3 columns)
+    assert (kept.solved, kept.served) == (3, 1)
+    Z = kept.columns(solver, np.array([7, 8]), n)  # would hold 5: emptied, both solved
+    assert (kept.solved, kept.served) == (5, 1)
+    np.testing.assert_allclose(K @ Z, np.eye(n)[:, [7, 8]], atol=1e-12)
+
+
 def test_a_plane_strain_slab_carries_the_2d_line_load():
     """The 2D section extruded into a slab of Q2 hexahedra (``extruded_section_mesh``) with
     u_z = 0 everywhere: plane strain, the middle of a long extrusion. Its plate force per unit
