@@ -516,9 +516,7 @@ class Body:
                 force = float(np.sum(-f * n[:, 1]))
                 coupling = np.where(m, k, 0.0)
         blocks = self._contact_blocks(held_parts)
-        t0 = time.perf_counter()
-        solver = self._corrected_for(blocks)
-        self.timings["triangular solves"] += time.perf_counter() - t0
+        solver = self._corrected_for(blocks)  # times its own solves
         if solver is None and not may_factor:
             return None
         if solver is None:  # too many changes to correct for: factorise with the set
