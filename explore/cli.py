@@ -1079,6 +1079,8 @@ def _cmd_migrate_sweep(args: argparse.Namespace) -> int:
 
     if args.verify < 0:
         raise UsageError(f"--verify: must be >= 0, got {args.verify}")
+    if args.rtol is not None and args.verify == 0:
+        raise UsageError("--rtol: applies to --verify K with K >= 1, which was not given")
     rtol = VERIFY_RTOL if args.rtol is None else args.rtol
     if not 0.0 <= rtol <= MAX_METRICS_RTOL:  # also NaN
         raise UsageError(f"--rtol: must be in [0, {MAX_METRICS_RTOL:g}], got {args.rtol}")

@@ -119,6 +119,7 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, capsys):
             [old, tmp_path / "new", "--verify", "1", "--rtol", "nan"],
             "--rtol: must be in [0, 0.001]",
         ),
+        ([old, tmp_path / "new", "--rtol", "1e-6"], "--rtol: applies to --verify K with K >= 1"),
     ):
         assert explore.cli.main(["migrate-sweep", *map(str, argv)]) == 2
         err = capsys.readouterr().err.strip().splitlines()
