@@ -3,9 +3,11 @@ active learning, design-space plots and the ``fingertip`` command line.
 
 Public API::
 
-    optimize(OptimizeConfig(...), out) -> Summary     # fingertip optimize
+    optimize(OptimizeConfig(...), out) -> Summary     # fingertip optimize (2D or, with a
+                                                       # multi-fidelity surrogate, 3D)
     run(OptimizeConfig(...), out, from_scratch=N)      # fingertip run (--from-scratch)
     closeness(metrics, targets), objectives(c)         # the documented closeness score
+    wedge_reference_N(dimension)                       # its wedge reference, by model
     write_figures(run_dir), write_report(run_dir)      # fingertip report
     check_in_3d(run_dir, targets, options_3d(opts), tolerance=0.05)  # --model 3d: the answers
     Candidate, Confirmation, Summary                   # the data of a run folder
@@ -27,6 +29,7 @@ from ._objective import (
     Closeness,
     closeness,
     objectives,
+    wedge_reference_N,
 )
 from ._types import Candidate, Confirmation, Summary
 
@@ -53,6 +56,7 @@ __all__ = [
     "optimize",
     "options_3d",
     "run",
+    "wedge_reference_N",
     "write_figures",
     "write_report",
 ]

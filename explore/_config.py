@@ -23,7 +23,7 @@ from sim.sweep import default_workers
 
 from ._buildable import DEFAULT_FE_BUDGET
 from ._run_folder import read_config
-from ._search import catalogue_only, check_subspace
+from ._search import catalogue_only, check_subspace, complete_subspace
 from ._storage import check_storage, default_storage
 
 __all__ = [
@@ -62,8 +62,10 @@ class OptimizeConfig:
     or a sag over the targets' limit) compete for the answers, flagged as such; ``screen``:
     designs of a quasi-random sample the surrogate scores at the start of every study, whose
     best (``SearchSettings.screen_keep``) seed the sampler (``explore._search.screen``), so
-    ``trials`` counts the sampler's trials after them; ``model``: "3d" simulates every answer
-    with the 3D pad too (``explore._check3d``, answers_3d.json).
+    ``trials`` counts the sampler's trials after them; ``model``: the model of the answers
+    (None: the surrogate's; a multi-fidelity surrogate searches the 3D pad and confirms in 3D,
+    ``Setup.model``), "3d" with a 2D surrogate simulates every 2D answer with the 3D pad too
+    (``explore._check3d``, answers_3d.json).
     """
 
     surrogate: str = str(DEFAULT_CHECKPOINT)
@@ -110,9 +112,12 @@ class OptimizeConfig:
     # 2^16 designs: ~2-3 s per study at the surrogate's ~65 000 designs/s on one thread
     # (benchmarks/bench_predict.py), so a round of four studies stays within 30 s (issue 15)
     screen: int = 65536
-    # "3d": every answer is also simulated with the 3D pad (explore._check3d); the search and
-    # its confirmations stay the 2D model's, so a run may be resumed with either
-    model: str = "2d"
+    # the model the answers are judged in; None: the surrogate's (a multi-fidelity surrogate
+    # searches the 3D model, a 2D one the 2D model). "3d" with a 2D surrogate: the search and
+    # its confirmations stay 2D and every answer is also simulated with the 3D pad
+    # (explore._check3d), so such a run may be resumed with either; "2d" with a
+    # multi-fidelity surrogate is refused (it predicts the 3D model only)
+    model: str | None = None
 
     def check(self) -> None:
         def at_least(name: str, value: int, low: int) -> None:
@@ -132,7 +137,7 @@ class OptimizeConfig:
         at_least("family_trials", self.family_trials, 0)
         at_least("screen", self.screen, 0)
         check_seed(self.seed, "--seed", uses=self.rounds)
-        if self.model not in ("2d", "3d"):
+        if self.model not in (None, "2d", "3d"):
             raise DesignError("--model", f"must be 2d or 3d, got {self.model!r}")
         if self.mode not in ("single", "multi"):
             raise DesignError("--mode", f"must be single or multi, got {self.mode!r}")
@@ -252,16 +257,24 @@ def _find_dataset(config: OptimizeConfig, surrogate) -> Path | None:
     return None
 
 
-def _sim_options(dataset: Path | None) -> SimOptions:
+def _sim_options(dataset: Path | None, model: str) -> SimOptions:
     """The FE options of the surrogate's training sweep (so FE confirms like with like), else
-    the defaults."""
-    from sim.options import options_from_dict
+    the defaults of the surrogate's ``model``; a sweep of the other model is refused (a 2D
+    surrogate retrained on 3D designs, or the reverse, would learn another model)."""
+    from sim.options import ModelOptions, options_from_dict
     from sim.sweep import read_config as read_sweep_config
 
     if dataset is None:
-        return SimOptions()
+        return SimOptions(model=ModelOptions(model))
     cfg = read_sweep_config(dataset)
-    return options_from_dict(cfg["options"]) if "options" in cfg else SimOptions()
+    options = options_from_dict(cfg["options"]) if "options" in cfg else SimOptions()
+    if options.dimension != model:
+        raise DesignError(
+            "--dataset",
+            f"{dataset} is a sweep of the {options.dimension.upper()} model; the surrogate "
+            f"predicts the {model.upper()} model: give its own sweep",
+        )
+    return options
 
 
 @dataclass(frozen=True)
@@ -269,7 +282,8 @@ class Setup:
     """The checked inputs of a search (:func:`setup`): the surrogate it starts from, the space
     it searches (and its catalogue-only part, or why there is none), the targets, the
     surrogate's training sweep (None: not found, no retraining) and its FE options, what
-    config.json holds (``record``) and the merged catalogue."""
+    config.json holds (``record``), the merged catalogue and the model the search predicts and
+    confirms with (``model``: "3d" for a multi-fidelity surrogate, else "2d")."""
 
     surrogate: Any
     space: Any
@@ -280,20 +294,29 @@ class Setup:
     options: SimOptions
     record: dict
     catalogue: dict = field(default_factory=dict)  # shipped + user materials, by name
+    model: str = "2d"
 
 
 def setup(config: OptimizeConfig, out: Path) -> Setup:
     """Check every input before any work and before the run folder is made: the options, the
     folder, the targets, the space (inside the surrogate's), the configuration of a resumed
     run, the storage URL."""
-    from surrogate import load_checkpoint
+    from surrogate import is_multifidelity, load_surrogate
 
     targets = check_inputs(config, out)
+    model = "3d" if is_multifidelity(config.surrogate) else "2d"
+    if model == "3d" and config.model == "2d":
+        raise DesignError(
+            "--model",
+            f"2d needs a 2D surrogate: {config.surrogate} is a multi-fidelity one, which "
+            "predicts the 3D model (give --model 3d, or a 2D checkpoint)",
+        )
     # a surrogate trained on FE results of another solver version still searches (the shipped
     # one until it is re-made), with a warning: every answer is confirmed by this solver's FE
-    surrogate = load_checkpoint(config.surrogate, allow_solver_mismatch=True)
+    surrogate = load_surrogate(config.surrogate, allow_solver_mismatch=True)
     user, catalogue = _catalogues(config, surrogate.space)
     space = load_space(config.space, catalogue) if config.space else surrogate.space
+    space = complete_subspace(space, surrogate.space)  # e.g. a gel-only core has no core.nu
     try:
         check_subspace(space, surrogate.space)
     except ValueError as exc:
@@ -306,7 +329,7 @@ def setup(config: OptimizeConfig, out: Path) -> Setup:
         except ValueError as exc:  # e.g. a core that must be "param"
             build_note = f"no buildable search: {exc}"
     dataset = _find_dataset(config, surrogate)
-    options = _sim_options(dataset)
+    options = _sim_options(dataset, model)
     if config.allow_untrusted:  # answers beyond the limits: confirm them to the end
         options = options.without_validity_stop()
     record = config_record(config, out, targets, options, user)
@@ -314,8 +337,9 @@ def setup(config: OptimizeConfig, out: Path) -> Setup:
     if config.storage is not None:
         check_storage(config.storage)
     return Setup(
-        surrogate, space, build_space, build_note, targets, dataset, options, record, catalogue
-    )
+        surrogate, space, build_space, build_note, targets, dataset, options, record, catalogue,
+        model,
+    )  # fmt: skip
 
 
 def _catalogues(config: OptimizeConfig, trained) -> tuple[tuple, dict]:

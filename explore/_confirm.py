@@ -19,13 +19,13 @@ from typing import Any
 from sim.design import Targets, with_every_layer
 from sim.geometry import REFERENCE_GEOMETRY
 from sim.materials import Material
-from sim.metrics import METRICS
+from sim.metrics import metric_registry
 from sim.options import SimOptions
 from sim.pool import process_pool
 from sim.provenance import write_json
 from sim.sweep import evaluate_point, record_key
 
-from ._objective import closeness
+from ._objective import closeness, wedge_reference_N
 from ._types import Candidate, Confirmation
 
 __all__ = ["REFERENCES", "compare", "confirm", "record_path", "reference_point", "run_fe"]
@@ -126,7 +126,7 @@ def confirm(
         materials=materials,
     )
     return [
-        compare(c, path.stem, records[path], targets)
+        compare(c, path.stem, records[path], targets, options.dimension)
         for c, path in zip(candidates, paths, strict=True)
     ]
 
@@ -142,11 +142,14 @@ def record_path(
     return Path(run_dir) / "fe" / "records" / f"{key}.json"
 
 
-def compare(candidate: Candidate, key: str, record: dict, targets: Targets) -> Confirmation:
+def compare(
+    candidate: Candidate, key: str, record: dict, targets: Targets, dimension: str = "2d"
+) -> Confirmation:
     """Surrogate vs FE for one design: relative error and 90 %-interval hit per metric (the
-    FE metrics: every one of ``sim.METRICS``; the predicted trust outputs are judged through
-    the record's diagnostics, not here)."""
-    fe = {m: record.get("metrics", {}).get(m) for m in METRICS}
+    FE metrics: every one the model ``dimension`` computes, ``sim.metrics.metric_registry``;
+    the predicted trust outputs are judged through the record's diagnostics, not here). The FE
+    score takes the wedge's effort against that model's reference (``wedge_reference_N``)."""
+    fe = {m: record.get("metrics", {}).get(m) for m in metric_registry(dimension)}
     rel, inside = {}, {}
     for m, p in candidate.predicted.items():
         if m not in fe:
@@ -160,7 +163,9 @@ def compare(candidate: Candidate, key: str, record: dict, targets: Targets) -> C
         rel[m] = (mean - v) / abs(v)
         lo, hi = p.get("lower_90"), p.get("upper_90")
         inside[m] = None if lo is None or hi is None else bool(lo <= v <= hi)
-    score = float(closeness(fe, targets).score) if record.get("status") == "ok" else math.inf
+    reference = wedge_reference_N(dimension)
+    ok = record.get("status") == "ok"
+    score = float(closeness(fe, targets, wedge_reference_N=reference).score) if ok else math.inf
     return Confirmation(
         candidate=candidate,
         key=key,

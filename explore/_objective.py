@@ -38,6 +38,7 @@ __all__ = [
     "infeasibility",
     "objectives",
     "point_strain_limits",
+    "wedge_reference_N",
 ]
 
 WEDGE_REFERENCE_N = 2.35  # silicone GLS 40 on the reference geometry (docs/validation.md)
@@ -47,6 +48,9 @@ WEDGE_REFERENCE_N = 2.35  # silicone GLS 40 on the reference geometry (docs/vali
 #: 0.6060 N). A straight edge across the curved pad touches it over a few millimetres only,
 #: so the pad takes a quarter of the plane-strain section's force per 10 mm.
 WEDGE_REFERENCE_3D_N = 0.606
+#: the wedge reference of each model's forces (by ``SimOptions.dimension``): a score compares
+#: like with like, a 2D force per 10 mm of finger with the 2D reference, a pad's with the pad's
+_WEDGE_REFERENCES = {"2d": WEDGE_REFERENCE_N, "3d": WEDGE_REFERENCE_3D_N}
 WEDGE_WEIGHT = 0.1
 #: the names of the multi-objective triple of :func:`objectives`, in its order
 OBJECTIVE_NAMES = ("compliance_error", "hysteresis_error", "wedge_effort")
@@ -84,6 +88,15 @@ def closeness(
     score = rms + wedge_weight * effort
     score = np.where(np.isfinite(score), score, np.inf)
     return Closeness(errors, effort, score)
+
+
+def wedge_reference_N(dimension: str) -> float:
+    """The wedge force (N) a wedge effort of 1 stands for, in the model ``dimension`` ("2d":
+    ``WEDGE_REFERENCE_N``, per 10 mm of finger; "3d": ``WEDGE_REFERENCE_3D_N``, the pad's)."""
+    try:
+        return _WEDGE_REFERENCES[dimension]
+    except KeyError:
+        raise ValueError(f"no wedge reference for the model {dimension!r}") from None
 
 
 def objectives(c: Closeness) -> np.ndarray:

@@ -104,7 +104,7 @@ def optimize(
     wall_time_s, timings = run_time(out)
     timing = write_summary(out, summary, wall_time_s, timings, resumed)
     write_answer_files(out)
-    if config.model == "3d":
+    if config.model == "3d" and s.model == "2d":  # 2D answers, each simulated in 3D too
         from ._check3d import check_in_3d, options_3d
         from ._rounds import user_tables
 

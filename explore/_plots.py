@@ -36,7 +36,7 @@ from sim.options import SimOptions
 from sim.protocols import shown_hysteresis
 from sim.provenance import write_if_changed
 
-from ._objective import TAPPING, closeness, objectives
+from ._objective import TAPPING, closeness, objectives, wedge_reference_N
 from ._run_folder import (
     CONFIG,
     OBJECTIVE_NAMES,
@@ -606,7 +606,8 @@ def _confirmed_objectives(run: RunData) -> tuple[np.ndarray, tuple[str, ...]]:
         for c in run.confirmations:
             if c.status != "ok":
                 continue
-            obj = objectives(closeness(c.fe_metrics, targets))
+            reference = wedge_reference_N(run_options(run).dimension)
+            obj = objectives(closeness(c.fe_metrics, targets, wedge_reference_N=reference))
             if np.all(np.isfinite(obj)):
                 rows.append(obj)
                 labels.append(_label(c))

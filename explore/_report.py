@@ -27,7 +27,7 @@ from sim.protocols.validity import binding_strain_limit, strain_limits, strain_s
 from sim.provenance import nan_if_none, write_if_changed
 
 from ._check3d import not_credible
-from ._objective import TAPPING, WEDGE_REFERENCE_N, WEDGE_WEIGHT
+from ._objective import TAPPING, WEDGE_REFERENCE_3D_N, WEDGE_REFERENCE_N, WEDGE_WEIGHT
 from ._plots import FIGURES, RunData, load_run, run_options, run_targets, write_figures
 from ._run_folder import ANSWERS, read_answers_3d, screened_designs
 from ._summary import ANSWER_WORDS, READING_WORDS, LayerMaterial, layer_materials
@@ -430,14 +430,15 @@ def _intro(run: RunData, targets: Targets | None = None) -> list[str]:
         else ""
     )
     best = " (the screens' best among them)" if screened else ""
+    dimension = run_options(run).dimension
     return [
         f"# Fingertip skin search: `{run.run_dir.name}`",
         "",
         *_verdict(run, targets),
-        f"With the neural surrogate, the search {screened}scored {run.n_trials} Optuna trials"
-        f"{best} over {len(rounds)} "
+        f"With the {_SURROGATE_WORDS[dimension]}, the search {screened}scored {run.n_trials} "
+        f"Optuna trials{best} over {len(rounds)} "
         f"round(s), then re-ran {len(run.confirmations)} of them with the full "
-        f"finite-element (FE) solver ({n_ok} succeeded). Only FE-confirmed designs count as "
+        f"{_FE_WORDS[dimension]} ({n_ok} succeeded). Only FE-confirmed designs count as "
         "answers: the surrogate proposes, the FE model decides. A design's score is the rms "
         f"relative error to the three tapping targets plus {WEDGE_WEIGHT:g} x its wedge effort "
         "(0 is perfect, lower is better).",
@@ -445,7 +446,7 @@ def _intro(run: RunData, targets: Targets | None = None) -> list[str]:
     ]
 
 
-def _targets_section(targets: Targets | None, tolerance: Any) -> list[str]:
+def _targets_section(targets: Targets | None, tolerance: Any, dimension: str = "2d") -> list[str]:
     lines = ["## Targets", ""]
     if targets is None:
         return [*lines, "No targets were recorded for this run.", ""]
@@ -453,9 +454,14 @@ def _targets_section(targets: Targets | None, tolerance: Any) -> list[str]:
     for name in TAPPING:
         words, unit = _TARGET_WORDS[name]
         lines.append(f"| `{name}` | {_fmt(targets.values[name])} {unit} | {words} |")
+    reference = (
+        f"{WEDGE_REFERENCE_3D_N} N, the paper's silicone as the default 3D pad"
+        if dimension == "3d"
+        else f"{WEDGE_REFERENCE_N} N, the paper's silicone"
+    )
     lines.append(
         "| `wedge_peak_force_N` | as low as possible | force to press a wedge into the skin "
-        f"(wedge effort = force / {WEDGE_REFERENCE_N} N, the paper's silicone) |"
+        f"(wedge effort = force / {reference}) |"
     )
     reading = {"from_first_touch": "from the first touch of each tap"}.get(
         targets.reading, "from the undeformed top of the fingertip"
@@ -496,6 +502,21 @@ def _readings_rows(
     ]
 
 
+#: the surrogate and the FE model of a run, by the model it searched (``run_options``)
+_SURROGATE_WORDS = {
+    "2d": "neural surrogate",
+    "3d": "multi-fidelity neural surrogate (3D metrics from many 2D and few 3D designs)",
+}
+_FE_WORDS = {
+    "2d": "finite-element (FE) solver",
+    "3d": "3D finite-element (FE) model of the pad",
+}
+#: the 3D answers' contact areas, shown beside the tapping targets
+CONTACT_AREAS = ("contact_area_at_1N_mm2", "contact_area_at_4N_mm2")
+#: where the search for the human finger's contact area is written up
+HUMAN_CONTACT_DOC = "docs/fingertip_3d.md"
+
+
 def _answer_rows(
     answer: Mapping[str, Any], targets: Targets, tolerance: Any, options: SimOptions
 ) -> list[str]:
@@ -528,6 +549,15 @@ def _answer_rows(
         rows.append(
             f"| `{metric}` | {target_text} | {_fmt(value)} | {err_text} | {mark} | {pred} |"
         )
+    for metric in CONTACT_AREAS:  # a 3D answer's contact patch (no human value was found)
+        if metric in fe:
+            p = predicted.get(metric) or {}
+            point = _fmt(p.get("median", p.get("mean")))
+            pred = f"{point} ({_fmt(p.get('lower_90'))} to {_fmt(p.get('upper_90'))})"
+            rows.append(
+                f"| `{metric}` | no human value found (`{HUMAN_CONTACT_DOC}`) | "
+                f"{_fmt(fe.get(metric))} | – | – | {pred} |"
+            )
     return rows
 
 
@@ -793,7 +823,7 @@ def write_report(run_dir: str | Path) -> Path:
     paths = write_figures(run_dir, workers=_workers(run.config.get("workers")))
     lines = [
         *_intro(run, targets),
-        *_targets_section(targets, run.summary.get("tolerance")),
+        *_targets_section(targets, run.summary.get("tolerance"), run_options(run).dimension),
         *_answers_section(run, targets),
         *_answers_3d_section(run, targets),
         *_rounds_section(run),

@@ -1,6 +1,7 @@
-"""Active learning's retraining: the surrogate, warm-started, on its training sweep plus the
-FE-confirmed designs of the rounds so far (``surrogate.fine_tune``), each counted
-``CONFIRMED_WEIGHT`` times."""
+"""Active learning's retraining: the surrogate on its training sweep plus the FE-confirmed
+designs of the rounds so far, each counted ``CONFIRMED_WEIGHT`` times: a 2D surrogate
+warm-started (``surrogate.fine_tune``), a multi-fidelity one trained afresh as its checkpoint
+records, on its 3D sweep (``surrogate.retrain_multifidelity``)."""
 
 from __future__ import annotations
 
@@ -20,6 +21,7 @@ __all__ = [
     "CONVERGENCE_DIGITS",
     "reproducible",
     "retrain",
+    "retrain_epochs",
     "training_rows",
 ]
 
@@ -87,6 +89,20 @@ def training_rows(
     return ok, reproducible(np.array([target_row(c) for c in ok]), metric_names)
 
 
+def retrain_epochs(surrogate, epochs: int) -> int:
+    """The most epochs :func:`retrain` trains ``surrogate`` for: ``epochs`` for a 2D surrogate's
+    fine-tuning, the recorded ``max_epochs`` of a multi-fidelity one's training."""
+    if _is_multifidelity(surrogate):
+        return int(surrogate.header.get("training", {}).get("max_epochs", epochs))
+    return epochs
+
+
+def _is_multifidelity(surrogate) -> bool:
+    from surrogate import MultiFidelitySurrogate
+
+    return isinstance(surrogate, MultiFidelitySurrogate)
+
+
 def retrain(
     surrogate,
     dataset: Path,
@@ -98,23 +114,38 @@ def retrain(
     replay: int = 0,
     fe_workers: int = 0,
 ):
-    """Warm-started retraining on the training sweep plus the FE-confirmed designs;
-    ``progress`` is called with the number of epochs done since its last call; ``replay``
-    as ``fine_tune``'s (0: every epoch over the whole sweep); ``fe_workers``: the FE processes
-    that run meanwhile, whose cores torch's threads leave alone (``surrogate._threads``)."""
-    from surrogate import fine_tune, read_sweep
+    """The surrogate retrained on its training sweep plus the FE-confirmed designs: a 2D one
+    warm-started (``fine_tune``: at most ``epochs``, ``batch_size`` and ``replay`` as its), a
+    multi-fidelity one trained afresh as recorded (``retrain_multifidelity``: its 3D sweep is
+    small; ``epochs``, ``batch_size`` and ``replay`` are the 2D fine-tuning's and not used);
+    ``progress`` is called with the number of epochs done since its last call; ``fe_workers``:
+    the FE processes that run meanwhile, whose cores torch's threads leave alone
+    (``surrogate._threads``)."""
+    from surrogate import fine_tune, read_sweep, retrain_multifidelity
     from surrogate._threads import torch_threads
 
-    data = read_sweep(dataset)
+    multifidelity = _is_multifidelity(surrogate)
+    data = read_sweep(dataset, dimension="3d" if multifidelity else "2d")
     ok, targets = training_rows(confirmed, data.metric_names)
-    model = fine_tune(
-        surrogate, data, [c.candidate.point for c in ok], targets, epochs=epochs, seed=seed,
-        weight=CONFIRMED_WEIGHT, batch_size=batch_size, replay=replay,
-        progress=progress or False, threads=torch_threads(fe_workers),
-    )  # fmt: skip
+    points = [c.candidate.point for c in ok]
+    threads = torch_threads(fe_workers)
+    if multifidelity:
+        model = retrain_multifidelity(
+            surrogate, data, points, targets, seed=seed, weight=CONFIRMED_WEIGHT,
+            progress=progress or False, threads=threads,
+        )  # fmt: skip
+    else:
+        model = fine_tune(
+            surrogate, data, points, targets, epochs=epochs, seed=seed,
+            weight=CONFIRMED_WEIGHT, batch_size=batch_size, replay=replay,
+            progress=progress or False, threads=threads,
+        )  # fmt: skip
     model.header["active_learning"] = {
         "confirmed_designs": len(ok),
         "weight": CONFIRMED_WEIGHT,
-        "warm_start_from": surrogate.header.get("sha256", ""),
+        # the checkpoint it continues (a multi-fidelity one's split, method and seed-free setup)
+        ("retrained_from" if multifidelity else "warm_start_from"): surrogate.header.get(
+            "sha256", ""
+        ),
     }
     return model

@@ -28,7 +28,7 @@ from ._buildable import fe_screen, predictable_materials, screen_jobs
 from ._config import OptimizeConfig, Setup
 from ._confirm import REFERENCES, confirm, reference_point, run_fe
 from ._objective import TAPPING
-from ._retrain import retrain
+from ._retrain import retrain, retrain_epochs
 from ._run_folder import (
     add_study,
     read_candidates,
@@ -170,13 +170,13 @@ def run_rounds(run: Search):
 
 
 def _rounds(run: Search, surrogate, helper):
-    from surrogate import load_checkpoint
+    from surrogate import load_surrogate
 
     for r in range(run.config.rounds):
         path = run.setup.record["surrogate"]
         if r > 0:  # the surrogate retrained after round r - 1, as stored (resumed or not)
             path = str(surrogate_path(run.out, r))
-            surrogate = load_checkpoint(path, allow_solver_mismatch=True)
+            surrogate = load_surrogate(path, allow_solver_mismatch=True)
         round_rows = _search_round(run, surrogate, r, helper, path)
         new = _confirm_round(run, round_rows, surrogate, r)
         info = _log_round(run, r, new)
@@ -262,12 +262,12 @@ def _study_elsewhere(
     worker: str | None,
 ) -> list[TrialRow]:
     """A study run (or resumed) in the helper process, as ``_study`` runs it, without a bar."""
-    from surrogate import load_checkpoint
+    from surrogate import load_surrogate
 
     from ._storage import open_storage
 
     if surrogate_file not in _SURROGATES:
-        _SURROGATES[surrogate_file] = load_checkpoint(surrogate_file, allow_solver_mismatch=True)
+        _SURROGATES[surrogate_file] = load_surrogate(surrogate_file, allow_solver_mismatch=True)
     study = create_study(open_storage(storage), name, settings, worker)
     surrogate = _SURROGATES[surrogate_file]
     return _run_round_study(study, surrogate, space, targets, settings, r, search, worker)
@@ -350,7 +350,7 @@ def _retrain_after(run: Search, surrogate, r: int) -> None:
     a resumed run finds it stored, written whole or not at all)."""
     from tqdm import tqdm
 
-    from surrogate import save_checkpoint
+    from surrogate import save_surrogate
 
     nxt = surrogate_path(run.out, r + 1)
     if nxt.exists():
@@ -358,8 +358,8 @@ def _retrain_after(run: Search, surrogate, r: int) -> None:
     config = run.config
     with run.timed("retrain_s"):
         label = f"round {r + 2}: retrain on {len(run.confirmations)} FE designs"
-        bar = tqdm(total=config.retrain_epochs, desc=label, unit="epoch",
-                   disable=not run.progress)  # fmt: skip
+        bar = tqdm(total=retrain_epochs(surrogate, config.retrain_epochs), desc=label,
+                   unit="epoch", disable=not run.progress)  # fmt: skip
         try:
             # torch's threads leave the core of the FE beside the rounds (``fe_alongside``:
             # one process with two workers or more) alone
@@ -371,7 +371,7 @@ def _retrain_after(run: Search, surrogate, r: int) -> None:
         finally:
             bar.close()
     nxt.parent.mkdir(parents=True, exist_ok=True)
-    save_checkpoint(model, nxt)  # atomic: a kill never leaves half a checkpoint
+    save_surrogate(model, nxt)  # atomic: a kill never leaves half a checkpoint
 
 
 def fe_only_screen(run: Search) -> list[Confirmation]:
@@ -399,9 +399,11 @@ def choose(
     and the best buildable design; none that earlier rounds confirmed."""
     done = [c.candidate.point for c in confirmations]
     encoder = surrogate.encoder
+    # a multi-fidelity encoder appends the 2D surrogate's predictions: distance is the design's
+    n_own = getattr(encoder, "n_own", None)
 
     def features(pts: list[dict[str, Any]]) -> np.ndarray:
-        return encoder.encode(pts).features  # unit-scaled columns + active flags
+        return encoder.encode(pts).features[:, :n_own]  # unit-scaled columns + active flags
 
     chosen = select_candidates(
         round_rows["continuous"], features, best=config.confirm,

@@ -187,6 +187,35 @@ def design_family(point: dict[str, Any]) -> str:
     return "mixed"
 
 
+def complete_subspace(space: DesignSpace, trained: DesignSpace) -> DesignSpace:
+    """``space`` with the parameters of ``trained`` that no design of it uses put back, in
+    ``trained``'s order: a space file whose core is of the gel family only has no ``core.nu``
+    (``sim.design.space`` keeps a family parameter only where a material choice uses it), but
+    the surrogate's designs have it, inactive (NaN) where unused. Any other missing parameter is
+    left missing, for :func:`check_subspace` to refuse."""
+    from sim.design import PARAM_MATERIAL_KEYS, family_uses
+
+    if set(space.names) == set(trained.names) or not set(space.names) <= set(trained.names):
+        return space
+
+    def unused(name: str) -> bool:
+        role, _, key = name.partition(".")
+        material = f"{role}.material"
+        if key not in PARAM_MATERIAL_KEYS or material not in space.names:
+            return False
+        p = space[material]
+        choices = p.choices if p.kind == "choice" else (p.value,)
+        return not any(family_uses(c, key) for c in choices)
+
+    names = set(space.names)
+    params = [
+        space[t.name] if t.name in names else t
+        for t in trained.parameters
+        if t.name in names or unused(t.name)
+    ]
+    return DesignSpace(tuple(params), space.materials)
+
+
 def check_subspace(space: DesignSpace, trained: DesignSpace) -> None:
     """A search space must lie inside the surrogate's training space (same parameters, bounds
     within, choices a subset): a ``ValueError`` naming the first parameter that does not."""
@@ -236,7 +265,7 @@ def _scores(
     named in ``space``'s catalogue: ``explore._objective.point_strain_limits``)."""
     from sim.options import SimOptions
 
-    from ._objective import point_strain_limits
+    from ._objective import point_strain_limits, wedge_reference_N
 
     options = SimOptions() if options is None else options
     catalogue = getattr(space, "catalogue", None)
@@ -246,7 +275,7 @@ def _scores(
     point = pred.median
     metrics = {targets.metric(m): point[:, cols[targets.metric(m)]] for m in SCORED}
     metrics["wedge_peak_force_N"] = point[:, cols["wedge_peak_force_N"]]
-    c = closeness(metrics, targets)
+    c = closeness(metrics, targets, wedge_reference_N=wedge_reference_N(options.dimension))
     obj = objectives(c)
     judged = {m: (pred.mean if m in _YES_NO else point)[:, cols[m]] for m in _JUDGED if m in cols}
     penalty, why = infeasibility(judged, targets, options.validity, options.tapping, strain_limit)

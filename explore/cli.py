@@ -834,9 +834,10 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
     p.add_argument(
         "--model",
         metavar="{2d,3d}",
-        help="3d: also simulate every answer with the 3D pad (the pad's default length and "
-        "profile), set against the targets in answers_3d.json and the report; the search and "
-        "its confirmations stay 2D (default 2d)",
+        help="the model of the answers (default: the surrogate's). A multi-fidelity surrogate "
+        "(fingertip train SWEEP3D --low-fidelity ...) searches the 3D pad and confirms every "
+        "answer with the 3D FE; with a 2D surrogate, 3d also simulates every 2D answer with the "
+        "3D pad (its default length and profile: answers_3d.json and the report)",
     )
     _add_catalogue_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")

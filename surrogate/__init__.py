@@ -15,6 +15,8 @@ Public API::
     # the 3D model's metrics from many 2D designs (a 2D surrogate) and few 3D ones
     train_multifidelity(sweep3d_dir, low_fidelity=None, method=None, out_dir=None, seed=0)
     load_multifidelity(path, low_fidelity=None) -> MultiFidelitySurrogate   # .predict(points)
+    retrain_multifidelity(mf, data3d, points, targets, seed=) -> MultiFidelitySurrogate
+    load_surrogate(path) / save_surrogate(model, path)    # either kind, as the file says
     multifidelity_curve(sweep3d, sizes, low_fidelity=..., methods=...) -> dict
     MULTIFIDELITY_METHODS                                  # name -> method class
 
@@ -39,11 +41,17 @@ if TYPE_CHECKING:
     from ._io import SweepData, check_point, read_points, read_sweep
     from ._learning_curve import learning_curve
     from ._multifidelity import METHODS as MULTIFIDELITY_METHODS
-    from ._multifidelity import MultiFidelitySurrogate, fit_multifidelity
+    from ._multifidelity import (
+        MultiFidelitySurrogate,
+        fit_multifidelity,
+        retrain_multifidelity,
+    )
     from ._multifidelity_checkpoint import (
         is_multifidelity,
         load_multifidelity,
+        load_surrogate,
         save_multifidelity,
+        save_surrogate,
     )
     from ._multifidelity_run import multifidelity_curve, train_multifidelity
     from ._run import train_surrogate
@@ -70,11 +78,14 @@ __all__ = [
     "learning_curve",
     "load_checkpoint",
     "load_multifidelity",
+    "load_surrogate",
     "multifidelity_curve",
     "read_points",
     "read_sweep",
+    "retrain_multifidelity",
     "save_checkpoint",
     "save_multifidelity",
+    "save_surrogate",
     "train_multifidelity",
     "train_seeds",
     "train_surrogate",
@@ -97,6 +108,9 @@ _LAZY = {
     "load_checkpoint": "_checkpoint",
     "is_multifidelity": "_multifidelity_checkpoint",
     "load_multifidelity": "_multifidelity_checkpoint",
+    "load_surrogate": "_multifidelity_checkpoint",
+    "retrain_multifidelity": "_multifidelity",
+    "save_surrogate": "_multifidelity_checkpoint",
     "multifidelity_curve": "_multifidelity_run",
     "read_points": "_io",
     "read_sweep": "_io",

@@ -27,11 +27,19 @@ from sim.design import space_from_dict
 from sim.metrics import SOLVER_VERSION, same_metrics
 from sim.provenance import json_safe, json_text, replacing, sha256_file
 
-from ._checkpoint import _digest, checkpoint_file, describe, load_checkpoint, read_verified
+from ._checkpoint import (
+    _digest,
+    checkpoint_file,
+    describe,
+    load_checkpoint,
+    read_verified,
+    save_checkpoint,
+)
 from ._encoding import Encoder
 from ._errors import CheckpointError
 from ._multifidelity import METHODS, METRICS_3D_MODEL, MultiFidelityEncoder, MultiFidelitySurrogate
 from ._normalise import OutputNormaliser
+from ._surrogate import Surrogate
 
 __all__ = [
     "FORMAT",
@@ -39,8 +47,10 @@ __all__ = [
     "SCHEMA_VERSION",
     "is_multifidelity",
     "load_multifidelity",
+    "load_surrogate",
     "low_fidelity_path",
     "save_multifidelity",
+    "save_surrogate",
 ]
 
 FORMAT = "fingertip-multifidelity"
@@ -263,3 +273,21 @@ def load_multifidelity(
         first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
         raise CheckpointError(path, f"inconsistent checkpoint: {first}") from None
     return surrogate
+
+
+def load_surrogate(
+    path: str | Path, *, allow_solver_mismatch: bool = False
+) -> Surrogate | MultiFidelitySurrogate:
+    """Either kind of checkpoint, as its file says (:func:`is_multifidelity`): a
+    ``MultiFidelitySurrogate`` (``load_multifidelity``) or a 2D ``Surrogate``
+    (``load_checkpoint``), with their checks."""
+    if is_multifidelity(path):
+        return load_multifidelity(path, allow_solver_mismatch=allow_solver_mismatch)
+    return load_checkpoint(path, allow_solver_mismatch=allow_solver_mismatch)
+
+
+def save_surrogate(surrogate: Surrogate | MultiFidelitySurrogate, path: str | Path) -> Path:
+    """Save either kind of surrogate in its own format, atomically."""
+    if isinstance(surrogate, MultiFidelitySurrogate):
+        return save_multifidelity(surrogate, path)
+    return save_checkpoint(surrogate, path)

@@ -55,3 +55,13 @@ def test_vectorised_over_designs():
     m["wedge_peak_force_N"] = np.array([0.0, np.nan])
     c = closeness(m, Targets(dict(HUMAN)))
     assert c.score.shape == (2,) and c.score[0] == 0.0 and np.isinf(c.score[1])
+
+
+def test_the_wedge_reference_is_the_models_own():
+    from explore._objective import WEDGE_REFERENCE_3D_N, WEDGE_REFERENCE_N, wedge_reference_N
+
+    # a 2D force per 10 mm of finger against the 2D section's, a pad's against the pad's
+    assert wedge_reference_N("2d") == WEDGE_REFERENCE_N == 2.35
+    assert wedge_reference_N("3d") == WEDGE_REFERENCE_3D_N == 0.606
+    with pytest.raises(ValueError, match="no wedge reference"):
+        wedge_reference_N("1d")

@@ -262,6 +262,23 @@ def test_an_internal_error_in_one_design_is_recorded_not_raised(monkeypatch):
     )
 
 
+def test_a_record_counts_its_cpu_seconds_apart_from_its_wall_time(monkeypatch):
+    """The CPU seconds of a design are not inflated by a paused process (``kill -STOP``) or
+    by other jobs on the core: a simulation that sleeps 0.3 s of its wall time uses none of
+    it."""
+    import sim.sweep.run
+
+    def sleepy(*args, **kwargs):
+        time.sleep(0.3)
+        raise ValueError("stop")
+
+    monkeypatch.setattr(sim.sweep.run, "simulate", sleepy)
+    point = sample_points(load_space(), 1, 0)[0]
+    record = sim.sweep.run.evaluate_point(point, dataclasses.asdict(SimOptions()))
+    assert record["wall_time_s"] >= 0.3
+    assert 0.0 <= record["cpu_time_s"] < 0.2
+
+
 def test_sweep_survives_kill_9_without_losing_or_repeating_work(tiny_space, tmp_path):
     out = tmp_path / "killed"
     args = [sys.executable, "-m", "explore.cli", "sweep", str(tiny_space), "--n", "6",

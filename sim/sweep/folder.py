@@ -9,7 +9,8 @@
   atomically, keyed by a hash of the design, the options and the solver version
   (``sim.sweep.run.record_key``): ``key``, ``params`` (the point, inactive = null), ``status``
   ("ok" | "failed"), ``reason``, ``metrics``, ``diagnostics``, ``curves``, ``n_dofs``,
-  ``solver_version``, ``wall_time_s``;
+  ``solver_version``, ``wall_time_s``, ``cpu_time_s`` (the worker's CPU seconds; not in
+  records made before it was added);
 - ``table.csv`` (:meth:`SweepStore.consolidate`, columns :func:`table_header`): parameters +
   metrics + diagnostics (+ status and reason) of every design, rebuilt from the records at the
   end of each invocation; ``curves.jsonl``: the curves of the designs that succeeded, one line
