@@ -2,7 +2,7 @@
 phases), in counts.
 
     python studies/fe_time_study.py --n 12 --seed 1
-    python studies/fe_time_study.py --sweep runs/sweep_v22
+    python studies/fe_time_study.py --sweep FOLDER
     python studies/fe_time_study.py --breakdown --n 64 --seed 0
 
 Simulates ``n`` designs of the default space (a scrambled Sobol sample,

@@ -370,7 +370,7 @@ _Tensors = tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]
 
 #: Early stopping scores each validation entry's NLL capped at this (``gaussian_nll``'s
 #: ``cap``; the training loss is not capped). Without it one output the nets cannot predict
-#: stopped a whole net: on ``runs/sweep_v24`` (4096 designs) the ``failed`` flag of the 17
+#: stopped a whole net: on the default sweep's first 4096 designs the ``failed`` flag of the 17
 #: validation designs whose FE failed (5 % of them) drove that output's validation NLL from 5
 #: to 740 within 40 epochs, while every other output of its net was still improving, and
 #: every member kept its plate / wedge / trust net from epoch 0-61 (plate force median error

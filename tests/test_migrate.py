@@ -28,7 +28,7 @@ def _sweep(space: Path, out: Path, *extra: str) -> None:
 
 def _as_previous_solver(folder: Path) -> None:
     """Make ``folder`` look like a sweep of the previous solver (no stop option, no
-    ``stopped`` column), as runs/sweep_v22 is."""
+    ``stopped`` column), as a sweep of solver 2.2 is."""
     config = read_config(folder)
     config["solver_version"] = SAME_METRICS_AS[0]
     del config["options"]["validity"]["stop_at_violation"]
