@@ -75,6 +75,7 @@ def optimize(
     out = Path(out)
     s = setup(config, out)
     _warn_of_another_solver(config, s)
+    _note_validity_override(s)
     resumed = (out / CONFIG).exists()
     if not resumed:
         write_config(out, s.record, provenance(s.record, config.seed, kind="optimize"))
@@ -188,6 +189,19 @@ def _warn_of_another_solver(config: OptimizeConfig, s: Setup) -> None:
             f"warning: the surrogate {config.surrogate} was trained on FE results of solver "
             f"{trained_on}, this is solver {SOLVER_VERSION}: its predictions may be off; the "
             "answers are confirmed with this solver",
+            file=sys.stderr,
+        )
+
+
+def _note_validity_override(s: Setup) -> None:
+    """The FE confirms with the training sweep's options (like with like): a sweep made with a
+    validity override (the shipped surrogate's, made before the per-layer limits) holds every
+    layer of every confirmation to it; said on stderr and in report.md."""
+    for option, value in s.options.validity.overridden.items():
+        print(
+            f"note: the surrogate's training sweep ran with validity.{option}={value:g}, so "
+            f"this search's FE holds every layer to {value:g} too, not to the limit its "
+            "material was tested to (a surrogate trained on a sweep without it lifts this)",
             file=sys.stderr,
         )
 

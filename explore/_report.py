@@ -502,6 +502,17 @@ def _readings_rows(
     ]
 
 
+def _validity_override_lines(options: SimOptions) -> list[str]:
+    """A run whose FE held every layer to one limit (its surrogate's training sweep's option,
+    ``--set validity...`` when that sweep was made) says so under the targets."""
+    return [
+        f"**Validity override**: this run's FE held every layer to `validity.{option}` = "
+        f"{value:g} (the option of the surrogate's training sweep), not to the limit its "
+        "material was tested to.\n"
+        for option, value in options.validity.overridden.items()
+    ]
+
+
 #: the surrogate and the FE model of a run, by the model it searched (``run_options``)
 _SURROGATE_WORDS = {
     "2d": "neural surrogate",
@@ -824,6 +835,7 @@ def write_report(run_dir: str | Path) -> Path:
     lines = [
         *_intro(run, targets),
         *_targets_section(targets, run.summary.get("tolerance"), run_options(run).dimension),
+        *_validity_override_lines(run_options(run)),
         *_answers_section(run, targets),
         *_answers_3d_section(run, targets),
         *_rounds_section(run),

@@ -54,6 +54,27 @@ def _user_catalogues(args: argparse.Namespace):
     return load_user_catalogues(args.catalogue or [])
 
 
+def _note_untested_materials(args: argparse.Namespace) -> None:
+    """One ``note:`` line on stderr for each ``--catalogue`` material whose tested strain range
+    is unknown (no ``fit-material`` provenance, not of a family's law): it is held to the
+    paper's limit, flagged "untested" in its results, which its own tests might not license."""
+    if not getattr(args, "catalogue", None):
+        return
+    from pathlib import Path
+
+    from sim.protocols.validity import PAPER_LOG_STRAIN, layer_limit
+
+    for user in _user_catalogues(args)[0]:
+        for material in user.materials:
+            if layer_limit(material).basis == "untested":
+                print(
+                    f"note: {Path(user.path).name}:{material.name}: no tested strain range "
+                    f"(fingertip fit-material records it); held to the paper's compressive log "
+                    f"strain of {PAPER_LOG_STRAIN:g}, flagged untested",
+                    file=sys.stderr,
+                )
+
+
 #: the answers a search run names (summary.json's ``answers``; ``fingertip ... --answer NAME``)
 ANSWER_NAMES = ("best", "gel", "foam", "buildable")
 _ANSWER_HELP = (
@@ -1375,6 +1396,7 @@ def main(argv: list[str] | None = None) -> int:
     restore = _terminate_as_interrupt()
     try:
         _check_seed_option(args)
+        _note_untested_materials(args)
         return args.func(args)
     except _input_errors() as exc:  # evaluated once something is raised
         print(f"fingertip: error: {exc}", file=sys.stderr)

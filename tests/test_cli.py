@@ -992,3 +992,25 @@ def test_a_user_catalogue_with_an_unphysical_modulus_is_one_line(
     line = assert_one_line_error(capsys.readouterr().err, "stiff.mu_MPa")
     assert "[0.0001, 1000] MPa" in line
     assert not out.exists()
+
+
+def test_a_user_material_without_a_tested_range_is_noted_once(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Its own tests are unknown: the paper's limit holds it, and the user is told so."""
+    cat = write(
+        tmp_path,
+        '[soft]\nsource = "a datasheet"\nmodel = "neo_hookean"\nmu_MPa = 0.05\nnu = 0.45\n'
+        '[fitted]\nsource = "my tests"\nmodel = "neo_hookean"\nmu_MPa = 0.05\nnu = 0.45\n'
+        '[fitted.provenance]\ntested_mode = "uniaxial_compression"\n'
+        "max_compressive_log_strain = 0.9\n",
+        "cat.toml",
+    )
+    argv = ["simulate", "--material", "soft", "--catalogue", str(cat), "--protocol", "plate"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    notes = [line for line in err.splitlines() if line.startswith("note: cat.toml:")]
+    assert notes == [
+        "note: cat.toml:soft: no tested strain range (fingertip fit-material records it); held "
+        "to the paper's compressive log strain of 0.6, flagged untested"
+    ]

@@ -610,12 +610,13 @@ def test_a_late_kill_resumes_to_the_uninterrupted_answer(tiny_model, tmp_path):
     assert len(parts) == 2 and parts[0]["timings"]["search_s"] > 0
     assert b["wall_time_s"] == pytest.approx(sum(p["wall_time_s"] for p in parts))
     assert len(a["rounds"]) == 2
-    # FE records: the same results (only the time each took differs)
+    # FE records: the same results (only the time each took differs, wall and CPU)
     rec_a, rec_b = (sorted((d / "fe").rglob("*.json")) for d in (ref, out))
     assert [p.relative_to(ref) for p in rec_a] == [p.relative_to(out) for p in rec_b]
     for pa, pb in zip(rec_a, rec_b, strict=True):
         ra, rb = json.loads(pa.read_text()), json.loads(pb.read_text())
-        assert _without(ra, "wall_time_s") == _without(rb, "wall_time_s"), pa.name
+        times = ("wall_time_s", "cpu_time_s")
+        assert _without(ra, *times) == _without(rb, *times), pa.name
     # the surrogate retrained after round 1: the same weights and header (but its date)
     ma, mb = (load_checkpoint(d / "surrogates" / "round-1.safetensors") for d in (ref, out))
     sa, sb = ma.model.state_dict(), mb.model.state_dict()
@@ -870,3 +871,24 @@ def test_a_starved_background_fe_is_stopped_and_its_references_run_in_the_foregr
     assert time.perf_counter() - t0 < 30
     assert _FOREGROUND == [["silicone_gls40.json", "polyurethane_74_45.json"]]
     assert timings["fe_s"] > 0
+
+
+def test_a_validity_override_of_the_training_sweep_is_said_on_stderr_and_in_the_report(capsys):
+    """The FE confirms with the training sweep's options: one made with a global strain limit
+    (the shipped surrogate's, before the per-layer limits) holds every layer to it, said so."""
+    from types import SimpleNamespace
+
+    from explore._pipeline import _note_validity_override
+    from explore._report import _validity_override_lines
+    from sim.options import options_from_dict
+
+    own = SimOptions()
+    over = options_from_dict({**own.as_dict(), "validity": {"max_compressive_log_strain": 0.6}})
+    _note_validity_override(SimpleNamespace(options=own))
+    assert capsys.readouterr().err == ""
+    assert _validity_override_lines(own) == []
+    _note_validity_override(SimpleNamespace(options=over))
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "validity.max_compressive_log_strain=0.6" in err[0]
+    (line,) = _validity_override_lines(over)
+    assert "`validity.max_compressive_log_strain` = 0.6" in line
