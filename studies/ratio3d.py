@@ -40,38 +40,59 @@ METRICS = (
 SHAPE = ("geometry.half_length_mm", "geometry.length_exponent", "geometry.half_width_mm")
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("sweep3d", type=Path, help="a sweep of the 3D model")
-    ap.add_argument("--low-fidelity", type=Path, default=SHIPPED, help="the 2D surrogate")
-    args = ap.parse_args()
-    low = load_checkpoint(args.low_fidelity)
-    data = read_sweep(args.sweep3d, dimension="3d")  # settled, valid designs' metrics
+def ratios(sweep3d: Path, low_fidelity: Path = SHIPPED) -> dict[str, dict]:
+    """Per metric of ``METRICS``: ``n`` designs, the log ratios' ``mean``, ``std``, ``min``,
+    ``max``, the fit's ``coef`` (b0, b1 ln c, b2 ln m, b3 ln a) and ``residual_std``; ``n``
+    alone when fewer than 6 designs have the metric."""
+    low = load_checkpoint(low_fidelity)
+    data = read_sweep(sweep3d, dimension="3d")  # each protocol's trusted metrics
     pred = low.predict([{k: v for k, v in p.items() if k in low.space.names} for p in data.points])
     shape = np.log([[p[k] for k in SHAPE] for p in data.points])
     names, low_names = list(data.metric_names), list(pred.metric_names)
-    print(f"{args.sweep3d}: {len(data.points)} designs; 2D surrogate {args.low_fidelity}")
-    print(
-        "| metric | designs | mean r (3D / 2D) | spread of r | range of r | fit b0, b1 ln c, "
-        "b2 ln m, b3 ln a | residual spread |"
-    )
-    print("|---|---|---|---|---|---|---|")
+    out: dict[str, dict] = {}
     for m in METRICS:
         y3 = data.targets[:, names.index(m)]
         y2 = pred.median[:, low_names.index(m)]
         ok = np.isfinite(y3) & (y3 > 0) & (y2 > 0) & pred.in_domain
         if ok.sum() < 6:
-            print(f"| `{m}` | {int(ok.sum())} | too few | | | | |")
+            out[m] = {"n": int(ok.sum())}
             continue
         r = np.log(y3[ok] / y2[ok])
         X = np.column_stack([np.ones(ok.sum()), shape[ok]])
         coef = np.linalg.lstsq(X, r, rcond=None)[0]
-        resid = r - X @ coef
+        out[m] = {
+            "n": int(ok.sum()),
+            "mean": float(r.mean()),
+            "std": float(r.std()),
+            "min": float(r.min()),
+            "max": float(r.max()),
+            "coef": [float(c) for c in coef],
+            "residual_std": float((r - X @ coef).std()),
+        }
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("sweep3d", type=Path, help="a sweep of the 3D model")
+    ap.add_argument("--low-fidelity", type=Path, default=SHIPPED, help="the 2D surrogate")
+    args = ap.parse_args()
+    rows = ratios(args.sweep3d, args.low_fidelity)
+    print(f"{args.sweep3d}; 2D surrogate {args.low_fidelity}")
+    print(
+        "| metric | designs | mean r (3D / 2D) | spread of r | range of r | fit b0, b1 ln c, "
+        "b2 ln m, b3 ln a | residual spread |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for m, row in rows.items():
+        if "coef" not in row:
+            print(f"| `{m}` | {row['n']} | too few | | | | |")
+            continue
         print(
-            f"| `{m}` | {int(ok.sum())} | {r.mean():+.3f} (x {math.exp(r.mean()):.2f}) | "
-            f"{r.std():.3f} | {r.min():+.2f} to {r.max():+.2f} | "
-            + ", ".join(f"{c:+.3f}" for c in coef)
-            + f" | {resid.std():.3f} |"
+            f"| `{m}` | {row['n']} | {row['mean']:+.3f} (x {math.exp(row['mean']):.2f}) | "
+            f"{row['std']:.3f} | {row['min']:+.2f} to {row['max']:+.2f} | "
+            + ", ".join(f"{c:+.3f}" for c in row["coef"])
+            + f" | {row['residual_std']:.3f} |"
         )
 
 

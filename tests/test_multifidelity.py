@@ -341,3 +341,24 @@ def test_cli_trains_a_3d_sweep_with_the_2d_surrogate(small3d, tmp_path, capsys, 
     designs = json.loads(stdout)["designs"]
     assert len(designs) == 40
     assert all(d["median"]["contact_area_at_1N_mm2"] > 0 for d in designs)
+
+
+def test_the_ratio_study_recovers_the_pad_shapes_exponents_of_a_known_map(small3d):
+    """``studies/ratio3d.py`` fits ln(3D / 2D) ~ b0 + b1 ln c + b2 ln m + b3 ln a. The synthetic
+    3D hysteresis is the 2D one times exp(0.1 + 0.2 ln(c / 11) - 0.04 ln(m / 4)) with 0.2 %
+    noise (``mf_fixtures.synthetic_3d``): the fit must give those exponents back."""
+    import importlib.util
+    import math
+
+    path = Path(__file__).resolve().parents[1] / "studies" / "ratio3d.py"
+    spec = importlib.util.spec_from_file_location("ratio3d", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    rows = module.ratios(small3d, SHIPPED)
+    h = rows["hysteresis_Nmm"]
+    b0, b1, b2, b3 = h["coef"]
+    assert h["n"] >= 20
+    assert b1 == pytest.approx(0.2, abs=0.01) and b2 == pytest.approx(-0.04, abs=0.01)
+    assert b3 == pytest.approx(0.0, abs=0.01)
+    assert b0 == pytest.approx(0.1 - 0.2 * math.log(11.0) + 0.04 * math.log(4.0), abs=0.03)
+    assert h["residual_std"] < 0.005 < h["std"]  # the noise alone is left; the shape was not
