@@ -603,10 +603,10 @@ def _confirmed_objectives(run: RunData) -> tuple[np.ndarray, tuple[str, ...]]:
     rows: list[np.ndarray] = []
     labels: list[str] = []
     if targets is not None:
+        reference = wedge_reference_N(run_options(run).dimension)
         for c in run.confirmations:
             if c.status != "ok":
                 continue
-            reference = wedge_reference_N(run_options(run).dimension)
             obj = objectives(closeness(c.fe_metrics, targets, wedge_reference_N=reference))
             if np.all(np.isfinite(obj)):
                 rows.append(obj)

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -75,6 +75,7 @@ from ._train import (
     r2_score,
     split_indices,
     training_header,
+    with_new_designs,
 )
 
 __all__ = [
@@ -681,33 +682,15 @@ def retrain_multifidelity(
     designs. A search's active learning (``explore._retrain``): a few hundred 3D designs train
     in about a minute, so the multi-fidelity surrogate is trained afresh rather than warm-started
     (the 2D one, trained on thousands, is fine-tuned: ``fine_tune``)."""
-    if weight < 1:
-        raise ValueError(f"weight must be >= 1, got {weight}")
-    extra = [dict(p) for p in points for _ in range(weight)]
-    rows = np.asarray(targets, dtype=np.float64).reshape(-1, len(data.metric_names))
     if list(data.metric_names) != list(surrogate.metric_names):
         raise ValueError("the sweep's metrics are not the surrogate's")
-    aug = data.with_rows(extra, np.repeat(rows, weight, axis=0))
-    split_idx = surrogate.header.get("training_data", {}).get("split_table_index", {})
-    row_of = {int(i): r for r, i in enumerate(data.index)}
-
-    def split_rows_of(key: str) -> np.ndarray:
-        return np.array([row_of[i] for i in split_idx.get(key, []) if i in row_of], dtype=int)
-
-    train, val, test = split_rows_of("train"), split_rows_of("val"), split_rows_of("test")
-    if len(train) == 0 or len(val) == 0:
-        raise ValueError("the checkpoint does not record its training split")
-    train = np.concatenate([train, len(data.points) + np.arange(len(extra))])
-    names = {f.name for f in fields(TrainConfig)}
-    old = {k: v for k, v in surrogate.header.get("training", {}).items() if k in names}
-    old = {k: tuple(v) if isinstance(v, list) else v for k, v in old.items()}
-    config = TrainConfig(**{**old, "seed": seed})
+    aug, split, config = with_new_designs(surrogate.header, data, points, targets, weight)
+    config = replace(config, seed=seed)
     kind = surrogate.method
     if kind.lr_factor != 1.0:  # the header holds the rate fit_multifidelity trained with
         config = replace(config, lr=config.lr / kind.lr_factor)
     fitted = fit_multifidelity(
-        aug, surrogate.low, kind.name, config, split=Split(train, val, test), progress=progress,
-        threads=threads,
+        aug, surrogate.low, kind.name, config, split=split, progress=progress, threads=threads,
     )  # fmt: skip
     fitted.surrogate.low_file = surrogate.low_file  # the same 2D file, recorded when saved
     return fitted.surrogate

@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -336,12 +336,34 @@ def fine_tune(
     and the new designs; k > 0, a rehearsal: every epoch passes over the new designs and k
     designs of the sweep drawn afresh (an epoch's cost no longer grows with the sweep).
     ``progress`` and ``threads`` as ``fit``'s."""
+    aug, split, config = with_new_designs(surrogate.header, data, points, targets, weight)
+    changed = {"seed": seed, "max_epochs": epochs, "patience": epochs, "replay": replay}
+    if batch_size is not None:
+        changed["batch_size"] = batch_size
+    config = replace(config, **changed)
+    fitted = fit(aug, config, progress=progress, split=split, init=surrogate, threads=threads)
+    return fitted.surrogate
+
+
+def with_new_designs(
+    header: dict[str, Any],
+    data: SweepData,
+    points: Sequence[dict[str, Any]],
+    targets: np.ndarray,
+    weight: int,
+) -> tuple[SweepData, Split, TrainConfig]:
+    """What a checkpoint (its ``header``) trains on again with new designs: its training sweep
+    ``data`` plus ``points`` with their ``targets`` (one row per point, the columns of
+    ``data.metric_names``), each ``weight`` times; the split it records (its train /
+    validation / test designs, found in ``data`` by table index), the new designs among the
+    training ones (``Split.new``); and its recorded hyper-parameters (``TrainConfig``).
+    ``fine_tune`` and ``retrain_multifidelity`` share it."""
     if weight < 1:
         raise ValueError(f"weight must be >= 1, got {weight}")
-    extra = [p for p in points for _ in range(weight)]
+    extra = [dict(p) for p in points for _ in range(weight)]
     rows = np.asarray(targets, dtype=np.float64).reshape(-1, len(data.metric_names))
     aug = data.with_rows(extra, np.repeat(rows, weight, axis=0))
-    split_idx = surrogate.header.get("training_data", {}).get("split_table_index", {})
+    split_idx = header.get("training_data", {}).get("split_table_index", {})
     row_of = {int(i): r for r, i in enumerate(data.index)}
 
     def split_rows(key: str) -> np.ndarray:
@@ -352,16 +374,9 @@ def fine_tune(
         raise ValueError("the checkpoint does not record its training split")
     train = np.concatenate([train, len(data.points) + np.arange(len(extra))])
     names = {f.name for f in fields(TrainConfig)}
-    old = {k: v for k, v in surrogate.header.get("training", {}).items() if k in names}
+    old = {k: v for k, v in header.get("training", {}).items() if k in names}
     old = {k: tuple(v) if isinstance(v, list) else v for k, v in old.items()}
-    changed = {"seed": seed, "max_epochs": epochs, "patience": epochs}
-    if batch_size is not None:
-        changed["batch_size"] = batch_size
-    changed["replay"] = replay
-    config = TrainConfig(**{**old, **changed})
-    split = Split(train, val, test, new=len(extra))
-    fitted = fit(aug, config, progress=progress, split=split, init=surrogate, threads=threads)
-    return fitted.surrogate
+    return aug, Split(train, val, test, new=len(extra)), TrainConfig(**old)
 
 
 #: features, targets, their mask, their censoring (+1 lower bound, -1 upper, 0 exact)
