@@ -24,9 +24,9 @@ from typing import Any
 import numpy as np
 
 from sim.design import Targets
-from sim.protocols import TRUST_OUTPUTS
+from sim.protocols import LAYER_STRAIN_OUTPUTS, TRUST_OUTPUTS
 
-TRUST_NAMES = tuple(TRUST_OUTPUTS)
+TRUST_NAMES = (*TRUST_OUTPUTS, *LAYER_STRAIN_OUTPUTS)
 
 __all__ = [
     "OBJECTIVE_NAMES",
@@ -37,6 +37,7 @@ __all__ = [
     "closeness",
     "infeasibility",
     "objectives",
+    "point_layer_limits",
     "point_strain_limits",
     "wedge_reference_N",
 ]
@@ -114,17 +115,18 @@ def _value(metrics: Mapping, name: str):
     return v
 
 
-def point_strain_limits(
+def point_layer_limits(
     points: Sequence[Mapping[str, Any]], catalogue: Mapping[str, Any] | None, validity
-) -> np.ndarray | None:
-    """Per design point, the compressive log strain its predicted largest strain is held to
-    (``sim.protocols.validity.design_strain_limit``: the largest of its layers' tested limits);
-    None when ``validity`` overrides every layer's (then that one number applies). A layer's
-    limit depends on its material only (a family's on the family, whatever its parameters
-    within the family's bounds), so each material name is looked up once."""
+) -> dict[str, np.ndarray] | None:
+    """Per layer role (``sim.design.LAYER_ROLES``), the compressive log strain each design
+    point's layer of that role is held to (its material's tested limit:
+    ``sim.protocols.validity.design_strain_limit`` of the one material; NaN where the design has
+    no such layer); None when ``validity`` overrides every layer's (then that one number
+    applies). A layer's limit depends on its material only (a family's on the family, whatever
+    its parameters within the family's bounds), so each material name is looked up once."""
     if validity.max_compressive_log_strain is not None or not points:
         return None
-    from sim.design import active_roles, family_material, is_family
+    from sim.design import LAYER_ROLES, active_roles, family_material, is_family
     from sim.design.families import FAMILIES
     from sim.materials import catalogue_material
     from sim.protocols.validity import design_strain_limit
@@ -142,9 +144,28 @@ def point_strain_limits(
             seen[name] = design_strain_limit([material], validity)
         return seen[name]
 
-    return np.array(
-        [max(limit(p, r) for r in active_roles(p["layers.count"])) for p in points], dtype=float
-    )
+    out = {role: np.full(len(points), np.nan) for role in LAYER_ROLES}
+    for i, point in enumerate(points):
+        for role in active_roles(point["layers.count"]):
+            out[role][i] = limit(point, role)
+    return out
+
+
+def point_strain_limits(
+    points: Sequence[Mapping[str, Any]], catalogue: Mapping[str, Any] | None, validity
+) -> np.ndarray | None:
+    """Per design point, the compressive log strain its predicted largest strain is held to
+    when its layers' own strains are not predicted (a surrogate trained on a table without
+    them): the largest of its layers' limits (:func:`point_layer_limits`); None when
+    ``validity`` overrides every layer's (then that one number applies)."""
+    return _largest(point_layer_limits(points, catalogue, validity))
+
+
+def _largest(layer_limits: Mapping[str, np.ndarray] | None) -> np.ndarray | None:
+    """Per design, the largest of its layers' limits (None for None)."""
+    if layer_limits is None:
+        return None
+    return np.nanmax(np.stack(list(layer_limits.values())), axis=0)
 
 
 def infeasibility(
@@ -153,18 +174,25 @@ def infeasibility(
     validity,
     tapping,
     strain_limit: np.ndarray | None = None,
+    layer_limits: Mapping[str, np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """How far predicted designs are from credible, and why: ``(penalty, why)``.
 
     A credible design is one whose FE result can be an answer: it settles, stays within the
-    validity limits (``sim.protocols.trust.trust_flags`` on the predicted trust outputs, the
-    largest strain held to ``strain_limit``, per design: :func:`point_strain_limits`) and
+    validity limits (``sim.protocols.trust.trust_flags`` on the predicted trust outputs: each
+    layer's strain held to its own limit, ``layer_limits``, per design:
+    :func:`point_layer_limits`, where the surrogate predicts the layers' strains; else the
+    largest strain held to ``strain_limit``, per design, by default the largest of the
+    ``layer_limits``: :func:`point_strain_limits`) and
     recovers between taps (``sag_mm`` within ``targets.max_sag_mm``). ``penalty`` is 0 for a
     credible design and ``1 + excess`` otherwise, ``excess`` summing how far each limit is passed
     (relative: strain / limit - 1, limit J / J - 1, sag / limit - 1, and 1 per failed yes/no limit),
     so that a search ranks every credible design first and still sees the way back towards the
     credible ones. Outputs the predictor does not have are not judged."""
-    from sim.protocols import strain_limit_of, trust_flags
+    from sim.protocols import layer_strain_excess, strain_limit_of, trust_flags
+
+    if strain_limit is None:
+        strain_limit = _largest(layer_limits)
 
     n = len(np.atleast_1d(next(iter(values.values())))) if values else 0
     excess = np.zeros(n)
@@ -178,14 +206,16 @@ def infeasibility(
 
     trust = {k: v for k in TRUST_NAMES if (v := get(k)) is not None}
     if trust:
-        flags = trust_flags(trust, validity, tapping, strain_limit)
+        flags = trust_flags(trust, validity, tapping, strain_limit, layer_limits)
         bad = ~(flags["valid"] & flags["settled"])
         why = np.where(bad, flags["why"], why)
         excess += bad.astype(float)
         limit = strain_limit_of(validity, strain_limit)
         with np.errstate(invalid="ignore", divide="ignore"):
             for p in validity.strain_limited:
-                if (v := trust.get(f"{p}_max_compressive_log_strain")) is not None:
+                if layers := layer_strain_excess(trust, p, layer_limits, n):
+                    excess += sum(e for e, _ in layers.values())
+                elif (v := trust.get(f"{p}_max_compressive_log_strain")) is not None:
                     excess += np.nan_to_num(np.maximum(v / limit - 1, 0))
             for p in ("tapping", "plate", "wedge"):
                 if (v := trust.get(f"{p}_min_J")) is not None:

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from sim.design import DesignSpace, Parameter, Targets, is_family
-from sim.protocols import TRUST_OUTPUTS
+from sim.protocols import LAYER_STRAIN_OUTPUTS, TRUST_OUTPUTS
 from sim.provenance import finite_or_none
 
 from ._objective import OBJECTIVE_NAMES, closeness, infeasibility, objectives
@@ -54,7 +54,7 @@ __all__ = [
 #: the metrics the closeness score reads (targets.metric maps the displacement reading)
 SCORED = ("disp_at_1N_mm", "disp_at_4N_mm", "hysteresis_Nmm", "wedge_peak_force_N")
 #: the predictions credibility is judged on (``infeasibility``); the yes/no ones by their mean
-_JUDGED = (*TRUST_OUTPUTS, "sag_mm")
+_JUDGED = (*TRUST_OUTPUTS, *LAYER_STRAIN_OUTPUTS, "sag_mm")
 _YES_NO = ("reached_base", "folded")
 
 
@@ -261,15 +261,16 @@ def _scores(
     closeness of the median prediction, plus the credibility penalty unless
     ``allow_untrusted`` (``explore._objective.infeasibility``, judged with the validity limits
     and tapping tolerances of ``options``, a ``SimOptions``, default the defaults; the largest
-    strain of each of the predicted design ``points`` held to the limit of its materials,
-    named in ``space``'s catalogue: ``explore._objective.point_strain_limits``)."""
+    strain of each layer of the predicted design ``points`` held to its material's limit, named
+    in ``space``'s catalogue: ``explore._objective.point_layer_limits``; the design's largest
+    strain to the largest of them where the surrogate does not predict the layers' own)."""
     from sim.options import SimOptions
 
-    from ._objective import point_strain_limits, wedge_reference_N
+    from ._objective import point_layer_limits, wedge_reference_N
 
     options = SimOptions() if options is None else options
     catalogue = getattr(space, "catalogue", None)
-    strain_limit = point_strain_limits(points or [], catalogue, options.validity)
+    layer_limits = point_layer_limits(points or [], catalogue, options.validity)
     names = list(pred.metric_names)
     cols = {m: names.index(m) for m in names}
     point = pred.median
@@ -278,7 +279,9 @@ def _scores(
     c = closeness(metrics, targets, wedge_reference_N=wedge_reference_N(options.dimension))
     obj = objectives(c)
     judged = {m: (pred.mean if m in _YES_NO else point)[:, cols[m]] for m in _JUDGED if m in cols}
-    penalty, why = infeasibility(judged, targets, options.validity, options.tapping, strain_limit)
+    penalty, why = infeasibility(
+        judged, targets, options.validity, options.tapping, layer_limits=layer_limits
+    )
     if allow_untrusted:
         return c.score, obj, why
     return c.score + penalty, obj + penalty[:, None], why

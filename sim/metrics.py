@@ -6,6 +6,9 @@ without importing the simulation itself (``sim.simulate``, the FE code)."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 __all__ = [
     "DIAGNOSTIC_KEYS",
     "METRICS",
@@ -16,6 +19,9 @@ __all__ = [
     "SOLVER_VERSION",
     "diagnostic_names",
     "metric_registry",
+    "role_strain_name",
+    "role_strain_names",
+    "role_strains",
     "same_metrics",
 ]
 
@@ -154,11 +160,50 @@ def same_metrics(version: str | None) -> bool:
     return version == SOLVER_VERSION or version in SAME_METRICS_AS
 
 
+def role_strain_name(protocol: str, role: str) -> str:
+    """The diagnostic (and table column) of one layer's largest compressive log strain in one
+    protocol, by the layer's role: ``tapping_skin_max_compressive_log_strain``."""
+    return f"{protocol}_{role}_max_compressive_log_strain"
+
+
+def role_strain_names(protocols: tuple[str, ...] | list[str] = PROTOCOLS) -> list[str]:
+    """``role_strain_name`` of every protocol of ``protocols`` and every layer role
+    (``sim.design.LAYER_ROLES``), protocol by protocol."""
+    from .design.space import LAYER_ROLES
+
+    return [role_strain_name(p, r) for p in protocols for r in LAYER_ROLES]
+
+
+def role_strains(
+    diagnostics: Mapping[str, Any],
+    n_layers: int,
+    protocols: tuple[str, ...] | list[str] = PROTOCOLS,
+) -> dict[str, float | None]:
+    """Each layer's largest compressive log strain per protocol, by role
+    (``role_strain_names``), from the per-layer lists of a result's diagnostics
+    (``<protocol>_max_compressive_log_strain_by_layer``, outermost layer first, as
+    ``sim.design.active_roles(n_layers)`` names them). None for a role the design does not have,
+    and for a protocol without the lists (not run, failed, or a record made before solver 2.3
+    kept them): the validity of each layer is judged against its own limit from these."""
+    from .design.space import active_roles
+
+    roles = active_roles(n_layers)
+    out: dict[str, float | None] = dict.fromkeys(role_strain_names(protocols))
+    for p in protocols:
+        strains = diagnostics.get(f"{p}_max_compressive_log_strain_by_layer")
+        if isinstance(strains, list | tuple) and len(strains) == len(roles):
+            for role, value in zip(roles, strains, strict=True):
+                out[role_strain_name(p, role)] = None if value is None else float(value)
+    return out
+
+
 def diagnostic_names(protocols: tuple[str, ...] | list[str] = PROTOCOLS) -> list[str]:
     """The keys of ``SimResult.diagnostics()`` for a run of ``protocols``, in a fixed order (the
-    diagnostic columns of a sweep's table.csv)."""
+    diagnostic columns of a sweep's table.csv): each layer's largest strain by role
+    (``role_strain_names``) among them."""
     names = ["settled", "valid"] if "tapping" in protocols else ["valid"]
     if "tapping" in protocols:
         names += [f"tapping_{k}" for k in SETTLE_KEYS if k != "settled"]
     names += [f"{p}_{k}" for p in protocols for k in DIAGNOSTIC_KEYS]
+    names += role_strain_names(protocols)
     return [*names, "violations", "stopped"]

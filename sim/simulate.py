@@ -23,6 +23,7 @@ from .metrics import (
     SOLVER_VERSION,
     diagnostic_names,
     metric_registry,
+    role_strains,
     same_metrics,
 )
 from .options import SimOptions
@@ -131,7 +132,7 @@ class SimResult:
         compressive log strain per protocol (``<protocol>_max_compressive_log_strain_by_layer``)
         and each layer's tested limit (``sim.protocols.validity.LAYER_LIMIT_KEYS``), from which
         ``sim.protocols.validity.strain_summary`` gives a stored record's layers back to
-        ``strain_limits``."""
+        ``strain_limits``; and those per-layer strains by role (``sim.metrics.role_strains``)."""
         validity = self.validity
         out: dict[str, Any] = {
             "valid": validity["valid"],
@@ -146,6 +147,7 @@ class SimResult:
             out[f"{name}_{LAYER_STRAINS}"] = summary.get(LAYER_STRAINS)
             for key in LAYER_LIMIT_KEYS:
                 out[key] = summary.get(key)
+        out.update(role_strains(out, len(self.design.layers), tuple(self.protocols)))
         if "tapping" in self.protocols:  # the periodic state (sim.protocols.periodic)
             tap = self.protocols["tapping"]
             for key in SETTLE_KEYS:

@@ -15,7 +15,7 @@ import numpy as np
 from sim.design import DesignSpace, space_from_dict
 from sim.errors import DesignError, read_toml
 from sim.metrics import METRICS, METRICS_3D, PROTOCOLS, diagnostic_names, metric_registry
-from sim.protocols import TRUST_OUTPUTS, trust_censoring, trust_values
+from sim.protocols import LAYER_STRAIN_OUTPUTS, TRUST_OUTPUTS, trust_censoring, trust_values
 from sim.provenance import KINDS, folder_kind, sha256_file
 from sim.sweep import (
     CONFIG,
@@ -386,8 +386,11 @@ def read_sweep(
             metric_names = tuple(m for m in registry if m in header)
             n_fe = len(metric_names)
             learns_trust = "valid" in header
-            if learns_trust:
-                metric_names += tuple(TRUST_OUTPUTS)
+            trust_names: tuple[str, ...] = ()
+            if learns_trust:  # each layer's strain too when the table has it (solver >= 2.3)
+                layers = tuple(m for m in LAYER_STRAIN_OUTPUTS if m in header)
+                trust_names = (*TRUST_OUTPUTS, *layers)
+                metric_names += trust_names
             missing = [c for c in ("index", *space.names) if c not in header]
             if missing or not metric_names:
                 what = missing[0] if missing else next(iter(registry))
@@ -416,8 +419,9 @@ def read_sweep(
                     protocol = [registry[m][0] for m in metric_names[:n_fe]]
                     y = [v if p in kept else math.nan for p, v in zip(protocol, y, strict=True)]
                 if learns_trust:
-                    y += list(trust_values(row).values())
-                    bounds.append([0] * n_fe + list(trust_censoring(row).values()))
+                    trust, censoring = trust_values(row), trust_censoring(row)
+                    y += [trust[m] for m in trust_names]
+                    bounds.append([0] * n_fe + [censoring[m] for m in trust_names])
                 unchecked += not learns_trust
                 whole.append(why is None or not trusted_only)
                 points.append({n: _cell(space, n, row[n], where) for n in space.names})
@@ -429,12 +433,26 @@ def read_sweep(
         raise DesignError("SWEEP", f"malformed CSV in {table}: {exc}; {rebuild}") from None
     except DAMAGED_GZIP as exc:
         raise DesignError("SWEEP", f"damaged gzip file {table}: {exc}") from None
+    y_all = np.asarray(targets, dtype=np.float64).reshape(len(points), len(metric_names))
+    censored = (
+        np.asarray(bounds, dtype=np.int8).reshape(len(points), len(metric_names))
+        if learns_trust
+        else np.zeros((len(points), len(metric_names)), dtype=np.int8)
+    )
+    # a layer no design of the sweep has (a middle layer in a space of one or two) is no output
+    keep = [
+        j for j, m in enumerate(metric_names)
+        if m not in LAYER_STRAIN_OUTPUTS or np.isfinite(y_all[:, j]).any()
+    ]  # fmt: skip
+    metric_names = tuple(metric_names[j] for j in keep)
+    y_all = y_all[:, keep]
+    censored = censored[:, keep]
     return SweepData(
         folder=folder,
         space=space,
         solver_version=str(config.get("solver_version", "")),
         points=points,
-        targets=np.asarray(targets, dtype=np.float64).reshape(len(points), len(metric_names)),
+        targets=y_all,
         index=np.asarray(index, dtype=np.int64),
         metric_names=metric_names,
         table_sha256=table_sha256(table),
@@ -444,9 +462,7 @@ def read_sweep(
         partial=partial,
         whole=np.asarray(whole, dtype=bool),
         tapping_frequency_Hz=_frequency(config),
-        censored=np.asarray(bounds, dtype=np.int8).reshape(len(points), len(metric_names))
-        if learns_trust and any(any(b) for b in bounds)
-        else None,
+        censored=censored if learns_trust and censored.any() else None,
     )
 
 

@@ -22,7 +22,7 @@ import numpy as np
 import torch
 
 from sim.metrics import metric_registry
-from sim.protocols import TRUST_OUTPUTS
+from sim.protocols import LAYER_STRAIN_OUTPUTS, TRUST_OUTPUTS
 from sim.provenance import finite_or_none, git_commit
 
 from ._encoding import Encoder
@@ -118,6 +118,7 @@ def metric_groups(metric_names: Sequence[str], grouping: str) -> tuple[int, ...]
     protocol = {m: v[0] for m, v in metric_registry("3d").items()}
     if grouping == "tapping":
         protocol.update(TRUST_OUTPUTS)
+        protocol.update({m: p for m, (p, _) in LAYER_STRAIN_OUTPUTS.items()})
     kind = [0 if protocol.get(m) == "tapping" else 1 for m in metric_names]
     present = sorted(set(kind))
     return tuple(present.index(k) for k in kind)

@@ -11,13 +11,14 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from explore._objective import infeasibility, point_strain_limits
+from explore._objective import infeasibility, point_layer_limits, point_strain_limits
 from explore._search import design_family, family_space, predict_rows
 from explore._sensitivity import STEP, sensitivities, sensitivity_notes
 from explore._summary import credible, summarise
 from explore._types import Candidate, Confirmation
 from sim.design import Targets, load_space, point_to_design
 from sim.protocols import (
+    LAYER_STRAIN_OUTPUTS,
     TRUST_OUTPUTS,
     TappingOptions,
     ValidityOptions,
@@ -48,7 +49,8 @@ def test_trust_values_read_diagnostics_and_table_cells():
     }
     v = trust_values(diag)
     assert v["failed"] == 1.0 and trust_values({"status": "ok"})["failed"] == 0.0
-    assert list(v) == list(TRUST_OUTPUTS)
+    assert list(v) == [*TRUST_OUTPUTS, *LAYER_STRAIN_OUTPUTS]
+    assert all(math.isnan(v[m]) for m in LAYER_STRAIN_OUTPUTS)  # a table without the columns
     assert v["plate_max_compressive_log_strain"] == 0.7 and math.isnan(v["wedge_min_J"])
     assert v["reached_base"] == 1.0 and v["folded"] == 0.0  # any protocol
     assert math.isnan(v["tapping_max_estimated_error"])
@@ -112,6 +114,43 @@ def test_a_design_point_is_held_to_the_largest_of_its_layers_limits():
     assert want == [0.5276, 1.0498, 0.5978]
     over = ValidityOptions(max_compressive_log_strain=0.7)
     assert point_strain_limits([gel_only], None, over) is None
+
+
+def test_each_layer_is_held_to_its_own_limit_where_its_strain_is_predicted():
+    """A gel skin over a foam core whose skin is strained 0.7 and core 0.9: within the design's
+    largest limit (the foam's 1.05), beyond the skin's own (the gel's 0.53). Judged layer by
+    layer it is not credible, and the reason names the layer; a single-layer design has no skin
+    (NaN) and is judged on its core alone; the penalty grows with each layer's excess."""
+    gel_only = _gel_point(0.01, 0.2)
+    gel_over_foam = {
+        **gel_only, "layers.count": 2, "skin.material": "gel", "skin.thickness_mm": 1.0,
+        "skin.mu0_MPa": 0.02, "skin.alpha": 3.0, "skin.g_total": 0.2, "skin.tau_s": 0.1,
+        "core.material": "foam", "core.nu": 0.2,
+    }  # fmt: skip
+    validity, tapping = ValidityOptions(), TappingOptions()
+    layers = point_layer_limits([gel_over_foam, gel_only], None, validity)
+    np.testing.assert_array_equal(layers["skin"], [0.5276, np.nan])
+    np.testing.assert_array_equal(layers["core"], [1.0498, 0.5276])
+    assert np.isnan(layers["middle"]).all()
+    values = {
+        "tapping_max_compressive_log_strain": np.array([0.9, 0.5]),
+        "tapping_skin_max_compressive_log_strain": np.array([0.7, np.nan]),
+        "tapping_core_max_compressive_log_strain": np.array([0.9, 0.5]),
+    }
+    largest = point_strain_limits([gel_over_foam, gel_only], None, validity)
+    # judged on the largest strain alone, the gel skin's strain passes unseen
+    assert trust_flags(values, validity, tapping, largest)["valid"].all()
+    f = trust_flags(values, validity, tapping, role_limits=layers)
+    np.testing.assert_array_equal(f["valid"], [False, True])
+    assert f["why"][0] == "tapping skin strain > 0.5276"
+    penalty, why = infeasibility(values, TARGETS, validity, tapping, layer_limits=layers)
+    assert penalty[1] == 0.0 and why[0] == "tapping skin strain > 0.5276"
+    assert penalty[0] == pytest.approx(1.0 + 1.0 + (0.7 / 0.5276 - 1))
+    # an override holds every layer to one number: the layers' limits are not used
+    assert (
+        point_layer_limits([gel_over_foam], None, ValidityOptions(max_compressive_log_strain=1))
+        is None
+    )
 
 
 # ----------------------------------------------------------------------------- the search

@@ -25,7 +25,7 @@ from sim import METRICS, SOLVER_VERSION
 from sim.design import is_family, load_space, param_material
 from sim.errors import DesignError
 from sim.materials import CATALOGUE
-from sim.protocols import TRUST_OUTPUTS
+from sim.protocols import LAYER_STRAIN_OUTPUTS, TRUST_OUTPUTS
 from sim.provenance import sha256_file
 from sim.sweep import sample_points
 from surrogate import (
@@ -45,6 +45,8 @@ from surrogate._surrogate import ZERO_IF_ELASTIC, Surrogate
 from surrogate._train import calibration_factors, fit, metric_groups
 
 REPO = Path(explore.cli.__file__).resolve().parents[1]
+#: each layer's strain by role that a surrogate of the tiny space (one or two layers) learns
+TWO_LAYERS = tuple(m for m in LAYER_STRAIN_OUTPUTS if "_middle_" not in m)
 SHORT = TrainConfig(members=5, hidden=(16, 16), max_epochs=25, patience=25)
 ERROR_PREFIX = "fingertip: error: "
 CORE = "core.mu0_MPa = 0.05\ncore.alpha = 3.0\ncore.g_total = 0.2\ncore.tau_s = 0.3\n"
@@ -397,6 +399,9 @@ def test_the_tapping_metrics_have_nets_of_their_own():
     trust = metric_groups([*names, *TRUST_OUTPUTS], "tapping")[len(names) :]
     for name, g in zip(TRUST_OUTPUTS, trust, strict=True):
         assert g == (0 if TRUST_OUTPUTS[name] == "tapping" else 1), name
+    layers = metric_groups([*names, *LAYER_STRAIN_OUTPUTS], "tapping")[len(names) :]
+    for name, g in zip(LAYER_STRAIN_OUTPUTS, layers, strict=True):
+        assert g == (0 if name.startswith("tapping_") else 1), name
     assert set(metric_groups(names, "none")) == {0}
     for grouping in ("tapping_metrics", "tapping"):
         pair = ["wedge_peak_force_N", "plate_force_at_1mm_N"]
@@ -605,9 +610,11 @@ def test_checkpoint_round_trip_gives_identical_predictions(data, sweep, tmp_path
     h = loaded.header
     assert h["schema_version"] == SCHEMA_VERSION and h["solver_version"] == SOLVER_VERSION
     assert h["training_data"]["table_sha256"] == sha256_file(sweep / "table.csv")
-    assert [m["name"] for m in h["metrics"]] == [*METRICS, *TRUST_OUTPUTS]
+    # each layer's strain by role: the roles the sweep's designs have (no middle layer here)
+    assert [m["name"] for m in h["metrics"]] == [*METRICS, *TRUST_OUTPUTS, *TWO_LAYERS]
     units = {m["name"]: m["unit"] for m in h["metrics"]}
-    assert units == {k: v[1] for k, v in METRICS.items()} | dict.fromkeys(TRUST_OUTPUTS, "")
+    trust = dict.fromkeys([*TRUST_OUTPUTS, *TWO_LAYERS], "")
+    assert units == {k: v[1] for k, v in METRICS.items()} | trust
     assert h["space"] == data.space.to_dict() and h["git_commit"]
     assert {"ensemble_nll", "r2", "member_nll"} <= set(h["validation"])
     assert {p["name"]: p["unit"] for p in h["parameters"]}["core.mu0_MPa"] == "MPa"
@@ -697,7 +704,7 @@ def test_predict_flags_designs_outside_the_training_domain(ckpt, data):
 def test_report_has_accuracy_calibration_parity_plots_and_speed(ckpt):
     run = ckpt.parent
     report = json.loads((run / "report.json").read_text())
-    assert set(report["metrics"]) == set(METRICS) | set(TRUST_OUTPUTS)
+    assert set(report["metrics"]) == set(METRICS) | set(TRUST_OUTPUTS) | set(TWO_LAYERS)
     assert 0 <= report["trust"]["accuracy"] <= 1 and report["trust"]["n"] > 0
     for s in report["metrics"].values():
         assert set(s) >= {"r2", "median_rel_error", "p95_rel_error", "coverage_90", "n"}
@@ -741,7 +748,7 @@ def test_cli_train_and_predict(cli_train, ckpt, data, sweep, tmp_path):
         "in_domain", "domain_note", "median", "mean", "std", "lower_90", "upper_90", "by_rule"
     }  # fmt: skip
     assert d["by_rule"] == []  # the tiny space has no elastic design
-    assert set(d["mean"]) == set(METRICS) | set(TRUST_OUTPUTS)
+    assert set(d["mean"]) == set(METRICS) | set(TRUST_OUTPUTS) | set(TWO_LAYERS)
     expected = load_checkpoint(ckpt).predict([point])
     assert d["mean"]["disp_at_1N_mm"] == pytest.approx(expected.metric("disp_at_1N_mm")[0][0])
     # a CSV (the sweep's own table works) gives a table with mean ± std and the domain flag
@@ -863,7 +870,7 @@ def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
     data = read_sweep(copy)
     assert len(data.points) == len(full.points)  # kept, for their trust outputs
     n_fe = sum(m in METRICS for m in data.metric_names)
-    assert data.metric_names[n_fe:] == tuple(TRUST_OUTPUTS)
+    assert data.metric_names[n_fe:] == (*TRUST_OUTPUTS, *TWO_LAYERS)
     protocol = np.array([METRICS[m][0] for m in data.metric_names[:n_fe]])
     for row, kept in zip(
         usable[:3], ({"plate", "wedge"}, set(), {"tapping", "plate"}), strict=True
@@ -875,7 +882,8 @@ def test_unsettled_or_invalid_designs_are_left_out_and_counted(sweep, tmp_path):
             data.targets[pos, :n_fe][mine], full.targets[pos, :n_fe][mine]
         )
         assert np.isfinite(data.targets[pos, :n_fe][mine]).any() or not kept
-        assert np.isfinite(data.targets[pos, n_fe:]).all()
+        # every trust output (a layer's strain where the design has that layer)
+        assert np.isfinite(data.targets[pos, n_fe : n_fe + len(TRUST_OUTPUTS)]).all()
     assert data.excluded.get("unsettled", 0) == full.excluded.get("unsettled", 0) + 1
     assert data.excluded.get("invalid", 0) == full.excluded.get("invalid", 0) + 2
     assert data.partial == full.partial + 2

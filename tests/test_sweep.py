@@ -222,6 +222,16 @@ def test_sweep_records_table_and_resume(tiny_space, tmp_path):
         assert float(r["tapping_max_compressive_log_strain"]) > 0 and 0 < float(r["plate_min_J"])
     record = json.loads(next((out / "records").glob("*.json")).read_text())
     assert {"settled", "valid", "violations", "tapping_residual"} <= set(record["diagnostics"])
+    # each layer's largest strain by role: the outer one is the skin, the inner the core, and
+    # the design's largest strain is the largest of its layers'
+    for r in rows:
+        for p in ("tapping", "plate", "wedge"):
+            skin, core = (r[f"{p}_{role}_max_compressive_log_strain"] for role in ("skin", "core"))
+            layers = [float(x) for x in (skin, core) if x != ""]
+            assert (skin == "") == (r["layers.count"] == "1") and core != ""
+            assert max(layers) == pytest.approx(float(r[f"{p}_max_compressive_log_strain"]))
+            assert r[f"{p}_middle_max_compressive_log_strain"] == ""
+    assert {r["layers.count"] for r in rows} == {"1", "2"}
     # the same command again computes nothing; a larger n computes only the new designs
     again = _cli("sweep", tiny_space, "--n", 3, "--out", out, "--no-progress", *FAST)
     assert "0 computed now" in again.stdout
@@ -534,3 +544,30 @@ def test_cli_merge_sweeps_joins_segments_and_refuses_bad_input_in_one_line(
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("fingertip: error: ") and words in err[0], err
     assert not (tmp_path / "x").exists() and not any((tmp_path / "empty").iterdir())
+
+
+def test_a_record_without_the_layers_strains_by_role_gets_them_from_its_lists(tmp_path):
+    """Records made before the table had each layer's strain by role (solver 2.3 to 2.8 keep
+    the per-layer lists, outermost first) get the columns when the table is rebuilt; a record
+    without the lists (older) gets empty cells, which a surrogate does not learn from."""
+    from sim.sweep import SweepStore
+
+    store = SweepStore(tmp_path)
+    names = ["layers.count"]
+    lists = {
+        "tapping_max_compressive_log_strain": 0.8,
+        "tapping_max_compressive_log_strain_by_layer": [0.8, 0.3],
+        "plate_max_compressive_log_strain_by_layer": [0.2, 0.5],
+    }
+    store.write("a", {"params": {"layers.count": 2}, "status": "ok", "diagnostics": lists})
+    old = {"tapping_max_compressive_log_strain": 0.4}
+    store.write("b", {"params": {"layers.count": 1}, "status": "ok", "diagnostics": old})
+    store.consolidate(["a", "b"], names)
+    a, b = _table(tmp_path)
+    assert a["tapping_skin_max_compressive_log_strain"] == "0.8"
+    assert a["tapping_core_max_compressive_log_strain"] == "0.3"
+    assert a["plate_skin_max_compressive_log_strain"] == "0.2"
+    assert a["plate_core_max_compressive_log_strain"] == "0.5"
+    assert a["wedge_core_max_compressive_log_strain"] == ""
+    assert b["tapping_core_max_compressive_log_strain"] == ""
+    assert b["tapping_max_compressive_log_strain"] == "0.4"

@@ -32,7 +32,7 @@ from sim import (
 )
 from sim.fe import Plate
 from sim.materials import LAWS, Material
-from sim.metrics import DIAGNOSTIC_KEYS
+from sim.metrics import DIAGNOSTIC_KEYS, role_strain_names
 from sim.options import apply_overrides
 from sim.protocols.validity import (
     LAYER_LIMIT_KEYS,
@@ -237,10 +237,14 @@ def test_stiff_paper_material_is_valid(tmp_path: Path) -> None:
     assert s["nominal_compression"] == pytest.approx(1.0 / 5.48)
     diag = res.diagnostics()
     layers = {"plate_max_compressive_log_strain_by_layer", *LAYER_LIMIT_KEYS}
+    layers |= set(role_strain_names(["plate"]))
     assert (
         set(diag)
         == {"valid", "violations", "stopped"} | {f"plate_{k}" for k in DIAGNOSTIC_KEYS} | layers
     )
+    # one layer: the core, strained as the design
+    assert diag["plate_core_max_compressive_log_strain"] == s["max_compressive_log_strain"]
+    assert diag["plate_skin_max_compressive_log_strain"] is None
     assert diag["tested_log_strain_by_layer"] == s["tested_log_strain_by_layer"]
     assert diag["stopped"] == ""
     assert diag["valid"] is True and diag["violations"] == ""

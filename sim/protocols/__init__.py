@@ -23,8 +23,10 @@ from .loading import (
 )
 from .periodic import PeriodicState, PeriodicStatus
 from .trust import (
+    LAYER_STRAIN_OUTPUTS,
     PROBABILITY_OUTPUTS,
     TRUST_OUTPUTS,
+    layer_strain_excess,
     strain_limit_of,
     trust_censoring,
     trust_flags,
@@ -33,6 +35,7 @@ from .trust import (
 from .validity import DeformationTracker, ValidityOptions, ValidityStop, Violation
 
 __all__ = [
+    "LAYER_STRAIN_OUTPUTS",
     "PROBABILITY_OUTPUTS",
     "REGISTRY",
     "TRUST_OUTPUTS",
@@ -49,6 +52,7 @@ __all__ = [
     "WedgeOptions",
     "contact_patch",
     "hysteresis_resolution_Nmm",
+    "layer_strain_excess",
     "run_plate",
     "run_tapping",
     "run_wedge",

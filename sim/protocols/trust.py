@@ -14,6 +14,12 @@ predictions as the solver and ``sim.protocols.validity.check`` apply to an FE re
   as a probability, flagged at 0.5; a design the FE cannot simulate is no answer either);
 - the tapping's periodic-state residual and largest estimated relative error (settled when
   both are within ``TappingOptions.residual_tol`` / ``settle_tol``).
+
+Besides, where a sweep's table has them (solver 2.3 and later records), each layer's largest
+compressive log strain in tapping and plate, by role (``LAYER_STRAIN_OUTPUTS``): each layer is
+held to its own material's tested limit (``role_limits``), not the design's largest strain to
+the largest of its layers' limits. A gel skin over a foam core is then judged on the skin's 0.53
+as well as the core's 1.05.
 """
 
 from __future__ import annotations
@@ -23,9 +29,14 @@ from typing import Any
 
 import numpy as np
 
+from ..design.space import LAYER_ROLES
+from ..metrics import role_strain_name
+
 __all__ = [
+    "LAYER_STRAIN_OUTPUTS",
     "PROBABILITY_OUTPUTS",
     "TRUST_OUTPUTS",
+    "layer_strain_excess",
     "strain_limit_of",
     "trust_censoring",
     "trust_flags",
@@ -46,6 +57,11 @@ TRUST_OUTPUTS: dict[str, str] = {
     "tapping_max_estimated_error": "tapping",
 }
 _PROTOCOLS = ("tapping", "plate", "wedge")
+#: output name -> (protocol, layer role): each layer's largest compressive log strain, by role,
+#: in the protocols whose largest strain is a trust output (``sim.metrics.role_strains``)
+LAYER_STRAIN_OUTPUTS: dict[str, tuple[str, str]] = {
+    role_strain_name(p, r): (p, r) for p in ("tapping", "plate") for r in LAYER_ROLES
+}
 #: the 0/1 outputs: a prediction of one (an ensemble's mean of 0/1 values) reads as a
 #: probability, so it and its interval lie in [0, 1] (``surrogate.Surrogate.predict``)
 PROBABILITY_OUTPUTS = ("reached_base", "folded", "failed")
@@ -65,9 +81,10 @@ def _float(v: Any) -> float:
 
 
 def trust_values(diagnostics: Mapping[str, Any]) -> dict[str, float]:
-    """The ``TRUST_OUTPUTS`` of one FE result, from its diagnostics (``SimResult.diagnostics()``
-    or a ``table.csv`` row: text cells are parsed; ``failed`` from a row's ``status``); NaN
-    where the result does not have one."""
+    """The ``TRUST_OUTPUTS`` and ``LAYER_STRAIN_OUTPUTS`` of one FE result, from its
+    diagnostics (``SimResult.diagnostics()`` or a ``table.csv`` row: text cells are parsed;
+    ``failed`` from a row's ``status``); NaN where the result does not have one (a layer the
+    design does not have, a table from before the layers' strains were columns)."""
     out = {
         name: _float(diagnostics.get(name))
         for name in TRUST_OUTPUTS
@@ -83,7 +100,8 @@ def trust_values(diagnostics: Mapping[str, Any]) -> dict[str, float]:
         for flag in PROBABILITY_OUTPUTS:  # might have turned 1 later
             if out[flag] == 0.0:
                 out[flag] = np.nan
-    return {name: out[name] for name in TRUST_OUTPUTS}
+    layers = {name: _float(diagnostics.get(name)) for name in LAYER_STRAIN_OUTPUTS}
+    return {**{name: out[name] for name in TRUST_OUTPUTS}, **layers}
 
 
 def _stopped(diagnostics: Mapping[str, Any]) -> tuple[str, ...]:
@@ -94,15 +112,18 @@ def _stopped(diagnostics: Mapping[str, Any]) -> tuple[str, ...]:
 
 
 def trust_censoring(diagnostics: Mapping[str, Any]) -> dict[str, int]:
-    """Per ``TRUST_OUTPUTS`` name, how its value of this FE result is known: 0 exactly, +1 as a
-    lower bound, -1 as an upper bound. A protocol stopped at its first violation (solver 2.3)
-    recorded its extremes up to the stop: its largest strain would only have grown (+1), its
-    smallest J only fallen (-1). (Its 0/1 flags that were still 0 are unknown:
-    ``trust_values`` gives them as NaN.)"""
-    out = dict.fromkeys(TRUST_OUTPUTS, 0)
+    """Per ``TRUST_OUTPUTS`` and ``LAYER_STRAIN_OUTPUTS`` name, how its value of this FE result
+    is known: 0 exactly, +1 as a lower bound, -1 as an upper bound. A protocol stopped at its
+    first violation (solver 2.3) recorded its extremes up to the stop: its largest strain would
+    only have grown (+1), its smallest J only fallen (-1). (Its 0/1 flags that were still 0 are
+    unknown: ``trust_values`` gives them as NaN.)"""
+    out = dict.fromkeys([*TRUST_OUTPUTS, *LAYER_STRAIN_OUTPUTS], 0)
     for p in _stopped(diagnostics):
         if f"{p}_max_compressive_log_strain" in out:
             out[f"{p}_max_compressive_log_strain"] = 1
+        for name, (protocol, _) in LAYER_STRAIN_OUTPUTS.items():
+            if protocol == p:
+                out[name] = 1
         if f"{p}_min_J" in out:
             out[f"{p}_min_J"] = -1
     return out
@@ -123,14 +144,20 @@ def strain_limit_of(validity, strain_limit: Any = None) -> Any:
 
 
 def trust_flags(
-    values: Mapping[str, Any], validity, tapping, strain_limit: Any = None
+    values: Mapping[str, Any],
+    validity,
+    tapping,
+    strain_limit: Any = None,
+    role_limits: Mapping[str, Any] | None = None,
 ) -> dict[str, np.ndarray]:
     """Predicted ``valid`` and ``settled`` (bool arrays) and the first reason a design fails
     (``why``: text array, "" when it passes), from predicted ``TRUST_OUTPUTS`` (arrays; an
     output the predictor does not have is not judged). ``validity``: ``ValidityOptions``;
     ``tapping``: ``TappingOptions`` (its tolerances); ``strain_limit``: the compressive log
     strain each design's largest strain is held to (a number or an array, one per design:
-    ``strain_limit_of``)."""
+    ``strain_limit_of``). With ``role_limits`` (layer role -> each design's limit of that
+    layer, NaN where it has no such layer) and the predicted ``LAYER_STRAIN_OUTPUTS`` of a
+    protocol, each layer is held to its own limit instead (``layer_strain_excess``)."""
     n = len(np.atleast_1d(next(iter(values.values()))))
     why = np.full(n, "", dtype=object)
     valid = np.ones(n, dtype=bool)
@@ -149,7 +176,12 @@ def trust_flags(
     overridden = " (overridden)" if validity.max_compressive_log_strain is not None else ""
     for p in validity.strain_limited:
         v = get(f"{p}_max_compressive_log_strain")
-        if v is not None:
+        layers = layer_strain_excess(values, p, role_limits, n)
+        if layers:
+            for role, (excess, own) in layers.items():
+                for x in np.unique(own[excess > 0]):
+                    fail((excess > 0) & (own == x), f"{p} {role} strain > {x:g}", valid)
+        elif v is not None:
             with np.errstate(invalid="ignore"):
                 beyond = v > limit
             for x in np.unique(limit[beyond]):  # the reason names each design's own limit
@@ -172,3 +204,25 @@ def trust_flags(
         if err is not None:
             fail(err > tapping.settle_tol, "unsettled (error estimate)", settled)
     return {"valid": valid, "settled": settled, "why": why}
+
+
+def layer_strain_excess(
+    values: Mapping[str, Any], protocol: str, role_limits: Mapping[str, Any] | None, n: int
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Per layer role whose strain in ``protocol`` is among the predicted ``values``
+    (``LAYER_STRAIN_OUTPUTS``) and whose limit is in ``role_limits``: (how far each design's
+    strain passes its limit, relative: strain / limit - 1, 0 within it or where the design has
+    no such layer; the limit). Empty without ``role_limits`` or without those outputs: the
+    design's largest strain is judged instead."""
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    if role_limits is None:
+        return out
+    for name, (p, role) in LAYER_STRAIN_OUTPUTS.items():
+        if p != protocol or values.get(name) is None or role not in role_limits:
+            continue
+        v = np.asarray(values[name], dtype=float).reshape(n)
+        own = np.broadcast_to(np.asarray(role_limits[role], dtype=float), (n,))
+        with np.errstate(invalid="ignore", divide="ignore"):
+            excess = np.nan_to_num(np.maximum(v / own - 1.0, 0.0), nan=0.0, posinf=0.0)
+        out[role] = (excess, own)
+    return out

@@ -12,7 +12,8 @@
   ``solver_version``, ``wall_time_s``, ``cpu_time_s`` (the worker's CPU seconds; not in
   records made before it was added);
 - ``table.csv`` (:meth:`SweepStore.consolidate`, columns :func:`table_header`): parameters +
-  metrics + diagnostics (+ status and reason) of every design, rebuilt from the records at the
+  metrics + diagnostics (each layer's largest strain by role among them: ``sim.metrics.
+  role_strains``) (+ status and reason) of every design, rebuilt from the records at the
   end of each invocation; ``curves.jsonl``: the curves of the designs that succeeded, one line
   ``{"index", "key", "curves"}`` per design. ``surrogate.read_sweep`` reads the table.
 - ``table.csv.gz`` instead of ``table.csv`` (:func:`write_table_gz`): the same bytes,
@@ -34,7 +35,7 @@ import zlib
 from pathlib import Path
 from typing import IO, Any
 
-from ..metrics import diagnostic_names, metric_registry
+from ..metrics import diagnostic_names, metric_registry, role_strain_names, role_strains
 from ..protocols.loading import profile_summary
 from ..provenance import json_safe, json_text, replacing, sha256_file, write_json
 
@@ -202,7 +203,7 @@ class SweepStore:
                         rec["status"],
                         *_cells(params, names),
                         *_cells(metrics, metric_names),
-                        *_cells(rec.get("diagnostics", {}), diag_names),
+                        *_cells(_diagnostics(rec, params), diag_names),
                         f"{rec.get('wall_time_s', 0.0):.3f}",
                         rec.get("reason", ""),
                     ]
@@ -242,6 +243,16 @@ def merge_tables(folders: list[Path], out: Path) -> tuple[int, list[str]]:
         writer.writerow(header)
         writer.writerows(rows[i] for i in sorted(rows))
     return len(rows), header
+
+
+def _diagnostics(record: dict[str, Any], params: dict[str, Any]) -> dict[str, Any]:
+    """A record's diagnostics with each layer's strain by role: a record made before the
+    diagnostics had them (``sim.metrics.role_strains``) gets them from its per-layer lists."""
+    diagnostics = dict(record.get("diagnostics") or {})
+    count = params.get("layers.count")
+    if count is not None and all(diagnostics.get(n) is None for n in role_strain_names()):
+        diagnostics.update(role_strains(diagnostics, int(count)))
+    return diagnostics
 
 
 def _cells(values: dict[str, Any], names: list[str]) -> list[Any]:
