@@ -15,6 +15,7 @@ from .geometry import DEFAULT_MESH, DEFAULT_MESH_3D, MeshOptions, MeshOptions3D
 from .protocols import PlateOptions, TappingOptions, ValidityOptions, WedgeOptions
 
 __all__ = [
+    "INCLINATION_RANGE_DEG",
     "MODELS",
     "ModelOptions",
     "SimOptions",
@@ -30,17 +31,45 @@ __all__ = [
 #: ``sim.geometry.pad``).
 MODELS = ("2d", "3d")
 
+#: The 3D model's plate inclinations (deg, ``ModelOptions.inclination_deg``): 0 (the human
+#: targets' angle) to 45 (the largest of Serina et al.'s angles the pad represents; 90 loads the
+#: end of the pad, where the symmetric profile is least like a finger): docs/fingertip_3d.md,
+#: "Should the 3D model have a finger-inclination option?".
+INCLINATION_RANGE_DEG = (0.0, 45.0)
+
 
 @dataclass(frozen=True)
 class ModelOptions:
-    """Which model simulates the design (``--model``, ``--set model.dimension=3d``)."""
+    """Which model simulates the design (``--model``, ``--set model.dimension=3d``), and in
+    3D the inclination of the finger to the plate (``--set model.inclination_deg=30``).
+
+    ``inclination_deg`` = t tilts the plate of the tapping and plate protocols about the
+    cross-finger axis x, its outward normal (0, cos t, sin t): it is lowest towards z > 0, the
+    fingertip's end of the pad, and first touches the pad where the pad's normal is that
+    (``sim.geometry.mesh3d.first_touch_mm``). The model is then the half pad x >= 0
+    (``sim.geometry.mesh3d.half_pad_mesh``); forces and displacements are read along the
+    plate's normal, the contact patch in its plane. 0 (the default) is the quarter model,
+    unchanged, and is left out of the dict form (``SimOptions.as_dict``) so that records keep
+    their keys. 3D only; the wedge is not inclined (``sim.simulate`` refuses it)."""
 
     dimension: str = "2d"
+    inclination_deg: float = 0.0
 
     def __post_init__(self) -> None:
         if self.dimension not in MODELS:
             raise DesignError(
                 "model.dimension", f"must be one of {', '.join(MODELS)}, got {self.dimension!r}"
+            )
+        lo, hi = INCLINATION_RANGE_DEG
+        t = self.inclination_deg
+        if isinstance(t, bool) or not isinstance(t, int | float) or not lo <= t <= hi:
+            raise DesignError(
+                "model.inclination_deg", f"must be in [{lo:g}, {hi:g}] degrees, got {t!r}"
+            )
+        if t != 0.0 and self.dimension != "3d":
+            raise DesignError(
+                "model.inclination_deg",
+                f"applies to the 3d model only, not to --model {self.dimension}",
             )
 
 
@@ -70,8 +99,12 @@ class SimOptions:
         """The options' dict form (config.json, the key of a stored result) with the sections
         the model reads: a 2D run's without ``model`` and ``mesh3d`` (so 2D results keep the
         keys they were stored under before the 3D model existed), a 3D run's without the 2D
-        ``mesh``. ``options_from_dict`` gives the defaults to the sections left out."""
+        ``mesh``. ``options_from_dict`` gives the defaults to the sections left out. The 3D
+        model's ``model.inclination_deg`` is there only when it is not 0 (so the records of
+        the flat plate keep the keys they had before the option existed)."""
         d = dataclasses.asdict(self)
+        if "model" in d and d["model"]["inclination_deg"] == 0.0:
+            del d["model"]["inclination_deg"]
         return {k: v for k, v in d.items() if k not in _UNREAD[self.dimension]}
 
     def with_steps_scaled(self, factor: float) -> SimOptions:
@@ -156,6 +189,8 @@ def apply_overrides(options: SimOptions, overrides: Mapping[str, Any]) -> SimOpt
     for section, changes in sorted(sections.items(), key=lambda item: item[0] != "model"):
         try:  # the model first: which options apply depends on it
             value = dataclasses.replace(getattr(out, section), **changes)
+        except DesignError:  # names its own field (ModelOptions)
+            raise
         except ValueError as exc:  # a section's own range check (e.g. MeshOptions3D)
             name = f"{section}.{next(iter(changes))}"
             prefix = f"{type(getattr(out, section)).__name__}."
@@ -179,6 +214,7 @@ _ONLY_IN = {
     ("tapping", "length_mm"): "2d",
     ("plate", "length_mm"): "2d",
     ("wedge", "length_mm"): "2d",
+    ("model", "inclination_deg"): "3d",
 }
 
 
@@ -201,6 +237,8 @@ def _parse(name: str, raw: Any, default: Any) -> Any:
     if kind in (int, float):
         if not math.isfinite(value):
             raise DesignError(name, f"must be finite, got {raw!r}")
+        if name == "model.inclination_deg":  # an angle: ModelOptions checks its range
+            return value
         zero_ok = name.endswith(("settle_tol", "residual_tol", "stall_window"))  # 0: off
         if value < 0 or (value == 0 and not zero_ok):
             raise DesignError(name, f"must be > 0, got {raw!r}")

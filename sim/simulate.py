@@ -6,13 +6,13 @@ re-exported here for the imports that name ``sim.simulate``."""
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from .design import Design
-from .errors import SimulationError
+from .errors import DesignError, SimulationError
 from .fe import Body, Discretization, model_newton
 from .metrics import (
     DIAGNOSTIC_KEYS,
@@ -200,6 +200,12 @@ def _simulate(
     for p in protocols:
         if p not in REGISTRY:
             raise ValueError(f"unknown protocol {p!r}; known: {', '.join(PROTOCOLS)}")
+    if options.model.inclination_deg != 0.0 and "wedge" in protocols:
+        raise DesignError(
+            "model.inclination_deg",
+            "inclines the plate only: the wedge's edge runs across the pad at z = 0 and is not "
+            "inclined; run --protocol tapping or --protocol plate",
+        )
     disc = discretize(design, options)
     metrics: dict[str, float | None] = {
         name: None
@@ -239,17 +245,18 @@ def _simulate(
 def discretize(design: Design, options: SimOptions = SimOptions()) -> Any:
     """The design's discretisation for the model of ``options``: the 2D section
     (``sim.fe.fe2d.Discretization`` on ``sim.geometry.mesh2d``) or the 3D quarter pad
-    (``sim.fe.fe3d.Discretization3D`` on ``sim.geometry.mesh3d``); ``DesignError`` when the layers
-    leave no core in the pad."""
+    (``sim.fe.fe3d.Discretization3D`` on ``sim.geometry.mesh3d``; the half pad, graded for
+    its first touch, for an inclined plate: ``model.inclination_deg``); ``DesignError`` when
+    the layers leave no core in the pad."""
     if options.dimension == "3d":
         from .fe import Discretization3D
         from .geometry import build_pad_mesh
 
         pad = design.pad
         pad.check_layers(design.thicknesses_mm)
-        return Discretization3D(
-            build_pad_mesh(pad, design.thicknesses_mm, options.mesh3d), design.materials
-        )
+        inclination = options.model.inclination_deg
+        pmesh = build_pad_mesh(pad, design.thicknesses_mm, options.mesh3d, inclination)
+        return Discretization3D(pmesh, design.materials)
     from .geometry import build_mesh
 
     fmesh = build_mesh(design.geometry, design.thicknesses_mm, options.mesh)
@@ -262,12 +269,10 @@ def _run(
     """``protocol`` on a fresh body of ``disc``: the body and its result, or how it failed."""
     opts = getattr(options, protocol.name)
     newton = model_newton(options.newton, disc.dim)
-    body = Body(
-        disc,
-        protocol.make_indenter(opts),
-        newton,
-        getattr(opts, "penalty_per_mm", None),
-    )
+    indenter = protocol.make_indenter(opts)
+    if options.model.inclination_deg != 0.0:  # a plate (the wedge is refused by simulate)
+        indenter = replace(indenter, inclination_deg=options.model.inclination_deg)
+    body = Body(disc, indenter, newton, getattr(opts, "penalty_per_mm", None))
     if options.validity.stop_at_violation:
         body.stop_beyond = (protocol.name, options.validity)
     t0 = time.perf_counter()

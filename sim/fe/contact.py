@@ -8,8 +8,9 @@ length (the P2 boundary weights 1/6, 2/3, 1/6 of each edge), so that the penetra
 contact pressure divided by ``kappa`` whatever the node.
 
 Positions: an indenter's ``position_mm`` is the height y of its lowest point (plate face or wedge
-tip). Where an obstacle's surface is curved (the wedge's rounded tip) the tangent includes the
-rotation of the normal, ``-kappa_i p / rho (I - n n^T)``.
+tip); an inclined plate's is the height of its face along its own normal (``Plate``). Where an
+obstacle's surface is curved (the wedge's rounded tip) the tangent includes the rotation of the
+normal, ``-kappa_i p / rho (I - n n^T)``.
 """
 
 from __future__ import annotations
@@ -23,14 +24,38 @@ __all__ = ["Base", "Plate", "Wedge"]
 
 @dataclass(frozen=True)
 class Plate:
-    """Flat rigid plate pressing down; its face is the line y = position_mm."""
+    """Flat rigid plate pressing down; its face is the line y = position_mm.
 
+    ``inclination_deg`` = t tilts it about the axis normal to the obstacles' plane (in 3D the
+    cross-finger axis x; the plane's coordinates are (h, v) = (z, y)): its outward unit normal
+    (pointing from the body into the plate) is e = (sin t, cos t) in (h, v), i.e.
+    (0, cos t, sin t) in (x, y, z), and its face is the line e . (h, v) = position_mm, so
+
+        p = e . (h, v) - position_mm,    n = -e,
+
+    ``position_mm`` is the face's height along e and dp/d(position) = -1 as for the flat plate.
+    The plate is lowest at +h: in 3D it first touches the pad's end z > 0, the fingertip.
+    ``axis`` is e; at t = 0 it is (0, 1) and the penetration is computed as for the flat plate,
+    bit for bit."""
+
+    inclination_deg: float = 0.0
     name = "plate"
 
+    @property
+    def axis(self) -> np.ndarray:
+        """e = (sin t, cos t): the plate's outward normal in the obstacles' plane (h, v)."""
+        t = np.radians(self.inclination_deg)
+        return np.array([np.sin(t), np.cos(t)])
+
     def penetration(self, xy: np.ndarray, position_mm: float):
-        p = xy[:, 1] - position_mm
-        n = np.zeros_like(xy)
-        n[:, 1] = -1.0
+        if self.inclination_deg == 0.0:
+            p = xy[:, 1] - position_mm
+            n = np.zeros_like(xy)
+            n[:, 1] = -1.0
+            return p, n
+        e = self.axis
+        p = xy @ e - position_mm
+        n = np.broadcast_to(-e, xy.shape).copy()
         return p, n
 
 

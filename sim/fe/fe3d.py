@@ -2,7 +2,8 @@
 sibling of the plane-strain ``sim.fe.fe2d.Discretization``.
 
 The mesh is ``sim.geometry.mesh3d.PadMesh`` (the quarter pad x >= 0, z >= 0; base y = 0 bonded,
-u_x = 0 on x = 0 and u_z = 0 on z = 0); the reference element and its 3 x 3 x 3 Gauss rule are
+u_x = 0 on x = 0 and u_z = 0 on z = 0; or, for an inclined plate, the half pad x >= 0 with
+u_x = 0 on x = 0 only); the reference element and its 3 x 3 x 3 Gauss rule are
 ``sim.geometry._q2``. The constitutive step is the one the 2D discretisation uses
 (``sim.fe._constitutive.layer_stresses``: the same laws, Prony update and tangent, with 6-component
 ``C``), and the residual and tangent are assembled by the compiled kernels ``sim.fe._kernels``
@@ -91,6 +92,8 @@ class Discretization3D(PatternAccess):
         gmap[self.free] = np.arange(self.n_free)
         self.gmap = gmap
         self.surface_nodes = np.asarray(pmesh.surface_nodes)
+        #: the half pad x >= 0 (an inclined plate), not the quarter
+        self.half = bool(pmesh.half)
         s = self.surface_nodes
         self.apex_node = int(s[np.argmax(self.X[s, 1])])
         self.pattern = build_pattern(self.conn, gmap, 3, extra_nodes=s)
@@ -103,23 +106,38 @@ class Discretization3D(PatternAccess):
     # ------------------------------------------------------------------ helpers
     def force_scale(self, length_mm: float) -> float:
         """The whole pad's force (N) per unit of the model's indenter force (N, on the quarter
-        x >= 0, z >= 0): 4; ``length_mm``, the 2D model's out-of-plane length, plays no part."""
-        return 4.0
+        x >= 0, z >= 0): 4; on the half x >= 0: 2 (``PadMesh.mirrors``); ``length_mm``, the
+        2D model's out-of-plane length, plays no part."""
+        return float(self.pmesh.mirrors)
 
     def section_curves(self) -> list[tuple[np.ndarray, int]]:
         """The outer surface's curves in the symmetry planes, ordered from the apex, each with
         the horizontal coordinate along which it runs: x = 0 (along the finger, z) and z = 0
         (across it, x). Ordered by the angle from the apex in the scaled coordinates (the pad
-        is star-shaped from the origin)."""
+        is star-shaped from the origin). On the half pad the curve x = 0 is its part z >= 0,
+        towards the tip (the quarter's curve; the other part is ``heel_curve``)."""
+        return [self._plane_curve(0, 2), self._plane_curve(2, 0)]
+
+    def heel_curve(self) -> np.ndarray | None:
+        """On the half pad, the outer surface's curve in x = 0 on the heel's side z <= 0,
+        ordered from the apex (its z is -1 x the distance along the finger); None on the
+        quarter."""
+        return self._plane_curve(0, 2, heel=True)[0] if self.half else None
+
+    def _plane_curve(self, plane: int, axis: int, heel: bool = False) -> tuple[np.ndarray, int]:
+        """The surface nodes on the plane ``plane`` = 0, running along ``axis`` from the apex,
+        ordered by the angle from the apex; on the half pad's x = 0 the side z >= 0 (``heel``:
+        z <= 0)."""
         a, b, c = self.pmesh.geometry.semi_axes_mm()
+        scale = (a, b, c)[axis]
         s = self.surface_nodes
         X = self.X[s]
-        curves = []
-        for plane, axis, scale in ((0, 2, c), (2, 0, a)):
-            on = np.flatnonzero(np.abs(X[:, plane]) <= 1e-9 * max(a, b, c))
-            angle = np.arctan2(X[on, axis] / scale, X[on, 1] / b)
-            curves.append((s[on[np.argsort(angle, kind="stable")]], axis))
-        return curves
+        on = np.flatnonzero(np.abs(X[:, plane]) <= 1e-9 * max(a, b, c))
+        if self.half and plane == 0:
+            on = on[X[on, 2] <= 0.0] if heel else on[X[on, 2] >= 0.0]
+        sign = -1.0 if heel else 1.0
+        angle = np.arctan2(sign * X[on, axis] / scale, X[on, 1] / b)
+        return s[on[np.argsort(angle, kind="stable")]], axis
 
     def contact_area_mm2(self, u: np.ndarray, penetration: np.ndarray, samples: int = 8) -> float:
         """The whole pad's contact area (mm^2, 4 x the quarter's): the part of the deformed
@@ -131,13 +149,77 @@ class Discretization3D(PatternAccess):
         read at ``samples`` x ``samples`` midpoints of the reference face; each sample counts
         its share of the projected area, |(dx/ds x dx/dt)_y| ds dt. A patch edge is thus
         located to within a fraction 1/samples of an element, not snapped to the nodes."""
+        sampled = self._patch_samples(u, penetration, samples)
+        if sampled is None:
+            return 0.0
+        _, tangents, inside, weight = sampled
+        normal_y = (
+            tangents[:, :, 0, 2] * tangents[:, :, 1, 0]
+            - tangents[:, :, 0, 0] * tangents[:, :, 1, 2]
+        )  # the y component of dx/ds x dx/dt
+        return self.pmesh.mirrors * weight * float(np.sum(np.abs(normal_y) * inside))
+
+    def contact_patch_mm(
+        self, u: np.ndarray, penetration: np.ndarray, axis: np.ndarray, samples: int = 8
+    ) -> tuple[float, float, float]:
+        """The whole pad's contact patch with a plate of outward normal ``axis`` e (3,) (an
+        inclined plate, ``sim.fe.contact.Plate``), measured in the plate's plane: its area
+        (mm^2), its width across the finger (x) and its length along it (mm).
+
+        - Area: as ``contact_area_mm2`` (the penetration interpolated over each face, read at
+          ``samples`` x ``samples`` points), each sample inside counting
+          |(dx/ds x dx/dt) . e| ds dt: the patch projected on the plate.
+        - Length: on the surface's curve in x = 0 from the heel's end to the tip's (both
+          halves on the half pad), at the deformed nodes' coordinate along
+          t = (0, -e_z, e_y), the plate's direction along the finger (towards the tip): from
+          the edge before the first node in contact to the edge after the last, each edge
+          where the penetration interpolated linearly between two nodes is zero (the
+          quarter's ``contact_half_width_mm`` reading at both ends).
+        - Width: 2 max x (the patch is symmetric about x = 0) over the points where the
+          interpolated penetration is positive, read at 8 ``samples`` per side of each face
+          (the widest section need not lie on a mesh line): within 1 / (8 samples) of an
+          element inside the edge."""
+        sampled = self._patch_samples(u, penetration, samples)
+        if sampled is None:
+            return 0.0, 0.0, 0.0
+        _, tangents, inside, weight = sampled
+        normal = np.cross(tangents[:, :, 0], tangents[:, :, 1])  # (F, P, 3)
+        e = np.asarray(axis, dtype=float)
+        area = self.pmesh.mirrors * weight * float(np.sum(np.abs(normal @ e) * inside))
+        x, _, inside, _ = self._patch_samples(u, penetration, 8 * samples)
+        width = 2.0 * float(x[inside][:, 0].max(initial=0.0))
+        nodes, position = self._finger_curve(u)
+        p = penetration[np.searchsorted(self.surface_nodes, nodes)]
+        length = _extent(position @ np.array([0.0, -e[2], e[1]]), p)
+        return area, width, length
+
+    def _finger_curve(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The surface's curve in x = 0 from the heel's end (z = -c) to the tip's: its nodes
+        and deformed positions (m, 3); on the quarter its half z <= 0 is the mirror image of
+        the half z >= 0 (positions with z negated, the same nodes)."""
+        tip = self._plane_curve(0, 2)[0]
+        x_tip = self.X[tip] + u[tip]
+        if self.half:
+            heel = self._plane_curve(0, 2, heel=True)[0]
+            x_heel = self.X[heel] + u[heel]
+        else:
+            heel, x_heel = tip, x_tip * np.array([1.0, 1.0, -1.0])
+        return (
+            np.concatenate([heel[::-1], tip[1:]]),
+            np.concatenate([x_heel[::-1], x_tip[1:]]),
+        )
+
+    def _patch_samples(self, u: np.ndarray, penetration: np.ndarray, samples: int):
+        """The deformed sample points (F, P, 3), tangents dx/ds, dx/dt (F, P, 2, 3) and
+        contact flags (F, P) of the faces with a positive penetration (``contact_area_mm2``),
+        and each sample's reference weight; None without contact."""
         faces = np.asarray(self.pmesh.surface_faces)
         on_surface = np.full(self.n_nodes, -np.inf)
         on_surface[self.surface_nodes] = penetration
         p_faces = on_surface[faces]  # (F, 9)
         touching = np.any(p_faces > 0.0, axis=1)
         if not np.any(touching):
-            return 0.0
+            return None
         faces, p_faces = faces[touching], p_faces[touching]
         t = (np.arange(samples) + 0.5) / samples * 2.0 - 1.0
         S, T = np.meshgrid(t, t, indexing="ij")
@@ -146,13 +228,9 @@ class Discretization3D(PatternAccess):
         dN = _q2.face_shape_gradients(points)  # (P, 9, 2)
         x = (self.X + u)[faces]  # (F, 9, 3)
         tangents = np.einsum("fai,pad->fpdi", x, dN)  # (F, P, 2, 3)
-        normal_y = (
-            tangents[:, :, 0, 2] * tangents[:, :, 1, 0]
-            - tangents[:, :, 0, 0] * tangents[:, :, 1, 2]
-        )  # the y component of dx/ds x dx/dt
         weight = (2.0 / samples) ** 2
         inside = (p_faces @ N.T) > 0.0  # (F, P)
-        return 4.0 * weight * float(np.sum(np.abs(normal_y) * inside))
+        return np.einsum("pa,fai->fpi", N, x), tangents, inside, weight
 
     def quadrature_points(self) -> np.ndarray:
         """The Gauss points in the reference configuration (3, n_el, n_q), mm."""
@@ -217,6 +295,25 @@ class Discretization3D(PatternAccess):
         pat = self.pattern
         data = _kernels.stiffness(F, S, D, self.dN, self.w, VOIGT, pat.scatter_K, pat.nnz + 1)
         return data[:-1]
+
+
+def _extent(s: np.ndarray, p: np.ndarray) -> float:
+    """The length of the contact along an ordered curve: from the edge before its first node
+    in contact (penetration ``p`` > 0) to the edge after its last, at the coordinates ``s``
+    (m,); each edge where p interpolated linearly between the two nodes is zero (a curve's end
+    node in contact is its own edge). 0 without contact."""
+    touching = np.flatnonzero(p > 0.0)
+    if touching.size == 0:
+        return 0.0
+
+    def edge(k: int, j: int) -> float:  # between the node k in contact and its neighbour j
+        if not 0 <= j < len(s):
+            return float(s[k])
+        w = p[k] / (p[k] - p[j])  # p[k] > 0 >= p[j]
+        return float(s[k] + w * (s[j] - s[k]))
+
+    first, last = int(touching[0]), int(touching[-1])
+    return abs(edge(last, last + 1) - edge(first, first - 1))
 
 
 def reference_gradients(X: np.ndarray, conn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -237,6 +237,18 @@ class Body:
         self._axes = tuple(disc.obstacle_axes)
         self._inplane = np.zeros(dim)
         self._inplane[list(self._axes)] = 1.0
+        # the indenter's outward direction e in the body's space (from the body into the
+        # indenter): its force, position and the body's top are measured along it. Vertical
+        # (y) but for an inclined plate (``Plate.axis``); the vertical keeps the y-only code
+        self.indenter_axis = np.zeros(dim)
+        self.indenter_axis[1] = 1.0
+        axis = getattr(indenter, "axis", None)
+        if axis is not None:
+            self.indenter_axis = np.zeros(dim)
+            self.indenter_axis[list(self._axes)] = axis
+        self.vertical_indenter = bool(
+            self.indenter_axis[1] == 1.0 and np.count_nonzero(self.indenter_axis) == 1
+        )
         # committed state
         self.u = np.zeros((disc.n_nodes, dim))
         self.states: list[LayerState] = disc.initial_states()
@@ -281,6 +293,11 @@ class Body:
         if self.indenter is None or not np.isfinite(self.indenter_position):
             return np.zeros(len(xy))
         return self.indenter.penetration(xy, self.indenter_position)[0]
+
+    def along_indenter(self, v: np.ndarray) -> np.ndarray:
+        """The components (m,) of the vectors ``v`` (m, dim) along the indenter's direction e
+        (``indenter_axis``): ``v[:, 1]`` for a vertical one."""
+        return v[:, 1] if self.vertical_indenter else v @ self.indenter_axis
 
     def _contact(self, u: np.ndarray, control: Control, d: float):
         """(penetration, normal, curvature, is_indenter) per obstacle at the surface nodes."""
@@ -342,7 +359,8 @@ class Body:
                     ok = pos >= 0
                     data[pos[ok]] += val[ok]
             if is_indenter:
-                force = float(np.sum(-f * n[:, 1]))  # vertical force on the indenter (up > 0)
+                # the force on the indenter along its direction e (up > 0)
+                force = float(np.sum(-f * self.along_indenter(n)))
                 coupling = np.where(act, k, 0.0)
         return force, coupling
 
@@ -417,10 +435,14 @@ class Body:
             du = solver.solve(-r)
             dd = 0.0
             if control.kind == "force":
-                dof_y = self._sdof[1]
+                # d(residual)/d(position) = -kappa_i e at the nodes in contact (p = e.x - d)
                 kcol = np.zeros(self.disc.n_free)
-                ok = dof_y >= 0
-                kcol[dof_y[ok]] = -coupling[ok]
+                for i, dofs in enumerate(self._sdof):
+                    if self.indenter_axis[i] == 0.0:
+                        continue
+                    ok = dofs >= 0
+                    e_i = self.indenter_axis[i]
+                    kcol[dofs[ok]] = -coupling[ok] if e_i == 1.0 else -coupling[ok] * e_i
                 x2 = self._bordered_column(solver, kcol)
                 c = float(np.sum(coupling))
                 dd = (-rd - kcol @ du) / (c - kcol @ x2)
@@ -446,11 +468,12 @@ class Body:
         meanwhile): on the rim of the 3D plate's contact patch, dozens of nodes, Newton then
         chatters for several iterations, its residual jumping by 100x where a rim node went in.
         Instead the step is solved again for the contact set its linearised penetrations
-        ``p - n . du + n_y dd`` give: each node of that set under the linear penalty force
-        ``kappa p`` (negative for one not yet in contact: it reaches the obstacle within the
-        step), the others free; until the set repeats, at most ``active_set_solves`` times (the
-        primal-dual active-set iteration on the linearised contact problem: Hintermüller, Ito &
-        Kunisch 2002, SIAM J. Optim. 13:865-888). Each solve is the kept factorisation
+        ``p - n . du + (n . e) dd`` give (e the indenter's direction, ``indenter_axis``): each
+        node of that set under the linear penalty force ``kappa p`` (negative for one not yet
+        in contact: it reaches the obstacle within the step), the others free; until the set
+        repeats, at most ``active_set_solves`` times (the primal-dual active-set iteration on
+        the linearised contact problem: Hintermüller, Ito & Kunisch 2002, SIAM J. Optim.
+        13:865-888). Each solve is the kept factorisation
         corrected for that set (``_ContactCorrected``), or where that changes more than
         ``contact_update_dofs`` dofs a fresh factorisation of the tangent ``data`` with the
         set's contact stiffness (then kept), once per call at most: a set that is again beyond
@@ -469,7 +492,7 @@ class Body:
             for p, n, _, is_indenter in parts:
                 p_lin = p - np.einsum("ij,ij->i", n, step)
                 if is_indenter and force_control:
-                    p_lin = p_lin + n[:, 1] * dd  # the indenter moves up by dd
+                    p_lin = p_lin + self.along_indenter(n) * dd  # the indenter moves by dd e
                 new.append(p_lin >= 0)
             if all(np.array_equal(a, b) for a, b in zip(new, masks, strict=True)):
                 break
@@ -513,7 +536,7 @@ class Body:
             # the penetrations as the penalty's stiffness sees them: in the set or not
             held_parts.append((np.where(m, np.maximum(p, 0.0), -1.0), n, curv, is_indenter))
             if is_indenter:
-                force = float(np.sum(-f * n[:, 1]))
+                force = float(np.sum(-f * self.along_indenter(n)))
                 coupling = np.where(m, k, 0.0)
         blocks = self._contact_blocks(held_parts)
         solver = self._corrected_for(blocks)  # times its own solves
@@ -613,10 +636,18 @@ class Body:
         return self._solver
 
     def top_height(self, u: np.ndarray | None = None) -> float:
-        """Highest point of the current outer surface (mm)."""
+        """Highest point of the current outer surface (mm) along the indenter's direction e:
+        max e . x over the surface nodes (the height y for a vertical indenter). An indenter
+        at this position just touches."""
+        return float(np.max(self._surface_heights(u)))
+
+    def _surface_heights(self, u: np.ndarray | None = None) -> np.ndarray:
+        """e . x (m,) of the current surface nodes (``top_height``)."""
         u = self.u if u is None else u
         s = self.disc.surface_nodes
-        return float(np.max(self.disc.X[s, 1] + u[s, 1]))
+        if self.vertical_indenter:
+            return self.disc.X[s, 1] + u[s, 1]
+        return self.along_indenter(self.disc.X[s] + u[s])
 
     # ------------------------------------------------------------------ stepping
     def advance(
@@ -631,7 +662,6 @@ class Body:
         ``guess``: a starting displacement and indenter position for Newton (for example the
         previous tap's increment at the same phase); by default the last increment is
         extrapolated (``_predict``). A position control keeps its prescribed position."""
-        disc = self.disc
         opts = self.options
         dt = t_new - self.t
         u = self.u.copy()
@@ -652,8 +682,7 @@ class Body:
             r, data, force, coupling, rd, states, parts = ev
             if control.kind == "force" and not np.any(coupling > 0):
                 # the plate lost contact: re-seat it on the highest point with a small overlap
-                s = disc.surface_nodes
-                top = int(np.argmax(disc.X[s, 1] + u[s, 1]))
+                top = int(np.argmax(self._surface_heights(u)))
                 d = self.top_height(u) - control.value / self.kappa_indenter[top]
                 ev = self._evaluate(u, control, d, dt, True, frozen_history)
                 if ev is None:
@@ -800,7 +829,7 @@ class Body:
                 f = np.where(p > 0, k * p, 0.0)
                 out -= float(np.sum(f * np.einsum("ij,ij->i", n, step)))
                 if is_indenter and control.kind == "force":
-                    out += dd * (push - float(np.sum(-f * n[:, 1])))
+                    out += dd * (push - float(np.sum(-f * self.along_indenter(n))))
             return out
 
         return g_contact

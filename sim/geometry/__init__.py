@@ -18,6 +18,8 @@ from .mesh3d import (
     PadMesh,
     build_pad_mesh,
     extruded_section_mesh,
+    first_touch_mm,
+    half_pad_mesh,
 )
 from .pad import HALF_LENGTH_RANGE_MM, LENGTH_EXPONENT_RANGE, REFERENCE_PAD, PadGeometry
 from .section import REFERENCE_GEOMETRY, Geometry
@@ -39,4 +41,6 @@ __all__ = [
     "build_mesh",
     "build_pad_mesh",
     "extruded_section_mesh",
+    "first_touch_mm",
+    "half_pad_mesh",
 ]

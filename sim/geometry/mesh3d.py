@@ -1,7 +1,10 @@
 """Structured Q2 hexahedral meshes of the layered quarter pad (x >= 0, z >= 0), pure numpy.
 
 Every protocol is symmetric about x = 0 and z = 0 (a flat plate; a wedge whose edge runs along x
-at z = 0), so only the quarter x >= 0, z >= 0 of the pad (``sim.geometry.pad``) is meshed. It is
+at z = 0), so only the quarter x >= 0, z >= 0 of the pad (``sim.geometry.pad``) is meshed. A
+plate inclined about x (``model.inclination_deg``) is symmetric about x = 0 only: its model is
+the half x >= 0, the quarter and its mirror image in z = 0 (``half_pad_mesh``), graded toward
+the plate's first-touch point (``first_touch_mm``) instead of the apex. It is
 topologically an eighth of a ball with its corner at the origin (the centre of the base), meshed
 by an o-grid of four structured blocks of 27-node triquadratic hexahedra (``sim.geometry._q2``): an
 inner box at the origin and three blocks X, Y, Z joining its faces x = e_x, y = e_y, z = e_z to the
@@ -74,6 +77,8 @@ __all__ = [
     "element_volumes",
     "extruded_section_mesh",
     "face_areas",
+    "first_touch_mm",
+    "half_pad_mesh",
     "jacobian_determinants",
     "scaled_jacobians",
     "surface_weights",
@@ -142,13 +147,24 @@ class MeshOptions3D:
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise ValueError(f"MeshOptions3D.{name} must be an int >= 1")
 
-    def size(self, points: np.ndarray, geometry: PadGeometry) -> np.ndarray:
-        """Target size h (...,) in mm at surface ``points`` (..., 3) of ``geometry``."""
+    def size(
+        self, points: np.ndarray, geometry: PadGeometry, inclination_deg: float = 0.0
+    ) -> np.ndarray:
+        """Target size h (...,) in mm at surface ``points`` (..., 3) of ``geometry``.
+
+        ``inclination_deg`` > 0 (a plate tilted about x, ``first_touch_mm``): the apex is
+        replaced by the plate's first-touch point (0, y*, z*) and the contact region is
+        centred on it, |z - z*| <= f c, so that the patch is as finely meshed as at 0 deg."""
         a, b, c = geometry.semi_axes_mm()
         p = np.asarray(points, dtype=float)
-        d_apex = np.sqrt(p[..., 0] ** 2 + (p[..., 1] - b) ** 2 + p[..., 2] ** 2)
+        if inclination_deg != 0.0:
+            _, y_t, z_t = first_touch_mm(geometry, inclination_deg)
+            d_apex = np.sqrt(p[..., 0] ** 2 + (p[..., 1] - y_t) ** 2 + (p[..., 2] - z_t) ** 2)
+            dz = np.maximum(np.abs(p[..., 2] - z_t) - self.contact_fraction * c, 0.0)
+        else:
+            d_apex = np.sqrt(p[..., 0] ** 2 + (p[..., 1] - b) ** 2 + p[..., 2] ** 2)
+            dz = np.maximum(p[..., 2] - self.contact_fraction * c, 0.0)
         dx = np.maximum(p[..., 0] - self.contact_fraction * a, 0.0)
-        dz = np.maximum(p[..., 2] - self.contact_fraction * c, 0.0)
         h = np.minimum(self.h_max_mm, self.h_apex_mm + self.grading * d_apex)
         return np.minimum(h, self.h_contact_mm + self.grading * np.sqrt(dx * dx + dz * dz))
 
@@ -184,7 +200,8 @@ DEFAULT_MESH_3D = COARSE_MESH_3D.refined(1.41)
 
 @dataclass(frozen=True, eq=False)
 class PadMesh:
-    """A Q2 hexahedral mesh of the quarter pad with its labelled boundaries (read-only arrays).
+    """A Q2 hexahedral mesh of the quarter pad (or, ``half``, of the half pad x >= 0:
+    ``half_pad_mesh``) with its labelled boundaries (read-only arrays).
 
     Attributes:
         nodes: (N, 3) node coordinates (mm).
@@ -193,12 +210,14 @@ class PadMesh:
         layer: (M,) layer index of each element, 0 = outermost.
         base: indices of the nodes on the bonded base y = 0 (fully fixed).
         sym_x: indices of the nodes on the symmetry plane x = 0 (u_x = 0).
-        sym_z: indices of the nodes on the symmetry plane z = 0 (u_z = 0).
+        sym_z: indices of the nodes on the symmetry plane z = 0 (u_z = 0); none on the half.
         surface_faces: (F, 9) the free outer surface's faces, 9-node quadrilaterals in
             VTK_BIQUADRATIC_QUAD order, numbered so that dX/ds x dX/dt points outwards.
         interfaces: node indices on each layer interface, outermost first.
         geometry: the pad.
         thicknesses_mm: the thicknesses of all layers but the last.
+        half: the half pad x >= 0 (symmetric about x = 0 only), not the quarter.
+        inclination_deg: the plate inclination the mesh is graded for (``first_touch_mm``).
     """
 
     nodes: np.ndarray
@@ -211,6 +230,13 @@ class PadMesh:
     interfaces: tuple[np.ndarray, ...]
     geometry: PadGeometry = field(default=REFERENCE_PAD)
     thicknesses_mm: tuple[float, ...] = ()
+    half: bool = False
+    inclination_deg: float = 0.0
+
+    @property
+    def mirrors(self) -> int:
+        """Copies of the meshed part that make the whole pad: 4 (quarter) or 2 (half)."""
+        return 2 if self.half else 4
 
     @property
     def n_nodes(self) -> int:
@@ -232,12 +258,34 @@ def build_pad_mesh(
     geometry: PadGeometry = REFERENCE_PAD,
     thicknesses_mm: tuple[float, ...] = (),
     options: MeshOptions3D = DEFAULT_MESH_3D,
+    inclination_deg: float = 0.0,
+    half: bool | None = None,
 ) -> PadMesh:
     """Mesh the quarter pad with interfaces at the cumulative depths of ``thicknesses_mm``
     (the thicknesses of all layers but the last, outermost first).
 
-    Raises ``DesignError`` if the layers leave no core (``PadGeometry.check_layers``).
+    ``inclination_deg`` > 0: graded for a plate tilted by that angle about x (the finest
+    elements at its first-touch point, ``MeshOptions3D.size``) and, as the tilted plate breaks
+    the symmetry about z = 0, the half pad x >= 0 (``half_pad_mesh``). ``half``: the half pad
+    (default: whenever ``inclination_deg`` > 0; ``half=True`` at 0 deg for comparisons with
+    the quarter). Raises ``DesignError`` if the layers leave no core
+    (``PadGeometry.check_layers``).
     """
+    if half is None:
+        half = inclination_deg != 0.0
+    if inclination_deg != 0.0 and not half:
+        raise ValueError("an inclined plate needs the half pad (half=True)")
+    quarter = _build_quarter(geometry, thicknesses_mm, options, inclination_deg)
+    return half_pad_mesh(quarter) if half else quarter
+
+
+def _build_quarter(
+    geometry: PadGeometry,
+    thicknesses_mm: tuple[float, ...],
+    options: MeshOptions3D,
+    inclination_deg: float,
+) -> PadMesh:
+    """The quarter pad's mesh (``build_pad_mesh``), graded for ``inclination_deg``."""
     thicknesses_mm = tuple(float(t) for t in thicknesses_mm)
     geometry.check_layers(thicknesses_mm)
     depths = np.concatenate([[0.0], np.cumsum(thicknesses_mm)])  # surface, then interfaces
@@ -245,7 +293,7 @@ def build_pad_mesh(
 
     # 1D vertex distributions (graded: D, on the surfaces; uniform: U, on the box), then the
     # Q2 node parameters (vertices and midpoints)
-    graded = [_with_midpoints(_tangential(d, geometry, options)) for d in range(3)]
+    graded = [_with_midpoints(_tangential(d, geometry, options, inclination_deg)) for d in range(3)]
     uniform = [_with_midpoints(np.linspace(0.0, 1.0, (len(D) + 1) // 2)) for D in graded]
     w, shell_depths, radial_layer, levels = _radial_levels(geometry, depths, core, options)
     w = _with_midpoints(w)
@@ -287,13 +335,86 @@ def build_pad_mesh(
         interfaces=tuple(_level_nodes(ids, 2 * levels[k]) for k in range(1, len(depths))),
         geometry=geometry,
         thicknesses_mm=thicknesses_mm,
+        inclination_deg=float(inclination_deg),
     )
+    return _read_only(out)
+
+
+def _read_only(out: PadMesh) -> PadMesh:
+    """``out`` with its arrays made read-only."""
     for arr in (out.nodes, out.hexes, out.layer, out.base, out.sym_x, out.sym_z):
         arr.setflags(write=False)
     out.surface_faces.setflags(write=False)
     for arr in out.interfaces:
         arr.setflags(write=False)
     return out
+
+
+def _reflection(points: np.ndarray, signs: tuple[float, ...]) -> np.ndarray:
+    """The permutation k -> j of reference nodes ``points`` (K, d) with points[j] =
+    signs * points[k]: a cell's local nodes reflected in the coordinates of sign -1."""
+    reflected = points * np.asarray(signs)
+    return np.array([np.flatnonzero(np.all(points == r, axis=1))[0] for r in reflected])
+
+
+def half_pad_mesh(quarter: PadMesh) -> PadMesh:
+    """The half pad x >= 0: the quarter ``quarter`` and its mirror image in z = 0.
+
+    The mirror of node i is (x, y, -z)_i. The nodes on z = 0 (``sym_z``: z is exactly 0.0
+    there by construction, every one computed from v_z = 0) are their own mirrors and are
+    numbered once; the others are appended after the quarter's (which keep their indices), so
+    the merge needs no coordinate search. Reflecting z turns a cell inside out: each mirrored
+    hexahedron's local nodes are reflected in zeta (VTK order, ``sim.geometry._q2``) and each
+    mirrored surface face's in s, so every Jacobian stays positive and every face normal points
+    out. No node is on a symmetry plane z = 0 any more (``sym_z`` empty)."""
+    X = np.asarray(quarter.nodes)
+    n = len(X)
+    on_plane = np.zeros(n, dtype=bool)
+    on_plane[np.asarray(quarter.sym_z)] = True
+    mirror = np.empty(n, dtype=np.int64)  # the index of each quarter node's mirror image
+    mirror[on_plane] = np.flatnonzero(on_plane)
+    mirror[~on_plane] = n + np.arange(int(np.count_nonzero(~on_plane)))
+    nodes = np.concatenate([X, X[~on_plane] * np.array([1.0, 1.0, -1.0])])
+    hexes = np.asarray(quarter.hexes)
+    flip_cell = _reflection(_q2.REFERENCE_POINTS, (1.0, 1.0, -1.0))
+    faces = np.asarray(quarter.surface_faces)
+    flip_face = _reflection(_q2.FACE_REFERENCE_POINTS, (-1.0, 1.0))
+    out = PadMesh(
+        nodes=nodes,
+        hexes=np.concatenate([hexes, mirror[hexes][:, flip_cell]]),
+        layer=np.concatenate([quarter.layer, quarter.layer]),
+        base=np.flatnonzero(nodes[:, 1] == 0.0),
+        sym_x=np.flatnonzero(nodes[:, 0] == 0.0),
+        sym_z=np.zeros(0, dtype=np.int64),
+        surface_faces=np.concatenate([faces, mirror[faces][:, flip_face]]),
+        interfaces=tuple(np.union1d(ids, mirror[ids]) for ids in quarter.interfaces),
+        geometry=quarter.geometry,
+        thicknesses_mm=quarter.thicknesses_mm,
+        half=True,
+        inclination_deg=quarter.inclination_deg,
+    )
+    return _read_only(out)
+
+
+def first_touch_mm(geometry: PadGeometry, inclination_deg: float) -> tuple[float, float, float]:
+    """The point (0, y*, z*) of the outer surface where a plate tilted by t =
+    ``inclination_deg`` about x (outward normal e = (0, cos t, sin t), ``sim.fe.contact.Plate``)
+    first touches it: where the surface's normal is e, on x = 0 (each section's top).
+
+    On x = 0 the surface is (y/b)^m + (z/c)^m = 1; its normal is parallel to
+    (y^(m-1) / b^m, z^(m-1) / c^m) in (y, z), which is parallel to (cos t, sin t) where
+    (u / s)^(m-1) = (c / b) tan t with u = z / c, s = y / b = s(z). With
+    r = ((c / b) tan t)^(1/(m-1)):
+
+        s = (1 + r^m)^(-1/m),   u = r s,   (y*, z*) = (b s, c u)
+
+    (docs/fingertip_3d.md, the table of first-touch points). t = 0 gives the apex (0, b, 0)."""
+    _, b, c = geometry.semi_axes_mm()
+    m = float(geometry.length_exponent)
+    t = math.radians(inclination_deg)
+    r = ((c / b) * math.tan(t)) ** (1.0 / (m - 1.0))
+    s = (1.0 + r**m) ** (-1.0 / m)
+    return 0.0, b * s, c * r * s
 
 
 def extruded_section_mesh(pmesh: PadMesh, thickness_mm: float) -> PadMesh:
@@ -435,7 +556,9 @@ def _equidistribute(param: np.ndarray, density: np.ndarray, n_min: int) -> np.nd
     return out
 
 
-def _tangential(axis: int, geometry: PadGeometry, options: MeshOptions3D) -> np.ndarray:
+def _tangential(
+    axis: int, geometry: PadGeometry, options: MeshOptions3D, inclination_deg: float = 0.0
+) -> np.ndarray:
     """The vertex distribution D_axis on [0, 1]: the number of elements needed along the
     outer-surface lines v_axis = t of the two cube faces that use it (five lines on each), the
     densest line deciding each interval."""
@@ -452,7 +575,7 @@ def _tangential(axis: int, geometry: PadGeometry, options: MeshOptions3D) -> np.
     X = geometry.surface_points(np.stack(lines))  # (L, K + 1, 3) on the outer surface
     seg = np.linalg.norm(np.diff(X, axis=1), axis=-1)
     mid = 0.5 * (X[:, 1:] + X[:, :-1])
-    density = np.max(seg / options.size(mid, geometry), axis=0)
+    density = np.max(seg / options.size(mid, geometry, inclination_deg), axis=0)
     return _equidistribute(t, density, options.around_divisions)
 
 

@@ -160,7 +160,7 @@ def write_vtu(result: SimResult, folder: Path, whole_pad: bool = True) -> list[P
         else:
             pts, disp = mirror.points(disc.X + u), mirror.points(u)
             mesh_cells = mirror.cells
-            cell_data = {k: np.tile(v, len(MIRRORS)) for k, v in cell_data.items()}
+            cell_data = {k: np.tile(v, len(mirror.copies)) for k, v in cell_data.items()}
         mesh = meshio.Mesh(
             pts,
             [(cell_type, mesh_cells)],
@@ -177,11 +177,13 @@ def write_vtu(result: SimResult, folder: Path, whole_pad: bool = True) -> list[P
 class _Mirror:
     """The quarter mesh's four mirror copies as one mesh (``write_vtu``): ``source[j]`` is
     the quarter's node of whole-pad node j and ``signs[j]`` its copy's (x, y, z) signs;
-    ``cells`` (4 E, 27) the copies' cells, in the order of ``MIRRORS``."""
+    ``cells`` (4 E, 27) the copies' cells, in the order of ``copies`` (``MIRRORS``; on the
+    half pad, an inclined plate's model, its first two: the mirror across x = 0 alone)."""
 
     source: np.ndarray
     signs: np.ndarray
     cells: np.ndarray
+    copies: tuple[tuple[float, float], ...] = MIRRORS
 
     def points(self, v: np.ndarray) -> np.ndarray:
         """The whole pad's (N', 3) values of the quarter's nodal vectors ``v`` (N, 3)."""
@@ -204,7 +206,8 @@ def _mirror_map(disc: Any, cells: np.ndarray) -> _Mirror:
     ids: dict[tuple[float, float], np.ndarray] = {}
     source, signs, all_cells = [], [], []
     count = 0
-    for sx, sz in MIRRORS:
+    copies = MIRRORS[:2] if getattr(disc, "half", False) else MIRRORS
+    for sx, sz in copies:
         index = np.empty(n, dtype=np.int64)
         new = np.ones(n, dtype=bool)
         for mirrored, (tx, tz) in (
@@ -222,7 +225,7 @@ def _mirror_map(disc: Any, cells: np.ndarray) -> _Mirror:
         signs.append(np.tile([sx, 1.0, sz], (int(new.sum()), 1)))
         c = index[cells]
         all_cells.append(c[:, flip] if sx * sz < 0 else c)
-    return _Mirror(np.concatenate(source), np.concatenate(signs), np.concatenate(all_cells))
+    return _Mirror(np.concatenate(source), np.concatenate(signs), np.concatenate(all_cells), copies)
 
 
 def write_result(
@@ -250,11 +253,13 @@ def write_result(
 
 
 def _has_pad_states(result: SimResult) -> bool:
-    """A 3D result with a tapping state the pad figure draws (``sim.output._pad_figure.STATES``)."""
+    """A 3D result with a tapping state the pad figure draws (``sim.output._pad_figure.STATES``);
+    not on the half pad (an inclined plate): the figure mirrors the quarter."""
     disc = result.discretization
     return (
         disc is not None
         and disc.dim == 3
+        and not disc.half
         and "tapping" in result.curves
         and any(name in result.fields for name, _ in STATES)
     )

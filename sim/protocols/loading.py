@@ -15,6 +15,11 @@ pad (its surface profile is read along the finger, on the plane x = 0).
   last tap.
 - ``plate`` (§3.2.2): the plate pushed 1 mm at 0.2 mm/s from first touch; L = 22 mm.
 - ``wedge`` (§3.1, §4.1.2): the wedge pushed 1 mm in 1 s, then held for 100 s; L = 10 mm.
+
+In 3D the plate of the tapping and of ``plate`` may be inclined about the cross-finger axis x
+(``model.inclination_deg``, ``sim.fe.contact.Plate``): the model is then the half pad, the
+displacements are the plate's travel along its normal, the forces the plate's force along its
+normal and the contact patch is measured in the plate's plane.
 """
 
 from __future__ import annotations
@@ -318,10 +323,14 @@ class _Recorder:
 def contact_patch(body: Body) -> tuple[float, float, float]:
     """The contact with the indenter of a 3D body in its committed state: the area (mm^2,
     ``Discretization3D.contact_area_mm2``) and the full extents across (x) and along (z) the
-    finger (mm, on the symmetry planes, ``contact_half_width_mm``)."""
+    finger (mm, on the symmetry planes, ``contact_half_width_mm``). On the half pad (an
+    inclined plate) the patch is measured in the plate's plane, its extents across (x) and
+    along the finger in that plane (``Discretization3D.contact_patch_mm``)."""
     from .validity import contact_half_width_mm
 
     disc = body.disc
+    if disc.half or not body.vertical_indenter:
+        return disc.contact_patch_mm(body.u, body.indenter_penetration(), body.indenter_axis)
     area = disc.contact_area_mm2(body.u, body.indenter_penetration())
     extent = {}
     for nodes, axis in disc.section_curves():

@@ -481,6 +481,14 @@ class DeformationTracker:
         # the surface's curves in the symmetry planes (2D: the one section), each with the
         # horizontal coordinate it runs along: folding and the contact's extents are read there
         self._curves = disc.section_curves()
+        # the curves checked for folding, each with its symmetry axis's tolerance
+        # (``surface_folded``); on the half pad (an inclined plate) the curve in x = 0 runs
+        # from the heel's end through the apex to the tip's and z = 0 is no symmetry plane
+        self._fold_curves = [(nodes, axis, 1e-6) for nodes, axis in self._curves]
+        heel = getattr(disc, "heel_curve", lambda: None)()
+        if heel is not None:
+            tip = self._curves[0][0]
+            self._fold_curves[0] = (np.concatenate([heel[::-1], tip[1:]]), 2, np.inf)
         self.height_mm = float(self._X_surface[:, 1].max())
         self._qp_xy = disc.quadrature_points()  # (dim, n_el, n_q), reference, mm
         self._strain_at_mm: list[float] | None = None
@@ -517,17 +525,26 @@ class DeformationTracker:
         if not self._folded:
             X, u = self.disc.X, body.u
             self._folded = any(
-                surface_folded(X[np.ix_(nodes, [axis, 1])] + u[np.ix_(nodes, [axis, 1])])
-                for nodes, axis in self._curves
+                surface_folded(X[np.ix_(nodes, [axis, 1])] + u[np.ix_(nodes, [axis, 1])], tol)
+                for nodes, axis, tol in self._fold_curves
             )
         if np.isfinite(body.indenter_position):
-            self._travel_mm = max(self._travel_mm, self.height_mm - body.indenter_position)
+            top = self.height_mm
+            if not body.vertical_indenter:  # an inclined plate: the travel along its normal
+                top = float(np.max(self._X_surface @ body.indenter_axis))
+            self._travel_mm = max(self._travel_mm, top - body.indenter_position)
         self.observed += 1
 
     def observe_peak(self, body: Body) -> None:
         """Record the full extents of the contact with the indenter (2 x the symmetric
         model's), in mm: across the finger (x) and, in 3D, along it (z)."""
         self._extent_mm = {}
+        if getattr(self.disc, "half", False):  # in the plate's plane (contact_patch)
+            _, width, length = self.disc.contact_patch_mm(
+                body.u, body.indenter_penetration(), body.indenter_axis
+            )
+            self._extent_mm, self._width_mm = {0: width, 2: length}, width
+            return
         for nodes, axis in self._curves:
             coordinate = self.disc.X[nodes, axis] + body.u[nodes, axis]
             p = body.indenter_penetration(nodes)

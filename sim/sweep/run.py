@@ -274,6 +274,12 @@ def run_sweep(
             "--start", f"a segment needs --sampler sobol (its prefixes nest), got {sampler}"
         )
     options = options or SimOptions()
+    if options.model.inclination_deg:  # every design would fail on the upright-only wedge
+        raise DesignError(
+            "model.inclination_deg",
+            "a sweep runs the wedge, which is upright only: must be 0 in a sweep "
+            "(an inclined plate or tapping: fingertip simulate --protocol plate|tapping)",
+        )
     folder = Path(out)
     check_folder_kind(folder, "sweep")  # never into another command's folder
     config = sweep_config(space, n, seed, sampler, options, start)

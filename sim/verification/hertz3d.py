@@ -44,10 +44,13 @@ def hertz_sphere_3d(
     depth_ratio: float = 1.0,
     grading: float = 0.4,
     h_max_mm: float = 3.0,
+    inclination_deg: float = 0.0,
 ) -> list[HertzRow3D]:
     """The plate pushed to ``depth_mm`` in ``steps`` equal steps on the body of ``depth_ratio``,
     meshed with elements of ``h_mm`` over the region ``fraction`` R around the apex, growing by
-    ``grading`` per mm to ``h_max_mm``."""
+    ``grading`` per mm to ``h_max_mm``. ``inclination_deg``: the plate tilted about x (the half
+    model, refined around the first-touch point instead of the apex; the approach and force
+    along the plate's normal, the area in its plane: ``model.inclination_deg``)."""
     from ..fe import Body, Control, Discretization3D, NewtonOptions, Plate
     from ..geometry import Geometry, MeshOptions3D, PadGeometry, build_pad_mesh
     from ..materials._material import material_from_table
@@ -63,8 +66,9 @@ def hertz_sphere_3d(
         h_max_mm=h_max_mm,
     )
     law = {"model": "neo_hookean", "mu_MPa": MU_MPA, "nu": NU}
-    disc = Discretization3D(build_pad_mesh(pad, (), options), [material_from_table(law)])
-    body = Body(disc, Plate(), NewtonOptions(reuse_factorization=True))
+    pmesh = build_pad_mesh(pad, (), options, inclination_deg)
+    disc = Discretization3D(pmesh, [material_from_table(law)])
+    body = Body(disc, Plate(inclination_deg), NewtonOptions(reuse_factorization=True))
     top = body.top_height()
     e_star = 2.0 * MU_MPA * (1.0 + NU) / (1.0 - NU**2)
     rows = []
