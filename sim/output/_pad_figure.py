@@ -6,6 +6,15 @@ matplotlib: one column per force, the footprint seen from above (x-z plane: the 
 outline, the contact patch filled by contact pressure) over the section x = 0 (deformed
 against undeformed, with the plate), both on the same z scale.
 
+An inclined plate (``model.inclination_deg`` = t, the half model x >= 0: docs/model_3d.md,
+"Inclination") gives the same figure with the half pad mirrored across x = 0 only: the
+footprint is seen along the plate's normal e = (0, cos t, sin t), in the plate's plane, at the
+coordinates x (across the finger) and s = x . t_p along t_p = (0, -sin t, cos t) (along the
+finger, towards the tip z > 0; s = z at t = 0), its outline the whole pad's silhouette seen
+along e; the section x = 0 runs from the heel's end (z = -c) to the tip's (z = c), with the
+plate's tilted trace e . (y, z) = position; the first-touch point (``first_touch_mm``) is
+marked on both.
+
 The states are the tapping's ``tapping_1N`` and ``tapping_4N`` fields: the first step of the
 measured tap at or beyond 1 N (4 N) on loading, so a little beyond it (e.g. 1.21 N on 48
 steps), while the metrics (``contact_area_at_1N_mm2``) are interpolated to exactly 1 N: the
@@ -25,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from ..geometry import _q2
+from ..geometry import _q2, first_touch_mm
 
 __all__ = ["PadFigureInfo", "PadState", "pad_figure_info", "render_pad_figure"]
 
@@ -38,6 +47,10 @@ SUBDIVISIONS = 8
 #: the copies of the quarter x >= 0, z >= 0 that make the whole pad: signs of (x, z)
 MIRRORS = ((1.0, 1.0), (-1.0, 1.0), (1.0, -1.0), (-1.0, -1.0))
 
+#: the copies of the half pad x >= 0 (an inclined plate) that make the whole pad: signs of
+#: (x, s), s the coordinate along the finger in the plate's plane
+HALF_MIRRORS = ((1.0, 1.0), (-1.0, 1.0))
+
 
 @dataclass(frozen=True, eq=False)
 class PadState:
@@ -48,20 +61,27 @@ class PadState:
         force_N: the nominal force (1 or 4 N).
         state_force_N: the whole pad's force at the state (the first step at or beyond
             ``force_N``).
-        plate_position_mm: the plate's face y = plate_position_mm at the state.
+        plate_position_mm: the plate's face y = plate_position_mm at the state (inclined:
+            e . (x, y, z) = plate_position_mm, its height along its normal e).
         metric_area_mm2: the result's ``contact_area_at_<F>N_mm2`` (interpolated to exactly
             ``force_N``; None if missing or NaN).
         patch_area_mm2: the area of the drawn patch (the state's; whole pad): the triangles'
-            parts with a positive (linearly interpolated) penetration.
+            parts with a positive (linearly interpolated) penetration, in the plate's plane.
         footprint_xz_mm: (P, 2) the deformed (x, z) of the points sampled on the surface faces
-            that touch the plate, all four copies.
+            that touch the plate, all four copies; inclined (the half pad): (x, s), the
+            coordinates in the plate's plane (s along t_p, ``PadFigureInfo.along_plate``),
+            both copies x and -x.
         footprint_triangles: (T, 3) triangles of ``footprint_xz_mm``.
         penetration_mm: (P,) the plate's penetration at those points (> 0 inside).
         pressure_kPa: (P,) the contact pressure (>= 0): the penalty's at the nodes, kappa
             max(p_i, 0), interpolated piecewise bilinearly (``_footprint``).
         section_zy_mm: (n, 2) the deformed outer surface's curve in the plane x = 0, from
-            z = -c to z = c.
+            z = -c to z = c (on the half pad from the heel's end to the tip's, not mirrored).
         interfaces_zy_mm: the deformed layer interfaces in the plane x = 0, outermost first.
+        plate_trace_zy_mm: (2, 2) the plate's face in the plane x = 0, (z, y) at its two ends
+            (z = -1.05 c, 1.05 c): level on the quarter, tilted by t on the half pad.
+        patch_centre_mm: the drawn patch's centroid in the footprint's coordinates, (x, z) or
+            (x, s): each triangle's centroid weighted by its part inside the patch.
     """
 
     name: str
@@ -76,6 +96,8 @@ class PadState:
     pressure_kPa: np.ndarray
     section_zy_mm: np.ndarray
     interfaces_zy_mm: tuple[np.ndarray, ...]
+    plate_trace_zy_mm: np.ndarray
+    patch_centre_mm: tuple[float, float]
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,11 +105,18 @@ class PadFigureInfo:
     """What ``render_pad_figure`` draws (mm, whole pad).
 
     Attributes:
-        outline_xz_mm: (n, 2) the pad's base outline |x/a|^m + |z/c|^m = 1, closed.
+        outline_xz_mm: (n, 2) the pad's base outline |x/a|^m + |z/c|^m = 1, closed; on the
+            half pad (an inclined plate) the pad's silhouette seen along the plate's normal e,
+            (x, s) in the plate's plane (the convex hull of its undeformed outer surface,
+            sampled as the footprint is; the pad is convex), closed.
         section_reference_zy_mm: (n, 2) the undeformed outer curve in the plane x = 0.
         states: the states drawn, by increasing force.
         kappa_N_per_mm3: the contact penalty (pressure per mm of penetration).
-        n_elements: elements of the quarter model's mesh.
+        n_elements: elements of the model's mesh (the quarter's, or the half's).
+        half: the model is the half pad x >= 0 (mirrored across x = 0 only), not the quarter.
+        inclination_deg: the plate's inclination t about x (0: level).
+        first_touch_zy_mm: (z*, y*), the point of x = 0 where the plate first touches the
+            undeformed pad (``sim.geometry.first_touch_mm``; the apex (0, b) at 0 deg).
     """
 
     outline_xz_mm: np.ndarray
@@ -95,15 +124,38 @@ class PadFigureInfo:
     states: tuple[PadState, ...]
     kappa_N_per_mm3: float
     n_elements: int
+    half: bool = False
+    inclination_deg: float = 0.0
+    first_touch_zy_mm: tuple[float, float] = (0.0, 0.0)
 
     @property
     def max_pressure_kPa(self) -> float:
         return max((float(s.pressure_kPa.max(initial=0.0)) for s in self.states), default=0.0)
 
+    @property
+    def plate_normal(self) -> np.ndarray:
+        """e = (0, cos t, sin t): the plate's outward normal (from the pad into the plate)."""
+        return _plate_normal(self.inclination_deg)
+
+    @property
+    def along_plate(self) -> np.ndarray:
+        """t_p = (0, -sin t, cos t): the plate's direction along the finger, towards the tip."""
+        return _along_plate(self.plate_normal)
+
+    @property
+    def first_touch_s_mm(self) -> float:
+        """The first-touch point's coordinate s along the finger in the plate's plane."""
+        z, y = self.first_touch_zy_mm
+        return float(np.array([0.0, y, z]) @ self.along_plate)
+
 
 def pad_figure_info(result: Any) -> PadFigureInfo:
     """The figure's arrays for a 3D ``SimResult`` kept with ``keep_fields`` whose tapping
-    reached 1 N or 4 N. ``ValueError`` if it has no such state (a 2D result, no fields)."""
+    reached 1 N or 4 N. ``ValueError`` if it has no such state (a 2D result, no fields).
+
+    On the half pad (an inclined plate, ``PadMesh.inclination_deg`` = t) the plate's position
+    and the penetrations are along its normal e, as the solver reads them
+    (``sim.fe.contact.Plate``), and the footprint is read in its plane."""
     disc = result.discretization
     if disc is None or disc.dim != 3:
         raise ValueError("the pad figure needs a 3D result with its fields (keep_fields=True)")
@@ -112,19 +164,23 @@ def pad_figure_info(result: Any) -> PadFigureInfo:
         raise ValueError("the pad figure needs the tapping's states at 1 N / 4 N")
     pmesh = disc.pmesh
     geometry = pmesh.geometry
+    half = bool(disc.half)
+    inclination = float(getattr(pmesh, "inclination_deg", 0.0))
+    e = _plate_normal(inclination)
     s = disc.surface_nodes
-    top0 = float(disc.X[s, 1].max())  # the curve's displacements are from the undeformed top
+    # the curve's displacements are from the undeformed top (along e)
+    top0 = float(_heights(disc.X[s], e).max())
     curve = result.curves["tapping"]
     force = np.asarray(curve["force_N"], dtype=float)
     disp = np.asarray(curve["displacement_mm"], dtype=float)
     weights = disc.surface_weights()
-    scale = disc.force_scale(0.0)  # whole pad / quarter
+    scale = disc.force_scale(0.0)  # whole pad / the model's part
     states, kappas = [], []
     for name, f in present:
         u = result.fields[name]
         i = _state_step(force, f)
         position = top0 - disp[i]
-        p = disc.X[s, 1] + u[s, 1] - position
+        p = _heights(disc.X[s] + u[s], e) - position
         balance = float(weights @ np.maximum(p, 0.0))
         if not balance > 0.0:
             raise ValueError(f"{name}: no penetration at the plate position read from the curve")
@@ -135,10 +191,12 @@ def pad_figure_info(result: Any) -> PadFigureInfo:
     if max(kappas) > 1.01 * min(kappas):
         raise ValueError(f"the states' force balances disagree: kappa {kappas} N/mm^3")
     kappa = float(np.mean(kappas))
+    a, _, c = geometry.semi_axes_mm()
     out = []
     for name, f, i, position, u, p, _ in states:
-        xz, tri, pen, pressure = _footprint(disc, u, p, kappa)
+        xz, tri, pen, pressure = _footprint(disc, u, p, kappa, e)
         metric = result.metrics.get(f"contact_area_at_{f:g}N_mm2")
+        parts = _positive_parts(xz, tri, pen)
         out.append(
             PadState(
                 name=name,
@@ -146,29 +204,92 @@ def pad_figure_info(result: Any) -> PadFigureInfo:
                 state_force_N=float(force[i]),
                 plate_position_mm=float(position),
                 metric_area_mm2=float(metric) if _finite(metric) else None,
-                patch_area_mm2=_positive_area(xz, tri, pen),
+                patch_area_mm2=float(np.sum(parts)),
                 footprint_xz_mm=xz,
                 footprint_triangles=tri,
                 penetration_mm=pen,
                 pressure_kPa=pressure,
                 section_zy_mm=_section(disc, u),
                 interfaces_zy_mm=_interfaces(pmesh, u),
+                plate_trace_zy_mm=_plate_trace(float(position), e, 1.05 * c),
+                patch_centre_mm=_centre(xz, tri, parts),
             )
         )
-    a, _, c = geometry.semi_axes_mm()
-    m = geometry.exponents[1]
-    angle = np.linspace(0.0, 2.0 * np.pi, 361)
-    cos, sin = np.cos(angle), np.sin(angle)
-    outline = np.column_stack(
-        [a * np.sign(cos) * np.abs(cos) ** (2.0 / m), c * np.sign(sin) * np.abs(sin) ** (2.0 / m)]
-    )
+    if half:
+        outline = _silhouette(disc, e)
+    else:
+        m = geometry.exponents[1]
+        angle = np.linspace(0.0, 2.0 * np.pi, 361)
+        cos, sin = np.cos(angle), np.sin(angle)
+        outline = np.column_stack(
+            [
+                a * np.sign(cos) * np.abs(cos) ** (2.0 / m),
+                c * np.sign(sin) * np.abs(sin) ** (2.0 / m),
+            ]
+        )
+    _, y_touch, z_touch = first_touch_mm(geometry, inclination)
     return PadFigureInfo(
         outline_xz_mm=outline,
         section_reference_zy_mm=_section(disc, np.zeros_like(disc.X)),
         states=tuple(out),
         kappa_N_per_mm3=kappa,
         n_elements=int(disc.n_el),
+        half=half,
+        inclination_deg=inclination,
+        first_touch_zy_mm=(float(z_touch), float(y_touch)),
     )
+
+
+def _plate_normal(inclination_deg: float) -> np.ndarray:
+    """e = (0, cos t, sin t), the plate's outward normal (``sim.fe.contact.Plate``); exactly
+    (0, 1, 0) at 0."""
+    t = np.radians(inclination_deg)
+    return np.array([0.0, np.cos(t), np.sin(t)])
+
+
+def _along_plate(e: np.ndarray) -> np.ndarray:
+    """t_p = (0, -e_z, e_y): the plate's direction along the finger, towards the tip (z > 0)."""
+    return np.array([0.0, -e[2], e[1]])
+
+
+def _is_level(e: np.ndarray) -> bool:
+    return bool(e[1] == 1.0 and e[0] == 0.0 and e[2] == 0.0)
+
+
+def _heights(x: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """e . x of the points x (..., 3): their height along the plate's normal; y for a level
+    plate (the solver's reading, ``Body.along_indenter``)."""
+    return x[..., 1] if _is_level(e) else x @ e
+
+
+def _in_plate(x: np.ndarray, e: np.ndarray) -> np.ndarray:
+    """The points x (..., 3) projected on the plate's plane: (x, s) (..., 2), s = x . t_p;
+    (x, z) for a level plate."""
+    if _is_level(e):
+        return x[..., [0, 2]]
+    return np.stack([x[..., 0], x @ _along_plate(e)], axis=-1)
+
+
+def _plate_trace(position_mm: float, e: np.ndarray, z_end_mm: float) -> np.ndarray:
+    """The plate's face e . (y, z) = position in the plane x = 0, (z, y) at z = -+z_end."""
+    z = np.array([-z_end_mm, z_end_mm])
+    return np.column_stack([z, (position_mm - z * e[2]) / e[1]])
+
+
+def _silhouette(disc: Any, e: np.ndarray) -> np.ndarray:
+    """The whole pad's outline seen along e, (x, s) in the plate's plane, closed: the convex
+    hull of its undeformed outer surface sampled on the faces (as ``_footprint``) and of its
+    copy x -> -x (the pad is convex, so is its projection)."""
+    from scipy.spatial import ConvexHull
+
+    faces = np.asarray(disc.pmesh.surface_faces)
+    t = np.linspace(-1.0, 1.0, SUBDIVISIONS + 1)
+    S, T = np.meshgrid(t, t, indexing="ij")
+    N = _q2.face_shape_functions(np.column_stack([S.ravel(), T.ravel()]))
+    points = _in_plate(np.einsum("pa,fai->fpi", N, disc.X[faces]).reshape(-1, 3), e)
+    points = np.concatenate([points, points * np.array([-1.0, 1.0])])
+    hull = points[ConvexHull(points).vertices]  # counter-clockwise
+    return np.concatenate([hull, hull[:1]])
 
 
 def _finite(value: Any) -> bool:
@@ -188,11 +309,15 @@ def _state_step(force: np.ndarray, force_N: float) -> int:
     raise ValueError(f"the tapping's curve never reaches {force_N:g} N")
 
 
-def _footprint(disc: Any, u: np.ndarray, p: np.ndarray, kappa: float) -> tuple[np.ndarray, ...]:
+def _footprint(
+    disc: Any, u: np.ndarray, p: np.ndarray, kappa: float, e: np.ndarray
+) -> tuple[np.ndarray, ...]:
     """The surface faces with a node inside the plate (the patch and its edge lie on them: a
     node inside makes every face around it one of them), each sampled on a grid of
     (SUBDIVISIONS + 1)^2 points and split into triangles, mirrored into the four copies of
-    the pad: their deformed (x, z), the penetration and the pressure (kPa) there.
+    the pad: their deformed (x, z), the penetration and the pressure (kPa) there. On the half
+    pad (the plate's normal e inclined) their deformed (x, s) in the plate's plane
+    (``_in_plate``), mirrored into the two copies x and -x.
 
     The penetration is interpolated by the faces' shape functions, as
     ``Discretization3D.contact_area_mm2`` does (its positive part is the patch of the
@@ -221,10 +346,11 @@ def _footprint(disc: Any, u: np.ndarray, p: np.ndarray, kappa: float) -> tuple[n
     )  # fmt: skip
     n_pts = (k + 1) ** 2
     tri = (np.arange(len(faces))[:, None, None] * n_pts + local[None]).reshape(-1, 3)
-    xz = x[:, :, [0, 2]].reshape(-1, 2)
-    copies = [xz * np.array(sign) for sign in MIRRORS]
-    triangles = [tri + k_copy * len(xz) for k_copy in range(len(MIRRORS))]
-    n = len(MIRRORS)
+    xz = _in_plate(x, e).reshape(-1, 2)
+    mirrors = HALF_MIRRORS if disc.half else MIRRORS
+    copies = [xz * np.array(sign) for sign in mirrors]
+    triangles = [tri + k_copy * len(xz) for k_copy in range(len(mirrors))]
+    n = len(mirrors)
     return (
         np.concatenate(copies),
         np.concatenate(triangles),
@@ -246,8 +372,8 @@ def _face_hats(points: np.ndarray) -> np.ndarray:
     return hats[0] * hats[1]
 
 
-def _positive_area(xy: np.ndarray, triangles: np.ndarray, value: np.ndarray) -> float:
-    """The area of the triangles' parts where the linear interpolation of ``value`` is > 0."""
+def _positive_parts(xy: np.ndarray, triangles: np.ndarray, value: np.ndarray) -> np.ndarray:
+    """Each triangle's area (T,) where the linear interpolation of ``value`` is > 0."""
     v = value[triangles]  # (T, 3)
     a, b, c = (xy[triangles[:, k]] for k in range(3))
     ab, ac = b - a, c - a
@@ -267,20 +393,39 @@ def _positive_area(xy: np.ndarray, triangles: np.ndarray, value: np.ndarray) -> 
         others = vr[np.arange(len(rows))[:, None], (apex[:, None] + np.array([1, 2])) % 3]
         corner = v0**2 / ((v0 - others[:, 0]) * (v0 - others[:, 1]))
         frac[rows] = corner if inside else 1.0 - corner
-    return float(np.sum(area * frac))
+    return area * frac
+
+
+def _centre(xy: np.ndarray, triangles: np.ndarray, parts: np.ndarray) -> tuple[float, float]:
+    """The centroid of the triangles weighted by their parts ``parts`` (T,) inside the patch
+    (``_positive_parts``): the patch's, to within a triangle at its edge; (nan, nan) without
+    a patch."""
+    total = float(np.sum(parts))
+    if not total > 0.0:
+        return float("nan"), float("nan")
+    centroids = xy[triangles].mean(axis=1)  # (T, 2)
+    cx, cs = parts @ centroids / total
+    return float(cx), float(cs)
 
 
 def _section(disc: Any, u: np.ndarray) -> np.ndarray:
     """The outer surface's curve in the plane x = 0 (deformed by ``u``), (z, y) from z = -c
-    through the apex to z = c."""
+    through the apex to z = c: on the quarter its half z >= 0 and that half's mirror image, on
+    the half pad its heel's half (``heel_curve``) and its tip's."""
     nodes, axis = disc.section_curves()[0]
     assert axis == 2, "the first section curve runs along z"
     zy = disc.X[nodes][:, [2, 1]] + u[nodes][:, [2, 1]]
-    return _mirror_z(zy)
+    if not disc.half:
+        return _mirror_z(zy)
+    heel = disc.heel_curve()  # from the apex towards z = -c
+    assert heel[0] == nodes[0], "both halves of the section start at the apex"
+    heel_zy = disc.X[heel][:, [2, 1]] + u[heel][:, [2, 1]]
+    return np.concatenate([heel_zy[::-1], zy[1:]])
 
 
 def _interfaces(pmesh: Any, u: np.ndarray) -> tuple[np.ndarray, ...]:
-    """Each layer interface's curve in the plane x = 0 (deformed by ``u``), as ``_section``."""
+    """Each layer interface's curve in the plane x = 0 (deformed by ``u``), as ``_section``:
+    ordered by the angle from the y axis, on the half pad from its heel's end to its tip's."""
     X = np.asarray(pmesh.nodes)
     depths = np.cumsum(pmesh.thicknesses_mm)
     out = []
@@ -289,7 +434,8 @@ def _interfaces(pmesh: Any, u: np.ndarray) -> tuple[np.ndarray, ...]:
         _, b, c = pmesh.geometry.semi_axes_mm(float(depth))
         order = np.argsort(np.arctan2(X[on, 2] / c, X[on, 1] / b), kind="stable")
         on = on[order]
-        out.append(_mirror_z(X[on][:, [2, 1]] + u[on][:, [2, 1]]))
+        zy = X[on][:, [2, 1]] + u[on][:, [2, 1]]
+        out.append(zy if pmesh.half else _mirror_z(zy))
     return tuple(out)
 
 
@@ -302,7 +448,10 @@ def _mirror_z(zy: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------- rendering
 def render_pad_figure(info: PadFigureInfo, path: str | Path) -> Path:
     """Draw ``info`` to ``path`` (PNG): a column per state, the footprint seen from above over
-    the section x = 0, with one pressure scale for all."""
+    the section x = 0, with one pressure scale for all. On the half pad (an inclined plate)
+    the footprint is seen along the plate's normal (s along the finger in its plane, the tip
+    to the right) and the section shows the tilted plate; both on the same scale along the
+    finger, the angle and the tip's end stated."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -311,7 +460,11 @@ def render_pad_figure(info: PadFigureInfo, path: str | Path) -> Path:
 
     outline = info.outline_xz_mm
     ref = info.section_reference_zy_mm
-    z_lim = 1.05 * float(np.abs(outline[:, 1]).max())
+    inclined = info.half
+    if inclined:  # one scale along the finger: the footprint's s and the section's z
+        z_lim = 1.05 * max(float(np.abs(outline[:, 1]).max()), float(np.abs(ref[:, 0]).max()))
+    else:
+        z_lim = 1.05 * float(np.abs(outline[:, 1]).max())
     x_lim = 1.1 * float(np.abs(outline[:, 0]).max())
     y_top = 1.08 * float(ref[:, 1].max())
     n = len(info.states)
@@ -324,9 +477,11 @@ def render_pad_figure(info: PadFigureInfo, path: str | Path) -> Path:
     )
     p_max = max(info.max_pressure_kPa, 1e-12)
     filled = None
+    angle = f"{info.inclination_deg:g}\N{DEGREE SIGN}"
     for col, st in enumerate(info.states):
         top, side = axes[0, col], axes[1, col]
-        # footprint from above: z to the right, x up (seen from +y)
+        # footprint from above: z to the right, x up (seen from +y); inclined: seen along
+        # the plate's normal, s (along the finger in the plate's plane) to the right
         top.fill(outline[:, 1], outline[:, 0], color="0.93", zorder=0)
         top.plot(outline[:, 1], outline[:, 0], color="0.3", lw=1.0)
         zx = (st.footprint_xz_mm[:, 1], st.footprint_xz_mm[:, 0])
@@ -345,7 +500,13 @@ def render_pad_figure(info: PadFigureInfo, path: str | Path) -> Path:
         top.set_ylim(-x_lim, x_lim)
         top.set_aspect("equal")
         top.set_ylabel("x, across the finger (mm)")
-        top.set_xlabel("z, along the finger (mm)")
+        if inclined:
+            top.plot(info.first_touch_s_mm, 0.0, "r+", ms=9, mew=1.5, zorder=5)
+            top.set_xlabel("s, along the finger in the plate's plane (mm), heel \u2190 \u2192 tip")
+            top.text(-0.97 * z_lim, 0.92 * x_lim, "heel", fontsize=8, va="top")
+            top.text(0.97 * z_lim, 0.92 * x_lim, "tip", fontsize=8, va="top", ha="right")
+        else:
+            top.set_xlabel("z, along the finger (mm)")
         metric = (
             f"contact area {st.metric_area_mm2:.1f} mm$^2$"
             if st.metric_area_mm2 is not None
@@ -366,26 +527,60 @@ def render_pad_figure(info: PadFigureInfo, path: str | Path) -> Path:
             label = "layer interfaces" if k == 0 else None
             side.plot(curve[:, 0], curve[:, 1], color="#8c5a1e", lw=0.6, ls="-.", label=label)
         side.axhline(0.0, color="k", lw=2.0)
-        side.axhspan(st.plate_position_mm, y_top + 0.8, color="0.75", alpha=0.6, lw=0)
-        side.axhline(st.plate_position_mm, color="0.2", lw=1.5, label="plate")
-        side.text(
-            -0.97 * z_lim,
-            st.plate_position_mm + 0.15,
-            f"plate, y = {st.plate_position_mm:.2f} mm",
-            fontsize=8,
-            va="bottom",
-        )
+        if inclined:
+            trace = st.plate_trace_zy_mm
+            high = 10.0 * (y_top + 0.8)  # the plate's side, beyond the axes
+            side.fill(
+                [trace[0, 0], trace[1, 0], trace[1, 0], trace[0, 0]],
+                [trace[0, 1], trace[1, 1], high, high],
+                color="0.75",
+                alpha=0.6,
+                lw=0,
+            )
+            side.plot(trace[:, 0], trace[:, 1], color="0.2", lw=1.5, label="plate")
+            z_t, y_t = info.first_touch_zy_mm
+            side.plot(z_t, y_t, "r+", ms=9, mew=1.5, zorder=5, label="first touch (undeformed)")
+            side.text(
+                0.97 * z_lim,
+                y_top + 0.6,
+                f"plate at {angle}, e\u00b7x = {st.plate_position_mm:.2f} mm",
+                fontsize=8,
+                va="top",
+                ha="right",
+            )
+        else:
+            side.axhspan(st.plate_position_mm, y_top + 0.8, color="0.75", alpha=0.6, lw=0)
+            side.axhline(st.plate_position_mm, color="0.2", lw=1.5, label="plate")
+            side.text(
+                -0.97 * z_lim,
+                st.plate_position_mm + 0.15,
+                f"plate, y = {st.plate_position_mm:.2f} mm",
+                fontsize=8,
+                va="bottom",
+            )
         side.set_xlim(-z_lim, z_lim)
         side.set_ylim(-0.3, y_top + 0.8)
         side.set_aspect("equal")
-        side.set_xlabel("z, along the finger (mm)")
+        side.set_xlabel(
+            "z, along the finger (mm), heel \u2190 \u2192 tip"
+            if inclined
+            else "z, along the finger (mm)"
+        )
         side.set_ylabel("y (mm)")
         side.set_title("section x = 0", fontsize=9)
-    fig.suptitle(
-        "Tapping: the deformed pad and its contact patch "
-        f"(3D quarter model, mirrored; {info.n_elements} elements)",
-        fontsize=11,
-    )
+    if inclined:
+        title = (
+            f"Tapping on a plate inclined {angle} about x (tip end z > 0 meets it first): the "
+            "deformed pad and its contact patch seen along the plate's normal\n"
+            f"(3D half model x \u2265 0, mirrored across x = 0; {info.n_elements} elements; "
+            "+ first touch)"
+        )
+    else:
+        title = (
+            "Tapping: the deformed pad and its contact patch "
+            f"(3D quarter model, mirrored; {info.n_elements} elements)"
+        )
+    fig.suptitle(title, fontsize=11)
     handles, labels = axes[1, 0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
     fig.tight_layout(rect=(0.0, 0.04, 0.92, 1.0))

@@ -253,13 +253,13 @@ def write_result(
 
 
 def _has_pad_states(result: SimResult) -> bool:
-    """A 3D result with a tapping state the pad figure draws (``sim.output._pad_figure.STATES``);
-    not on the half pad (an inclined plate): the figure mirrors the quarter."""
+    """A 3D result with a tapping state the pad figure draws (``sim.output._pad_figure.STATES``):
+    the quarter model's, or the half pad's (an inclined plate: the figure mirrors it across
+    x = 0 and views the footprint along the plate's normal)."""
     disc = result.discretization
     return (
         disc is not None
         and disc.dim == 3
-        and not disc.half
         and "tapping" in result.curves
         and any(name in result.fields for name, _ in STATES)
     )
