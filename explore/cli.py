@@ -1106,13 +1106,21 @@ def _cmd_migrate_sweep(args: argparse.Namespace) -> int:
     rtol = VERIFY_RTOL if args.rtol is None else args.rtol
     if not 0.0 <= rtol <= MAX_METRICS_RTOL:  # also NaN
         raise UsageError(f"--rtol: must be in [0, {MAX_METRICS_RTOL:g}], got {args.rtol}")
-    metrics_only = args.rtol is not None
-    kept, keys, config = migrate(args.source, args.target)
+    metrics_only = args.rtol is not None or args.revalidate  # a table's row has no curves
+    if args.revalidate:
+        from sim.sweep._revalidate import revalidate
+
+        kept, keys, config, reasons = revalidate(args.source, args.target)
+    else:
+        kept, keys, config = migrate(args.source, args.target)
+        reasons = {}
     total = len(set(keys))
     print(
         f"{len(kept)} of {total} designs carried over to {args.target} (solver "
         f"{SOLVER_VERSION}); {total - len(kept)} left for the resumed sweep"
     )
+    for why, count in sorted(reasons.items(), key=lambda kv: -kv[1]):
+        print(f"  re-run: {count} {why}")
     what = "metrics and validity" if metrics_only else "metrics, diagnostics and curves"
     checks = verify(args.target, kept, config, args.verify, args.seed, metrics_only)
     for key, worst, where in checks:
@@ -1165,6 +1173,16 @@ def _add_migrate_sweep(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--seed", type=int, default=0, help="seed of the designs --verify draws (default 0)"
+    )
+    p.add_argument(
+        "--revalidate",
+        action="store_true",
+        help="carry SOURCE over from its table alone (config.json and table.csv suffice: a "
+        "kept segment or the shipped surrogate's folder) to each layer's own strain limit: "
+        "when it was made with one limit for every layer (validity.max_compressive_log_strain, "
+        "as the shipped surrogate's sweep), the designs whose course the layers' limits "
+        "change (and every valid design of several layers) are left for the resumed sweep; "
+        "made under the layers' limits, every design is carried (sim/sweep/_revalidate.py)",
     )
     p.set_defaults(func=_cmd_migrate_sweep)
 

@@ -12,7 +12,7 @@ from sweep_fixtures import FAST, TINY
 
 import explore.cli
 from sim.errors import DesignError
-from sim.metrics import SAME_METRICS_AS, SOLVER_VERSION
+from sim.metrics import METRICS, SAME_METRICS_AS, SOLVER_VERSION, role_strain_names
 from sim.sweep import SweepStore, read_config, write_config
 from sim.sweep._migrate import carried, largest_difference, migrate
 
@@ -245,3 +245,126 @@ def test_a_tolerance_compares_metrics_and_validity_not_newtons_path():
             float("inf"),
             f"diagnostics.{name}",
         )
+
+
+# ----------------------------------------------------------------------------- --revalidate
+#: gel (tested to a log strain of 0.53) and foam (1.05) layers, soft enough that some designs
+#: pass the old global limit of 0.60 and some pass the gel's own
+LAYERED = """
+[geometry]
+half_width_mm = { value = 5.84 }
+height_mm = { value = 5.48 }
+exponent = { value = 1.5 }
+[layers]
+count = { choice = [1, 2] }
+[layers.skin]
+thickness_mm = { low = 0.5, high = 1.0 }
+material = { choice = ["gel"] }
+mu0_MPa = { low = 0.02, high = 0.1, log = true }
+alpha = { low = 2.0, high = 3.0 }
+g_total = { low = 0.1, high = 0.3 }
+tau_s = { low = 0.1, high = 1.0, log = true }
+[layers.core]
+material = { choice = ["gel", "foam"] }
+mu0_MPa = { low = 0.008, high = 0.05, log = true }
+alpha = { low = 2.0, high = 3.0 }
+nu = { low = 0.1, high = 0.3 }
+g_total = { low = 0.1, high = 0.3 }
+tau_s = { low = 0.1, high = 1.0, log = true }
+"""
+
+
+def _table_rows(folder: Path) -> dict[str, dict[str, str]]:
+    with (folder / "table.csv").open() as fh:
+        return {r["index"]: r for r in csv.DictReader(fh)}
+
+
+def test_revalidating_from_the_table_and_resuming_gives_the_fresh_sweep(tmp_path, capsys):
+    """A sweep made under one global strain limit (0.60), carried over from its table alone to
+    each layer's own limit and resumed, is the sweep made under the layers' limits from the
+    start: every design's status, validity, settling and metrics, and each layer's strain."""
+    import shutil
+    import subprocess
+    import sys
+
+    space = tmp_path / "space.toml"
+    space.write_text(LAYERED)
+    old, new, fresh = tmp_path / "old", tmp_path / "new", tmp_path / "fresh"
+    n = ["--n", "8"]
+    common = [*n, "--no-progress", *FAST]
+    argv = [
+        "sweep",
+        space,
+        "--out",
+        old,
+        *common,
+        "--set",
+        "validity.max_compressive_log_strain=0.6",
+    ]
+    assert explore.cli.main([str(a) for a in argv]) == 0
+    shutil.rmtree(old / "records")  # the shipped surrogate's folder has its table only
+    (old / "curves.jsonl").unlink()
+    capsys.readouterr()
+    assert explore.cli.main(["migrate-sweep", str(old), str(new), "--revalidate"]) == 0
+    out = capsys.readouterr().out
+    carried = int(out.split(" of 8 designs carried over")[0].rsplit("\n", 1)[-1])
+    assert 0 < carried < 8, out  # the sample needs designs on both sides of the rule
+    assert "re-run:" in out
+    resume = next(line for line in out.splitlines() if line.startswith("resume: "))
+    cmd = resume.removeprefix("resume: fingertip ").split()
+    assert "--set" not in cmd or "validity.max_compressive_log_strain" not in resume
+    args = [sys.executable, "-m", "explore.cli", *cmd[:1], str(space), *cmd[1:], "--no-progress"]
+    done = subprocess.run(args, capture_output=True, text=True, timeout=900)
+    assert done.returncode == 0, done.stderr
+    assert f"{8 - carried} computed now" in done.stdout
+    assert explore.cli.main([str(a) for a in ["sweep", space, "--out", fresh, *common]]) == 0
+    a, b = _table_rows(new), _table_rows(fresh)
+    assert a.keys() == b.keys() and {r["key"] for r in a.values()} == {r["key"] for r in b.values()}
+    judged = ["status", "valid", "settled", "stopped", *METRICS]
+    for i in a:
+        assert {k: a[i][k] for k in judged} == {k: b[i][k] for k in judged}, i
+        stopped = a[i]["stopped"].split(",") if a[i]["stopped"] else []
+        for name in role_strain_names():
+            if name.split("_")[0] not in stopped:
+                assert a[i][name] == b[i][name], (i, name)
+            elif a[i][name] != "":  # the strain up to the stop: a carried design stopped at
+                assert float(a[i][name]) >= float(b[i][name])  # the old limit, no earlier
+    assert {r["valid"] for r in b.values()} == {"True", "False"}
+    assert any(r["layers.count"] == "2" and r["valid"] == "True" for r in b.values())
+    # a folder made under the layers' own limits, kept as its table alone (as a segment is in
+    # git), is rebuilt whole on another machine: every design carried, nothing to compute
+    shutil.rmtree(fresh / "records")
+    again = tmp_path / "again"
+    assert explore.cli.main(["migrate-sweep", str(fresh), str(again), "--revalidate"]) == 0
+    assert "8 of 8 designs carried over" in capsys.readouterr().out
+    assert _table_rows(again) == b
+
+
+def test_the_rule_reruns_what_the_layers_own_limits_change():
+    """``rerun_reason``: a design is carried when no protocol's course changes under its
+    layers' own limits, else re-run (each case of the module's docstring)."""
+    from sim.sweep._revalidate import rerun_reason
+
+    def row(**cells: str) -> dict[str, str]:
+        base = {"status": "ok", "valid": "True", "stopped": "",
+                "tapping_max_compressive_log_strain": "0.4",
+                "plate_max_compressive_log_strain": "0.3"}  # fmt: skip
+        return {**base, **cells}
+
+    gel, foam, old = [0.5276], [1.0498], 0.6
+    assert rerun_reason(row(), gel, old) is None  # within every limit, ran to its end
+    assert "beyond a layer's own" in rerun_reason(
+        row(tapping_max_compressive_log_strain="0.55"), gel, old
+    )
+    stopped = row(valid="False", stopped="tapping", tapping_max_compressive_log_strain="0.61")
+    assert rerun_reason(stopped, gel, old) is None  # the gel's own limit stops it no later
+    assert "may go further" in rerun_reason(stopped, foam, old)
+    assert "several layers" in rerun_reason(row(), [0.5276, 1.0498], old)
+    layered_invalid = {**stopped}
+    assert rerun_reason(layered_invalid, [0.5276, 0.5276], old) is None
+    assert rerun_reason(row(status="failed"), foam, old) is None  # within 0.60 up to the failure
+    assert "failed" in rerun_reason(row(status="failed"), gel, old)
+    # stopped by another limit (J) within the old strain limit: carried when within the own
+    by_j = row(valid="False", stopped="plate", plate_max_compressive_log_strain="0.45")
+    assert rerun_reason(by_j, gel, old) is None
+    assert rerun_reason({**by_j, "plate_max_compressive_log_strain": "0.58"}, gel, old)
