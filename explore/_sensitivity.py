@@ -92,14 +92,19 @@ def _scan(
     return {m: float(errs[0][m]) for m in TAPPING}, out
 
 
+#: the largest exponent ``_needed`` takes (exp(709) is the largest float's order)
+_MAX_EXPONENT = 700.0
+
+
 def _needed(surrogate, s: Sensitivity, error: float, d: float) -> tuple[float, bool]:
     """The value of ``s``'s parameter at which the missed target's error would reach zero,
     extrapolating the surrogate's change per step linearly (on the space's scale), and whether
     it lies beyond the space's bounds."""
     p = surrogate.space[s.name]
     steps = abs(error / d)
-    if p.log:
-        v = math.exp(math.log(s.value) + s.direction * steps * STEP * math.log(p.high / p.low))
+    if p.log:  # a change per step of nearly nothing puts it at 0 or infinity: far outside
+        exponent = math.log(s.value) + s.direction * steps * STEP * math.log(p.high / p.low)
+        v = math.exp(min(exponent, _MAX_EXPONENT))
     else:
         v = s.value + s.direction * steps * STEP * (p.high - p.low)
     return v, not p.low <= v <= p.high

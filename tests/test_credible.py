@@ -269,6 +269,13 @@ def test_sensitivities_name_the_parameter_that_closes_the_gap():
     # from the stiffest core, linear in log(mu) the target lies beyond the space's lower bound
     far = sensitivity_notes(sur, _gel_point(0.35, 0.2), TARGETS, 0.05)[0]
     assert "core.mu0_MPa alone cannot meet" in far and "stops at 0.0025" in far
+    # a change per step of nearly nothing extrapolates beyond any bound, not to an overflow
+    from explore._sensitivity import _needed
+
+    up = sens[("core.mu0_MPa", 1)]
+    for d in (1e-300, -1e-300):
+        v, outside = _needed(sur, up, 0.5, d)
+        assert outside and v == pytest.approx(math.exp(700.0))
 
 
 # ----------------------------------------------------------------------------- answers
