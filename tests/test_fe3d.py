@@ -463,3 +463,24 @@ def test_the_line_searchs_contact_part_is_the_residuals(two_layers):
         entered.append(int(np.sum(coupling > 0)))
         assert g_contact(a) == pytest.approx(g_total - g_body, rel=1e-9, abs=1e-12 * abs(g_total))
     assert entered[0] >= 1 and entered[-1] > entered[0]
+
+
+def test_the_contact_edge_study_reads_a_face_bilinearly():
+    """``studies/contact_edge3d.py``'s bilinear reading of a 9-node face: positive everywhere
+    when every node touches, and for a penetration linear in s (nodes at s = -1, 0, 1 with
+    p = s - 0.25) the samples beyond s = 0.25 exactly, as a linear field's zero crossing is."""
+    import importlib.util
+    from pathlib import Path
+
+    from sim.geometry import _q2
+
+    path = Path(__file__).resolve().parents[1] / "studies" / "contact_edge3d.py"
+    spec = importlib.util.spec_from_file_location("contact_edge3d", path)
+    study = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(study)
+    samples = 8
+    assert study.bilinear_inside(np.full((1, 9), 1e-4), samples).all()
+    p = (_q2.FACE_REFERENCE_POINTS[:, 0] - 0.25)[None, :]
+    t = (np.arange(samples) + 0.5) / samples * 2.0 - 1.0
+    S, _ = np.meshgrid(t, t, indexing="ij")
+    np.testing.assert_array_equal(study.bilinear_inside(p, samples)[0], S.ravel() > 0.25)
