@@ -168,6 +168,9 @@ def test_the_resume_command_names_the_options_the_folder_keeps(tmp_path):
     assert sets == {"newton.contact_update_dofs": "96", "newton.rtol": "1e-07"}
     expected = options_from_dict(config["options"])
     assert apply_overrides(SimOptions(), sets) == expected
+    # a segment (designs 32 to 63 of the sample) resumes as that segment
+    segment = {**config, "start": 32, "n": 64}
+    assert resume_command(tmp_path / "s", segment).startswith("fingertip sweep --start 32 --n 64 ")
 
 
 @pytest.mark.parametrize("source_stopped", [True, False])

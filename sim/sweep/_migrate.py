@@ -164,9 +164,10 @@ def migrate(source: str | Path, target: str | Path) -> tuple[list[str], list[str
 
 def resume_command(target: str | Path, config: dict) -> str:
     """The ``fingertip sweep`` command that computes the designs left out of ``target``: with
-    ``--model 3d`` for a 3D sweep and a ``--set`` for every option the folder keeps at another
-    value than this solver's default (the source's value of an option whose default changed
-    since, e.g. ``newton.contact_update_dofs``, which a 2D run does not read)."""
+    ``--model 3d`` for a 3D sweep, ``--start`` for a segment and a ``--set`` for every option
+    the folder keeps at another value than this solver's default (the source's value of an
+    option whose default changed since, e.g. ``newton.contact_update_dofs``, which a 2D run does
+    not read)."""
     options = options_from_dict(config["options"])
     default = replace(SimOptions(), model=options.model).as_dict()
     sets = [
@@ -178,8 +179,9 @@ def resume_command(target: str | Path, config: dict) -> str:
     ]
     sampler = f" --sampler {config['sampler']}" if config["sampler"] != "sobol" else ""
     model = " --model 3d" if options.dimension == "3d" else ""
+    start = f" --start {config['start']}" if config.get("start") else ""  # a segment's
     return (
-        f"fingertip sweep{model} --n {config['n']} --out {target} --seed {config['seed']}"
+        f"fingertip sweep{model}{start} --n {config['n']} --out {target} --seed {config['seed']}"
         f"{sampler}{''.join(sets)}"
     )
 
