@@ -440,9 +440,8 @@ class Body:
                 for i, dofs in enumerate(self._sdof):
                     if self.indenter_axis[i] == 0.0:
                         continue
-                    ok = dofs >= 0
-                    e_i = self.indenter_axis[i]
-                    kcol[dofs[ok]] = -coupling[ok] if e_i == 1.0 else -coupling[ok] * e_i
+                    ok = dofs >= 0  # x 1.0 is exact: a vertical indenter's bits as before
+                    kcol[dofs[ok]] = -coupling[ok] * self.indenter_axis[i]
                 x2 = self._bordered_column(solver, kcol)
                 c = float(np.sum(coupling))
                 dd = (-rd - kcol @ du) / (c - kcol @ x2)
