@@ -1,8 +1,9 @@
 """The compiled assembly kernels (``sim.fe._kernels``) and the shared sparsity pattern
-(``sim.fe._pattern``): in 2D they reproduce the verified numpy assembly of ``sim.fe.fe2d`` (itself
-checked against scikit-fem, ``tests/test_fe.py``); in 3D, on scikit-fem's triquadratic
-hexahedra, the residual is scikit-fem's assembly of the same weak form, the tangent is the
-residual's derivative (central differences), and a homogeneous deformation is a patch test."""
+(``sim.fe._pattern``): in 2D their F, C and forces equal plain numpy on the P2 basis (the
+whole 2D assembly is checked against scikit-fem's forms in ``tests/test_fe.py``); in 3D, on
+scikit-fem's triquadratic hexahedra, the residual is scikit-fem's assembly of the same weak
+form, the tangent is the residual's derivative (central differences), and a homogeneous
+deformation is a patch test."""
 
 from __future__ import annotations
 
@@ -71,27 +72,26 @@ def test_the_pattern_is_scipys_assembly_of_the_element_matrices(disc2d):
     assert np.array_equal(pat.keys[pos], r * pat.n_free + c)
 
 
-def test_2d_kernels_reproduce_the_verified_numpy_assembly(disc2d):
-    u = _smooth(disc2d.X)
+def test_2d_kernels_against_numpy_on_the_p2_basis(disc2d):
+    """The kernels' F, C and internal forces in 2D against plain numpy on the P2 basis's own
+    gradients (scikit-fem's layout); the whole assembly (residual and tangent) is checked
+    against scikit-fem's forms in ``tests/test_fe.py``."""
+    from sim.fe._reactions import internal_forces
+
+    u = 0.25 * _smooth(disc2d.X)  # J in 0.86-1.33
     u[disc2d.fixed] = 0.0
-    ev = disc2d.evaluate(u, disc2d.initial_states(), 0.01)
-    F, S, D = ev._tangent_args
-    dN = np.ascontiguousarray(disc2d.dN.transpose(2, 3, 0, 1))
-    conn = disc2d.edofs_scalar.astype(np.int64)
-    Fk = K.deformation_gradient(u, conn, dN)
+    grads = disc2d.basis.grads  # (a, J, e, q)
+    F = np.einsum("eai,aJeq->iJeq", u[disc2d.edofs_scalar], grads) + np.eye(2)[:, :, None, None]
+    Fk = K.deformation_gradient(u, disc2d.conn, disc2d.dN)
     np.testing.assert_allclose(Fk, F, rtol=0, atol=1e-13)
     C = K.right_cauchy_green(Fk, K.VOIGT[2])
     want_C = np.stack([F[0, 0] ** 2 + F[1, 0] ** 2, F[0, 1] ** 2 + F[1, 1] ** 2,
                        F[0, 0] * F[0, 1] + F[1, 0] * F[1, 1]])  # fmt: skip
     np.testing.assert_allclose(C, want_C, rtol=0, atol=1e-13)
-    r = K.internal_forces(Fk, S, dN, disc2d.w, K.VOIGT[2], disc2d.scatter_r, disc2d.n_free + 1)
-    scale = np.abs(ev.residual).max()
-    np.testing.assert_allclose(r[:-1], ev.residual, rtol=0, atol=1e-12 * scale)
-    data = K.stiffness(
-        Fk, S, D, dN, disc2d.w, K.VOIGT[2], disc2d.scatter_K, disc2d.nnz + 1
-    )  # fmt: skip
-    ref = ev.tangent()
-    np.testing.assert_allclose(data[:-1], ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+    ev = disc2d.evaluate(u, disc2d.initial_states(), 0.01)
+    # the reactions' own numpy assembly over all dofs, with the history the evaluation made
+    ref = internal_forces(disc2d, u, ev.states).reshape(-1)[disc2d.free]
+    np.testing.assert_allclose(ev.residual, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
 
 
 # ------------------------------------------------------------------------------------- 3D

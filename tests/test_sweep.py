@@ -20,6 +20,7 @@ from sweep_fixtures import FAST, TINY
 
 from sim.design import load_space, param_material, space_from_dict
 from sim.errors import DesignError
+from sim.metrics import SAME_METRICS_AS, SOLVER_VERSION
 from sim.simulate import SimOptions
 from sim.sweep import record_key, run_sweep, sample_points
 
@@ -454,6 +455,23 @@ def test_segments_of_a_sample_merge_into_the_whole_sweep(tiny_space, tmp_path, m
         run_sweep(space, 6, tmp_path / "z", start=3, sampler="lhs", **kw)
     with pytest.raises(DesignError, match="merge of sweep folders"):
         run_sweep(space, 6, tmp_path / "ab", **kw)
+    # a segment of an earlier solver whose metrics are this one's joins; of another, not
+    config_a = json.loads((tmp_path / "a" / "config.json").read_text())
+    for version, joins in ((SAME_METRICS_AS[0], True), ("0.9", False)):
+        (tmp_path / "a" / "config.json").write_text(
+            json.dumps({**config_a, "solver_version": version})
+        )
+        out = tmp_path / f"mixed_{version}"
+        if joins:
+            merge_sweeps([tmp_path / "a", tmp_path / "b"], out)
+            config = json.loads((out / "config.json").read_text())
+            assert config["solver_version"] == SOLVER_VERSION
+            assert config["solver_versions"] == sorted([version, SOLVER_VERSION])
+            assert _table(out) == _table(tmp_path / "whole")
+        else:
+            with pytest.raises(DesignError, match="another solver version"):
+                merge_sweeps([tmp_path / "a", tmp_path / "b"], out)
+    (tmp_path / "a" / "config.json").write_text(json.dumps(config_a))
     with pytest.raises(DesignError, match="another --start"):
         run_sweep(space, 6, tmp_path / "b", start=2, **kw)
 

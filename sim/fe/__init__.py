@@ -1,11 +1,12 @@
 """The finite-element model: discretisations, contact and the Newton solver.
 
 - ``fe2d``: total-Lagrangian P2 plane-strain discretisation (``Discretization``);
-- ``fe3d``: its 3D sibling on Q2 hexahedra (``Discretization3D``; loads numba, so it is
-  imported on first use);
+- ``fe3d``: its 3D sibling on Q2 hexahedra (``Discretization3D``, imported on first use);
+- ``_assembly``: the residual and the lazily assembled tangent, shared by both;
 - ``_constitutive``: the viscoelastic stress and tangent of every layer, shared by both;
-- ``_kernels`` (compiled assembly loops), ``_pattern`` (the sparsity pattern), ``_linear``
-  (sparse direct solvers by name), ``_reactions`` (nodal forces and support reactions);
+- ``_kernels`` (compiled assembly loops, numba: imported on the first evaluation),
+  ``_pattern`` (the sparsity pattern), ``_linear`` (sparse direct solvers by name),
+  ``_reactions`` (nodal forces and support reactions);
 - ``contact``: rigid frictionless obstacles (plate, wedge, base) and their penalty contact;
 - ``solver``: ``Body`` (the committed state) and Newton with displacement or force control.
 """
@@ -47,7 +48,7 @@ __all__ = [
 
 
 def __getattr__(name: str):
-    if name == "Discretization3D":  # numba: only for a 3D simulation
+    if name == "Discretization3D":  # only for a 3D simulation
         from .fe3d import Discretization3D
 
         return Discretization3D

@@ -4,10 +4,10 @@ sibling of the plane-strain ``sim.fe.fe2d.Discretization``.
 The mesh is ``sim.geometry.mesh3d.PadMesh`` (the quarter pad x >= 0, z >= 0; base y = 0 bonded,
 u_x = 0 on x = 0 and u_z = 0 on z = 0; or, for an inclined plate, the half pad x >= 0 with
 u_x = 0 on x = 0 only); the reference element and its 3 x 3 x 3 Gauss rule are
-``sim.geometry._q2``. The constitutive step is the one the 2D discretisation uses
-(``sim.fe._constitutive.layer_stresses``: the same laws, Prony update and tangent, with 6-component
-``C``), and the residual and tangent are assembled by the compiled kernels ``sim.fe._kernels``
-into the fixed pattern of ``sim.fe._pattern``. The interface a ``sim.fe.solver.Body`` relies on is
+``sim.geometry._q2``. The residual and tangent are the 2D discretisation's
+(``sim.fe._assembly.KernelAssembly``: the same laws, Prony update and tangent, with 6-component
+``C``, and the same compiled kernels ``sim.fe._kernels``) into the fixed pattern of
+``sim.fe._pattern``. The interface a ``sim.fe.solver.Body`` relies on is
 the 2D one: ``n_nodes``, ``dim``, ``X``, ``fixed``, ``gmap``, ``n_free``, ``surface_nodes``,
 ``surface_weights()``, ``evaluate()``, ``initial_states()``, ``pattern_position()``,
 ``upper_matrix()``, ``upper_data``.
@@ -24,10 +24,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..geometry import _q2
-from . import _kernels
-from ._constitutive import LayerState, initial_states, layer_stresses
+from ._assembly import KernelAssembly
+from ._constitutive import LayerState, initial_states
 from ._pattern import PatternAccess, build_pattern
-from .fe2d import Evaluation
 
 if TYPE_CHECKING:
     from ..geometry import PadMesh
@@ -35,19 +34,13 @@ if TYPE_CHECKING:
 
 __all__ = ["Discretization3D"]
 
-VOIGT = _kernels.VOIGT[3]
 
-
-class Discretization3D(PatternAccess):
+class Discretization3D(KernelAssembly, PatternAccess):
     """Q2 hexahedra on a ``PadMesh`` with one material per layer.
 
     Elements are reordered so that each layer is a contiguous slice."""
 
     dim = 3
-    #: the material tangent is computed only when the tangent is assembled (``_tangent``):
-    #: with modified Newton most evaluations are never factorised, so asking for the tangent
-    #: costs nothing until it is used
-    lazy_tangent = True
     #: the obstacles' plane (horizontal, vertical coordinate): every obstacle is a cylinder
     #: along x, across the finger -- the wedge's edge runs across the pad
     obstacle_axes = (2, 1)
@@ -249,52 +242,6 @@ class Discretization3D(PatternAccess):
 
     def initial_states(self) -> list[LayerState]:
         return initial_states(self.materials, self.slices, self.n_q, 6)
-
-    # ------------------------------------------------------------------ kinematics
-    def deformation_gradient(self, u: np.ndarray) -> np.ndarray:
-        """F with shape (3, 3, n_el, n_q) for nodal displacements u (n_nodes, 3)."""
-        return _kernels.deformation_gradient(np.ascontiguousarray(u), self.conn, self.dN)
-
-    # ------------------------------------------------------------------ assembly
-    def evaluate(
-        self,
-        u: np.ndarray,
-        states: list[LayerState],
-        dt_s: float,
-        tangent: bool = True,
-        frozen_history: bool = False,
-    ) -> Evaluation:
-        """Internal-force residual (free dofs), tangent data on demand and trial history at
-        ``u``, as ``sim.fe.fe2d.Discretization.evaluate``."""
-        F = self.deformation_gradient(u)
-        with np.errstate(all="ignore"):
-            J = (
-                F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
-                - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
-                + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0])
-            )
-        min_J = float(J.min())
-        if not min_J > 1e-8:  # also catches NaN from an overflowing trial
-            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
-        C = _kernels.right_cauchy_green(F, VOIGT)
-        S, _, new_states = layer_stresses(
-            self.materials, self.slices, C, states, dt_s, False, frozen_history
-        )
-        if not np.all(np.isfinite(S)):
-            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
-        pat = self.pattern
-        r = _kernels.internal_forces(F, S, self.dN, self.w, VOIGT, pat.scatter_r, pat.n_free + 1)
-        args = (F, S, C, states, dt_s, frozen_history) if tangent else None
-        return Evaluation(r[:-1], args, new_states, ok=True, min_J=min_J, _assemble=self._tangent)
-
-    def _tangent(self, F, S, C, states, dt_s: float, frozen_history: bool) -> np.ndarray:
-        """The tangent's data, its material part computed here (``lazy_tangent``): the same
-        law on the same ``C`` and history as the residual's, so the same bits as computed
-        beside it. A non-finite material tangent gives non-finite data (the solve fails)."""
-        _, D, _ = layer_stresses(self.materials, self.slices, C, states, dt_s, True, frozen_history)
-        pat = self.pattern
-        data = _kernels.stiffness(F, S, D, self.dN, self.w, VOIGT, pat.scatter_K, pat.nnz + 1)
-        return data[:-1]
 
 
 def _extent(s: np.ndarray, p: np.ndarray) -> float:

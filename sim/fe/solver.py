@@ -709,7 +709,7 @@ class Body:
                 fresh = solver is None
             if fresh:
                 tangent = data()
-                if not np.all(np.isfinite(tangent)):  # a lazy material tangent (sim.fe.fe3d)
+                if not np.all(np.isfinite(tangent)):  # the material tangent, computed lazily
                     self.newton_iterations += it
                     return StepResult(False, it, "non-finite tangent")
                 solver = self._factor(tangent)
@@ -740,11 +740,6 @@ class Body:
                 self.newton_iterations += it
                 return StepResult(False, it, "line search failed")
             u, d, ev = accepted
-            if ev[1] is None:  # accepted a backtracked step: its tangent is still needed
-                ev = self._evaluate(u, control, d, dt, True, frozen_history)
-                if ev is None:  # the tangent's evaluation found an inverted element
-                    self.newton_iterations += it
-                    return StepResult(False, it, "inverted element")
         self.newton_iterations += opts.max_iterations
         return StepResult(False, opts.max_iterations, "no convergence")
 
@@ -767,8 +762,8 @@ class Body:
         potential (hyperelasticity, the Prony update within a step, penalty contact and the dead
         load on the plate are all variational; ``g0`` = g(0)). The full step is taken when it does
         not overshoot the minimum along the line by much; otherwise the root of g is bracketed
-        (regula falsi). Inverted elements halve the step. The first trial (the full step) is
-        evaluated with its tangent, the others without."""
+        (regula falsi). Inverted elements halve the step. Each trial's tangent is assembled only
+        if a factorisation asks for it (``sim.fe._assembly.Evaluation``)."""
         opts = self.options
         free = self.disc.free
         g_contact = None  # the contacts' part of g (``_contact_slope``), made once needed
@@ -779,8 +774,8 @@ class Body:
             u_try = u.copy()
             u_try.reshape(-1)[free] += alpha * du
             d_try = d + alpha * dd
-            with_tangent = bt == 0 or self.disc.lazy_tangent  # lazy: free until assembled
-            trial = self._evaluate(u_try, control, d_try, dt, with_tangent, frozen_history)
+            # the trial's tangent costs nothing until a factorisation assembles it
+            trial = self._evaluate(u_try, control, d_try, dt, True, frozen_history)
             if trial is None:
                 alpha = 0.5 * (a_lo + alpha)
                 continue

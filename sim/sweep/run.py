@@ -27,7 +27,7 @@ import numpy as np
 from ..design import DesignSpace, point_to_design, space_from_dict
 from ..errors import DesignError, SimulationError, check_seed
 from ..materials import Material, UserCatalogue, catalogue_from_tables, material_tables
-from ..metrics import SOLVER_VERSION
+from ..metrics import SOLVER_VERSION, same_metrics
 from ..options import SimOptions, apply_overrides, options_from_dict
 from ..pool import process_pool
 from ..provenance import check_folder_kind, json_safe, provenance
@@ -344,7 +344,10 @@ def run_sweep(
 
 def merge_sweeps(folders: Sequence[str | Path], out: str | Path) -> tuple[int, int]:
     """Join segments of one sample (``run_sweep(..., start=)``: the same space, seed, sampler,
-    options, solver version and catalogues) into the new sweep folder ``out``, whose table
+    options and catalogues, and the same solver version or versions whose metrics are this
+    solver's, ``sim.metrics.SAME_METRICS_AS``, then listed in ``solver_versions``: a segment
+    made before a solver change that kept the metrics joins the later ones, as a migrated
+    sweep would) into the new sweep folder ``out``, whose table
     ``fingertip train`` reads: config.json (``n`` the largest, ``start`` the smallest, the
     segments listed), meta.json, and the tables' rows by index (no records nor curves: train
     from it, resume the segments). Returns ``(rows, segments)``; a ``DesignError`` naming the
@@ -362,13 +365,20 @@ def merge_sweeps(folders: Sequence[str | Path], out: str | Path) -> tuple[int, i
         except (OSError, ValueError) as exc:
             raise DesignError("SWEEPS", f"{folder} is not a sweep folder ({exc})") from None
     first = configs[0]
+    versions = sorted({c.get("solver_version") for c in configs}, key=str)
+    mixed = len(versions) > 1 and all(same_metrics(v) for v in versions)
     for folder, config in zip(folders[1:], configs[1:], strict=True):
         for field, words in _FIELD_WORDS.items():
-            if field != "start" and config.get(field) != first.get(field):
+            if field == "start" or (field == "solver_version" and mixed):
+                continue
+            if config.get(field) != first.get(field):
                 raise DesignError("SWEEPS", f"{folder} is a sweep with {words} than {folders[0]}")
         if catalogue_hashes(config) != catalogue_hashes(first):
             raise DesignError("SWEEPS", f"{folder} has other --catalogue files than {folders[0]}")
     merged = {k: v for k, v in first.items() if k != "start"}
+    if mixed:  # versions whose metrics are this solver's (SAME_METRICS_AS): a table of this one
+        merged["solver_version"] = SOLVER_VERSION
+        merged["solver_versions"] = versions
     merged["n"] = max(c["n"] for c in configs)
     start = min(c.get("start", 0) for c in configs)
     if start:
