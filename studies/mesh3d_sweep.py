@@ -15,18 +15,19 @@ matched by their index in the sample. Printed per metric, over the designs where
 give it: the median, 90th percentile and largest relative difference (coarse - fine) / fine,
 and its median (the bias); the designs whose validity, settling or status differ, with the
 limit that decided; the largest compressive strain's ratio (the validity limits are read from
-it); and the FE wall time of each mesh (seconds of the workers, as the sweep ran them).
+it); and the FE CPU time of each mesh (the workers' seconds the records hold).
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import json
 import math
 import statistics
 from pathlib import Path
 
-from sim.metrics import METRICS_3D
+from sim.metrics import METRICS, METRICS_3D
 from sim.sweep import open_table, read_config, table_path
 
 STRAINS = ("tapping_max_compressive_log_strain", "plate_max_compressive_log_strain")
@@ -39,6 +40,18 @@ def rows(folders: list[Path]) -> dict[int, dict[str, str]]:
         with open_table(table_path(folder)) as f:
             for row in csv.DictReader(f):
                 out[int(row["index"])] = row
+    return out
+
+
+def cpu_seconds(folders: list[Path]) -> dict[str, float]:
+    """Each record's worker CPU seconds by key (the records' ``cpu_time_s``; none for a kept
+    segment, which holds its table only)."""
+    out = {}
+    for folder in folders:
+        for path in (folder / "records").glob("*.json"):
+            record = json.loads(path.read_text())
+            if "cpu_time_s" in record:
+                out[record["key"]] = float(record["cpu_time_s"])
     return out
 
 
@@ -71,7 +84,7 @@ def main() -> None:
 
     print("| metric | designs | median abs | 90th pct abs | largest abs | median (bias) |")
     print("|---|---|---|---|---|---|")
-    for m in METRICS_3D:
+    for m in (*METRICS, *METRICS_3D):
         diffs = []
         for i in both:
             a, b = number(fine[i].get(m)), number(coarse[i].get(m))
@@ -114,14 +127,20 @@ def main() -> None:
                 )
     print(f"  {changed} in all")
 
-    for name, table in (("fine", fine), ("coarse", coarse)):
-        wall = [number(table[i].get("wall_time_s")) for i in both]
-        wall = [w for w in wall if math.isfinite(w)]
-        if wall:
+    for name, table, folders in (("fine", fine, args.fine), ("coarse", coarse, args.coarse)):
+        cpu = cpu_seconds(folders)
+        seconds = [cpu.get(table[i]["key"], math.nan) for i in both]
+        seconds = [s for s in seconds if math.isfinite(s)]
+        if seconds:
+            mean, median = statistics.fmean(seconds), statistics.median(seconds)
             print(
-                f"FE wall time, {name}: mean {statistics.fmean(wall):.1f} s, "
-                f"median {statistics.median(wall):.1f} s, max {max(wall):.1f} s"
+                f"FE CPU time, {name} ({len(seconds)} designs): mean {mean:.1f} s, "
+                f"median {median:.1f} s, max {max(seconds):.1f} s"
             )
+    for i in both:
+        for name, table in (("fine", fine), ("coarse", coarse)):
+            if table[i].get("status") == "failed":
+                print(f"design {i} failed on the {name} mesh: {table[i].get('reason')}")
 
 
 if __name__ == "__main__":
