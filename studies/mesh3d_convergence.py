@@ -3,13 +3,17 @@
 
     python studies/mesh3d_convergence.py                 # every level, resumes
     python studies/mesh3d_convergence.py --levels 1 1.41  # a quick look
+    python studies/mesh3d_convergence.py --wedge --levels 1 1.41 2   # the wedge instead
 
 Each design is simulated on the mesh family ``BASE.refined(f)`` (every target size / f) with
 the elastic tap (one tap to 5 N) and the plate; the validity stop is off so every level gives
 every metric. Per metric the script fits err(h) = C h^p to the differences between successive
 levels (``np.polyfit`` on the logs), extrapolates (Richardson) and prints each level's error
 against the extrapolated value: the coarsest level within 1 % is the one to simulate with.
-Results are written after each run, so an interrupted study resumes where it stopped."""
+Results are written after each run, so an interrupted study resumes where it stopped.
+``--wedge`` runs the wedge (its default protocol: the edge pressed 1 mm in 1 s, held 100 s)
+instead of the tap and the plate, and reports the wedge's metrics (its runs are kept in the
+same file under ``name@f:wedge``)."""
 
 from __future__ import annotations
 
@@ -36,6 +40,13 @@ METRICS = (
     "contact_area_at_4N_mm2",
     "plate_force_at_1mm_N",
 )
+#: the wedge's metrics (``--wedge``)
+WEDGE_METRICS = (
+    "wedge_peak_force_N",
+    "wedge_force_at_100s_N",
+    "profile_1s_area_2mm_mm2",
+    "profile_1s_defl_at_1mm_mm",
+)
 #: the main job's gel answer, elastic (its long-term Ogden law, docs/fingertip_3d.md), and the
 #: paper's GLS40 silicone over the reference outline, elastic: a soft, nearly incompressible
 #: pad strained to ~0.6 and a stiffer one
@@ -52,24 +63,27 @@ DESIGNS = {
 }
 
 
-def run(levels: tuple[float, ...]) -> dict:
+def run(levels: tuple[float, ...], wedge: bool = False) -> dict:
     done = json.loads(OUT.read_text()) if OUT.exists() else {}
+    protocols, metrics, tag = (
+        (("wedge",), WEDGE_METRICS, ":wedge") if wedge else (("tapping", "plate"), METRICS, "")
+    )
     for name, table in DESIGNS.items():
         design = design_from_dict(table)
         for f in levels:
-            key = f"{name}@{f:g}"
+            key = f"{name}@{f:g}{tag}"
             if key in done:
                 continue
             options = SimOptions(
                 model=ModelOptions("3d"), mesh3d=BASE.refined(f)
             ).without_validity_stop()
             t0 = time.perf_counter()
-            res = simulate(design, ("tapping", "plate"), options)
+            res = simulate(design, protocols, options)
             done[key] = {
                 "design": name,
                 "refine": f,
                 "dofs": res.n_dofs,
-                "metrics": {m: res.metrics.get(m) for m in METRICS},
+                "metrics": {m: res.metrics.get(m) for m in metrics},
                 "factorizations": sum(p.get("factorizations", 0) for p in res.protocols.values()),
                 "wall_s": time.perf_counter() - t0,
                 "failures": [fl.__dict__ for fl in res.failures],
@@ -79,14 +93,18 @@ def run(levels: tuple[float, ...]) -> dict:
     return done
 
 
-def report(done: dict) -> None:
+def report(done: dict, wedge: bool = False) -> None:
+    metrics = WEDGE_METRICS if wedge else METRICS
     for name in DESIGNS:
-        rows = sorted((v for v in done.values() if v["design"] == name), key=lambda v: v["refine"])
+        rows = sorted(
+            (v for k, v in done.items() if v["design"] == name and k.endswith(":wedge") == wedge),
+            key=lambda v: v["refine"],
+        )
         if len(rows) < 3:
             continue
         print(f"\n{name}: dofs {[r['dofs'] for r in rows]}")
         h = 1.0 / np.array([r["refine"] for r in rows])
-        for m in METRICS:
+        for m in metrics:
             y = np.array([r["metrics"][m] or np.nan for r in rows])
             diff = np.abs(np.diff(y))
             p = np.polyfit(np.log(h[1:]), np.log(diff), 1)[0] if np.all(diff > 0) else np.nan
@@ -99,5 +117,6 @@ def report(done: dict) -> None:
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--levels", type=float, nargs="+", default=list(LEVELS))
+    ap.add_argument("--wedge", action="store_true", help="the wedge instead of tap and plate")
     args = ap.parse_args()
-    report(run(tuple(args.levels)))
+    report(run(tuple(args.levels), args.wedge), args.wedge)
