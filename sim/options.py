@@ -101,10 +101,16 @@ class SimOptions:
         keys they were stored under before the 3D model existed), a 3D run's without the 2D
         ``mesh``. ``options_from_dict`` gives the defaults to the sections left out. The 3D
         model's ``model.inclination_deg`` is there only when it is not 0 (so the records of
-        the flat plate keep the keys they had before the option existed)."""
+        the flat plate keep the keys they had before the option existed), and the wedge's
+        band (``mesh3d.edge_h_mm``, ``edge_grading``) only when not at their defaults."""
         d = dataclasses.asdict(self)
         if "model" in d and d["model"]["inclination_deg"] == 0.0:
             del d["model"]["inclination_deg"]
+        # the wedge's band, only when set: the records made before it keep their keys
+        default = MeshOptions3D()
+        for name in ("edge_h_mm", "edge_grading"):
+            if d["mesh3d"][name] == getattr(default, name):
+                del d["mesh3d"][name]
         return {k: v for k, v in d.items() if k not in _UNREAD[self.dimension]}
 
     def with_steps_scaled(self, factor: float) -> SimOptions:

@@ -79,6 +79,9 @@ class SimResult:
     validity_options: ValidityOptions = ValidityOptions()
     fields: dict[str, np.ndarray] = field(default_factory=dict, repr=False, compare=False)
     discretization: Any = field(default=None, repr=False, compare=False)
+    #: the discretisation of a kept field made on another mesh than ``discretization`` (the
+    #: wedge's, when the 3D mesh has a band along its edge), by field name
+    field_discretizations: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
     @property
     def ok(self) -> bool:
@@ -207,6 +210,8 @@ def _simulate(
             "inclined; run --protocol tapping or --protocol plate",
         )
     disc = discretize(design, options)
+    # the wedge on its own mesh when the 3D mesh has a band along its edge (mesh3d.edge_h_mm)
+    own_wedge_mesh = options.dimension == "3d" and options.mesh3d.edge_h_mm > 0.0
     metrics: dict[str, float | None] = {
         name: None
         for name, (proto, _, _) in metric_registry(options.dimension).items()
@@ -216,8 +221,10 @@ def _simulate(
     figures: dict[str, dict[str, Any]] = {}
     failures: list[ProtocolFailure] = []
     fields: dict[str, np.ndarray] = {}
+    field_discretizations: dict[str, Any] = {}
     for name in protocols:
-        body, outcome = _run(disc, REGISTRY[name], options)
+        on = discretize(design, options, "wedge") if name == "wedge" and own_wedge_mesh else disc
+        body, outcome = _run(on, REGISTRY[name], options)
         if isinstance(outcome, ProtocolFailure):
             failures.append(outcome)
             figures[name] = {"newton_iterations": body.newton_iterations, "failed": True}
@@ -228,6 +235,8 @@ def _simulate(
         if keep_fields:
             fields[name] = body.u.copy()
             fields.update(outcome.fields)
+            if on is not disc:
+                field_discretizations.update(dict.fromkeys((name, *outcome.fields), on))
     return SimResult(
         design=design,
         metrics=metrics,
@@ -239,15 +248,17 @@ def _simulate(
         validity_options=options.validity,
         fields=fields,
         discretization=disc if keep_fields else None,
+        field_discretizations=field_discretizations,
     )
 
 
-def discretize(design: Design, options: SimOptions = SimOptions()) -> Any:
+def discretize(design: Design, options: SimOptions = SimOptions(), protocol: str = "") -> Any:
     """The design's discretisation for the model of ``options``: the 2D section
     (``sim.fe.fe2d.Discretization`` on ``sim.geometry.mesh2d``) or the 3D quarter pad
     (``sim.fe.fe3d.Discretization3D`` on ``sim.geometry.mesh3d``; the half pad, graded for
     its first touch, for an inclined plate: ``model.inclination_deg``); ``DesignError`` when
-    the layers leave no core in the pad."""
+    the layers leave no core in the pad. In 3D the band along the wedge's edge
+    (``mesh3d.edge_h_mm``) is meshed for ``protocol`` "wedge" only."""
     if options.dimension == "3d":
         from .fe import Discretization3D
         from .geometry import build_pad_mesh
@@ -255,7 +266,8 @@ def discretize(design: Design, options: SimOptions = SimOptions()) -> Any:
         pad = design.pad
         pad.check_layers(design.thicknesses_mm)
         inclination = options.model.inclination_deg
-        pmesh = build_pad_mesh(pad, design.thicknesses_mm, options.mesh3d, inclination)
+        mesh = options.mesh3d if protocol == "wedge" else options.mesh3d.without_edge()
+        pmesh = build_pad_mesh(pad, design.thicknesses_mm, mesh, inclination)
         return Discretization3D(pmesh, design.materials)
     from .geometry import build_mesh
 
@@ -299,5 +311,6 @@ def _figures(res: ProtocolResult, body: Body) -> dict[str, Any]:
         "evaluations": body.evaluations,
         "timings_s": dict(body.timings),
         "wall_time_s": res.wall_time_s,
+        "n_dofs": body.disc.n_free,  # the wedge's own mesh may differ (mesh3d.edge_h_mm)
         **res.info,
     }

@@ -4,6 +4,7 @@
     python studies/mesh3d_convergence.py                 # every level, resumes
     python studies/mesh3d_convergence.py --levels 1 1.41  # a quick look
     python studies/mesh3d_convergence.py --wedge --levels 1 1.41 2   # the wedge instead
+    python studies/mesh3d_convergence.py --wedge --edge-h 0.3 --levels 1 1.41 2  # with a band
 
 Each design is simulated on the mesh family ``BASE.refined(f)`` (every target size / f) with
 the elastic tap (one tap to 5 N) and the plate; the validity stop is off so every level gives
@@ -13,11 +14,14 @@ against the extrapolated value: the coarsest level within 1 % is the one to simu
 Results are written after each run, so an interrupted study resumes where it stopped.
 ``--wedge`` runs the wedge (its default protocol: the edge pressed 1 mm in 1 s, held 100 s)
 instead of the tap and the plate, and reports the wedge's metrics (its runs are kept in the
-same file under ``name@f:wedge``)."""
+same file under ``name@f:wedge``); ``--edge-h H`` refines the family's wedge mesh in a band
+along the edge (``MeshOptions3D.edge_h_mm`` = H at f = 1, divided by f with every other size;
+kept under ``name@f:wedge:edgeH``)."""
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import time
 from pathlib import Path
@@ -63,11 +67,15 @@ DESIGNS = {
 }
 
 
-def run(levels: tuple[float, ...], wedge: bool = False) -> dict:
+def run(levels: tuple[float, ...], wedge: bool = False, edge_h: float = 0.0) -> dict:
     done = json.loads(OUT.read_text()) if OUT.exists() else {}
     protocols, metrics, tag = (
         (("wedge",), WEDGE_METRICS, ":wedge") if wedge else (("tapping", "plate"), METRICS, "")
     )
+    base = BASE
+    if edge_h > 0.0:
+        base = dataclasses.replace(BASE, edge_h_mm=edge_h)
+        tag += f":edge{edge_h:g}"
     for name, table in DESIGNS.items():
         design = design_from_dict(table)
         for f in levels:
@@ -75,14 +83,14 @@ def run(levels: tuple[float, ...], wedge: bool = False) -> dict:
             if key in done:
                 continue
             options = SimOptions(
-                model=ModelOptions("3d"), mesh3d=BASE.refined(f)
+                model=ModelOptions("3d"), mesh3d=base.refined(f)
             ).without_validity_stop()
             t0 = time.perf_counter()
             res = simulate(design, protocols, options)
             done[key] = {
                 "design": name,
                 "refine": f,
-                "dofs": res.n_dofs,
+                "dofs": max(p.get("n_dofs", res.n_dofs) for p in res.protocols.values()),
                 "metrics": {m: res.metrics.get(m) for m in metrics},
                 "factorizations": sum(p.get("factorizations", 0) for p in res.protocols.values()),
                 "wall_s": time.perf_counter() - t0,
@@ -93,11 +101,16 @@ def run(levels: tuple[float, ...], wedge: bool = False) -> dict:
     return done
 
 
-def report(done: dict, wedge: bool = False) -> None:
+def report(done: dict, wedge: bool = False, edge_h: float = 0.0) -> None:
     metrics = WEDGE_METRICS if wedge else METRICS
+    tag = (":wedge" if wedge else "") + (f":edge{edge_h:g}" if edge_h > 0.0 else "")
     for name in DESIGNS:
         rows = sorted(
-            (v for k, v in done.items() if v["design"] == name and k.endswith(":wedge") == wedge),
+            (
+                v
+                for k, v in done.items()
+                if v["design"] == name and k.partition("@")[2].lstrip("0123456789.") == tag
+            ),
             key=lambda v: v["refine"],
         )
         if len(rows) < 3:
@@ -118,5 +131,6 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--levels", type=float, nargs="+", default=list(LEVELS))
     ap.add_argument("--wedge", action="store_true", help="the wedge instead of tap and plate")
+    ap.add_argument("--edge-h", type=float, default=0.0, help="the wedge's band at f = 1 (mm)")
     args = ap.parse_args()
-    report(run(tuple(args.levels), args.wedge), args.wedge)
+    report(run(tuple(args.levels), args.wedge, args.edge_h), args.wedge, args.edge_h)

@@ -85,6 +85,34 @@ def test_plate_and_wedge_run_in_3d():
     assert res.validity["protocols"]["plate"]["contact_length_at_peak_mm"] > 0
 
 
+def test_the_wedge_runs_on_its_own_mesh_refined_along_its_edge(tmp_path):
+    """``mesh3d.edge_h_mm``: the wedge's mesh has a band along its edge (z = 0, across the
+    pad) and below the surface, the other protocols' mesh has none; a kept wedge field is
+    written on its own mesh. The band is in the options' dict only when set, so the records
+    made before it keep their keys."""
+    from sim.geometry import build_pad_mesh
+    from sim.output.result import write_vtu
+
+    band = dataclasses.replace(OPTS_3D, mesh3d=dataclasses.replace(COARSE, edge_h_mm=0.3))
+    assert "edge_h_mm" not in OPTS_3D.as_dict()["mesh3d"]
+    assert band.as_dict()["mesh3d"]["edge_h_mm"] == 0.3
+    assert options_from_dict(band.as_dict()) == dataclasses.replace(band, mesh=SimOptions().mesh)
+    design = homogeneous_design("silicone_gls40")
+    wedge_disc = discretize(design, band, "wedge")
+    other = discretize(design, band)
+    assert other.n_free == discretize(design, OPTS_3D).n_free < wedge_disc.n_free
+    # the band: the first element along z on the top at x = 0 about edge_h, not h_apex (1 mm)
+    pmesh = build_pad_mesh(design.pad, (), band.mesh3d)
+    top = pmesh.nodes[(pmesh.nodes[:, 0] == 0.0)]
+    z = np.unique(np.round(top[np.isclose(top[:, 1], top[:, 1].max(), atol=0.3), 2], 9))
+    assert 0.25 < 2 * z[1] < 0.4  # z[1]: the first element's midside node
+    res = simulate(design, ("wedge",), band, keep_fields=True)
+    assert res.ok, res.failures
+    assert res.protocols["wedge"]["n_dofs"] == wedge_disc.n_free > res.n_dofs == other.n_free
+    assert res.field_discretizations["wedge"].n_free == wedge_disc.n_free
+    assert [p.name for p in write_vtu(res, tmp_path)] == ["deformed_wedge.vtu"]
+
+
 def test_the_options_dict_holds_what_the_model_reads():
     """A 2D run's options dict is the one stored before the 3D model existed (no ``model`` or
     ``mesh3d``: stored 2D records keep their keys); a 3D run's has no 2D ``mesh``; both read

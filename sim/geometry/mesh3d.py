@@ -60,7 +60,7 @@ around the apex get the finest elements.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -117,12 +117,14 @@ class MeshOptions3D:
             core's surface along its ray (the box's shape: the core's semi-axes less 0.6 of the
             least). Above about 0.6 the core's straight segments fold on long pads (m = 4,
             c = 20 mm: negative Jacobians at 0.7).
-
-    The o-grid is structured: the inner box has as many elements along each axis as the
-    surface distributions, so it is finely divided too. The field defaults (not the
-    simulations' ``DEFAULT_MESH_3D``, which is coarser) mesh the reference pad
-    (one layer, c = 11 mm) with 1448 elements, 12 967 nodes (38 901 dofs); ``refined(2)`` with
-    11 216 elements, 94 995 nodes (284 985 dofs).
+        edge_h_mm: the wedge's mesh (``sim.simulate`` builds it for the wedge protocol only;
+            0, the default: the wedge runs on the mesh of the other protocols): along the
+            finger (the z distribution) and through the depth below the surface, the size is
+            at most ``edge_h_mm + edge_grading * |z|`` and ``edge_h_mm + edge_grading * d``,
+            so that the band along the wedge's edge (z = 0, across the pad) and its first
+            millimetres of depth, where the flanks wrap the edge, are finely meshed. The
+            other distributions are not refined (the edge is the same at every x).
+        edge_grading: growth of that size per mm away from the edge (and from the surface).
     """
 
     h_apex_mm: float = 0.3
@@ -133,9 +135,11 @@ class MeshOptions3D:
     layer_divisions: int = 2
     around_divisions: int = 2
     box_fraction: float = 0.5
+    edge_h_mm: float = 0.0
+    edge_grading: float = 0.3
 
     def __post_init__(self) -> None:
-        positive = ("h_apex_mm", "h_contact_mm", "grading", "h_max_mm")
+        positive = ("h_apex_mm", "h_contact_mm", "grading", "h_max_mm", "edge_grading")
         for name in positive:
             if not getattr(self, name) > 0:
                 raise ValueError(f"MeshOptions3D.{name} must be > 0, got {getattr(self, name)}")
@@ -143,12 +147,18 @@ class MeshOptions3D:
             raise ValueError(f"contact_fraction must be in (0, 1], got {self.contact_fraction}")
         if not 0 < self.box_fraction < 1:
             raise ValueError(f"box_fraction must be in (0, 1), got {self.box_fraction}")
+        if not self.edge_h_mm >= 0:
+            raise ValueError(f"MeshOptions3D.edge_h_mm must be >= 0, got {self.edge_h_mm}")
         for name in ("layer_divisions", "around_divisions"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise ValueError(f"MeshOptions3D.{name} must be an int >= 1")
 
     def size(
-        self, points: np.ndarray, geometry: PadGeometry, inclination_deg: float = 0.0
+        self,
+        points: np.ndarray,
+        geometry: PadGeometry,
+        inclination_deg: float = 0.0,
+        along_z: bool = False,
     ) -> np.ndarray:
         """Target size h (...,) in mm at surface ``points`` (..., 3) of ``geometry``.
 
@@ -166,14 +176,26 @@ class MeshOptions3D:
             dz = np.maximum(p[..., 2] - self.contact_fraction * c, 0.0)
         dx = np.maximum(p[..., 0] - self.contact_fraction * a, 0.0)
         h = np.minimum(self.h_max_mm, self.h_apex_mm + self.grading * d_apex)
-        return np.minimum(h, self.h_contact_mm + self.grading * np.sqrt(dx * dx + dz * dz))
+        h = np.minimum(h, self.h_contact_mm + self.grading * np.sqrt(dx * dx + dz * dz))
+        if along_z and self.edge_h_mm > 0.0:  # the wedge's band (the z distribution only)
+            h = np.minimum(h, self.edge_h_mm + self.edge_grading * np.abs(p[..., 2]))
+        return h
 
     def depth_size(self, depth_mm: np.ndarray) -> np.ndarray:
-        """Target size h (...,) in mm at ``depth_mm`` below the apex."""
-        return np.minimum(self.h_max_mm, self.h_apex_mm + self.grading * np.asarray(depth_mm))
+        """Target size h (...,) in mm at ``depth_mm`` below the apex (and below the wedge's
+        edge, ``edge_h_mm``)."""
+        depth = np.asarray(depth_mm)
+        h = np.minimum(self.h_max_mm, self.h_apex_mm + self.grading * depth)
+        if self.edge_h_mm > 0.0:
+            h = np.minimum(h, self.edge_h_mm + self.edge_grading * depth)
+        return h
+
+    def without_edge(self) -> MeshOptions3D:
+        """The mesh of the protocols other than the wedge (no band along its edge)."""
+        return replace(self, edge_h_mm=0.0)
 
     def refined(self, factor: float) -> MeshOptions3D:
-        """All sizes and the grading divided by ``factor``, the minimum counts multiplied by it
+        """All sizes and the gradings divided by ``factor``, the minimum counts multiplied by it
         (rounded up): the target size h / factor everywhere (for convergence studies)."""
         return MeshOptions3D(
             self.h_apex_mm / factor,
@@ -184,6 +206,10 @@ class MeshOptions3D:
             math.ceil(self.layer_divisions * factor - 1e-9),
             math.ceil(self.around_divisions * factor - 1e-9),
             self.box_fraction,
+            self.edge_h_mm / factor,
+            # without a band its grading means nothing and keeps its default (the options'
+            # dict leaves both out then, so that the records keep their keys)
+            self.edge_grading / factor if self.edge_h_mm > 0.0 else self.edge_grading,
         )
 
 
@@ -575,7 +601,8 @@ def _tangential(
     X = geometry.surface_points(np.stack(lines))  # (L, K + 1, 3) on the outer surface
     seg = np.linalg.norm(np.diff(X, axis=1), axis=-1)
     mid = 0.5 * (X[:, 1:] + X[:, :-1])
-    density = np.max(seg / options.size(mid, geometry, inclination_deg), axis=0)
+    size = options.size(mid, geometry, inclination_deg, along_z=axis == 2)
+    density = np.max(seg / size, axis=0)
     return _equidistribute(t, density, options.around_divisions)
 
 

@@ -133,18 +133,23 @@ def write_vtu(result: SimResult, folder: Path, whole_pad: bool = True) -> list[P
     opening the file expects to see; ``whole_pad=False``: the quarter alone."""
     import meshio
 
-    disc = result.discretization
-    if disc is None:
+    if result.discretization is None:
         return []
-    if disc.dim == 3:
-        cell_type, cells, layer = "hexahedron27", disc.conn, disc.layer
-    else:  # (n_el, 6): 3 vertices then midsides of edges 01, 12, 02
-        cell_type, cells = "triangle6", disc.edofs_scalar
-        layer = np.concatenate([np.full(sl.stop - sl.start, k) for k, sl in enumerate(disc.slices)])
-    layer = np.asarray(layer, dtype=np.int32)
-    mirror = _mirror_map(disc, cells) if disc.dim == 3 and whole_pad else None
-    paths = []
+    paths, mirrors = [], {}
     for name, u in result.fields.items():
+        # the wedge's field on its own mesh (a band along its edge) is written on that mesh
+        disc = result.field_discretizations.get(name, result.discretization)
+        if disc.dim == 3:
+            cell_type, cells, layer = "hexahedron27", disc.conn, disc.layer
+        else:  # (n_el, 6): 3 vertices then midsides of edges 01, 12, 02
+            cell_type, cells = "triangle6", disc.edofs_scalar
+            layer = np.concatenate(
+                [np.full(sl.stop - sl.start, k) for k, sl in enumerate(disc.slices)]
+            )
+        layer = np.asarray(layer, dtype=np.int32)
+        if id(disc) not in mirrors:
+            mirrors[id(disc)] = _mirror_map(disc, cells) if disc.dim == 3 and whole_pad else None
+        mirror = mirrors[id(disc)]
         F = disc.deformation_gradient(u)
         cell_data = {
             "layer": layer,
