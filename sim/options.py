@@ -245,7 +245,8 @@ def _parse(name: str, raw: Any, default: Any) -> Any:
             raise DesignError(name, f"must be finite, got {raw!r}")
         if name == "model.inclination_deg":  # an angle: ModelOptions checks its range
             return value
-        zero_ok = name.endswith(("settle_tol", "residual_tol", "stall_window"))  # 0: off
+        # 0: off (mesh3d.edge_h_mm: no band along the wedge's edge, the default)
+        zero_ok = name.endswith(("settle_tol", "residual_tol", "stall_window", "edge_h_mm"))
         if value < 0 or (value == 0 and not zero_ok):
-            raise DesignError(name, f"must be > 0, got {raw!r}")
+            raise DesignError(name, f"must be {'>=' if zero_ok else '>'} 0, got {raw!r}")
     return value
