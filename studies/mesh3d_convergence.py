@@ -4,7 +4,6 @@
     python studies/mesh3d_convergence.py                 # every level, resumes
     python studies/mesh3d_convergence.py --levels 1 1.41  # a quick look
     python studies/mesh3d_convergence.py --wedge --levels 1 1.41 2   # the wedge instead
-    python studies/mesh3d_convergence.py --wedge --edge-h 0.3 --levels 1 1.41 2  # with a band
 
 Each design is simulated on the mesh family ``BASE.refined(f)`` (every target size / f) with
 the elastic tap (one tap to 5 N) and the plate; the validity stop is off so every level gives
@@ -14,14 +13,12 @@ against the extrapolated value: the coarsest level within 1 % is the one to simu
 Results are written after each run, so an interrupted study resumes where it stopped.
 ``--wedge`` runs the wedge (its default protocol: the edge pressed 1 mm in 1 s, held 100 s)
 instead of the tap and the plate, and reports the wedge's metrics (its runs are kept in the
-same file under ``name@f:wedge``); ``--edge-h H`` refines the family's wedge mesh in a band
-along the edge (``MeshOptions3D.edge_h_mm`` = H at f = 1, divided by f with every other size;
-kept under ``name@f:wedge:edgeH``)."""
+same file under ``name@f:wedge``; the wedge refined along its edge alone:
+``studies/wedge3d_band.py``)."""
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import time
 from pathlib import Path
@@ -67,15 +64,11 @@ DESIGNS = {
 }
 
 
-def run(levels: tuple[float, ...], wedge: bool = False, edge_h: float = 0.0) -> dict:
+def run(levels: tuple[float, ...], wedge: bool = False) -> dict:
     done = json.loads(OUT.read_text()) if OUT.exists() else {}
     protocols, metrics, tag = (
         (("wedge",), WEDGE_METRICS, ":wedge") if wedge else (("tapping", "plate"), METRICS, "")
     )
-    base = BASE
-    if edge_h > 0.0:
-        base = dataclasses.replace(BASE, edge_h_mm=edge_h)
-        tag += f":edge{edge_h:g}"
     for name, table in DESIGNS.items():
         design = design_from_dict(table)
         for f in levels:
@@ -83,7 +76,7 @@ def run(levels: tuple[float, ...], wedge: bool = False, edge_h: float = 0.0) -> 
             if key in done:
                 continue
             options = SimOptions(
-                model=ModelOptions("3d"), mesh3d=base.refined(f)
+                model=ModelOptions("3d"), mesh3d=BASE.refined(f)
             ).without_validity_stop()
             t0 = time.perf_counter()
             res = simulate(design, protocols, options)
@@ -101,16 +94,22 @@ def run(levels: tuple[float, ...], wedge: bool = False, edge_h: float = 0.0) -> 
     return done
 
 
-def report(done: dict, wedge: bool = False, edge_h: float = 0.0) -> None:
+def richardson(h: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """``(p, y_inf)``: the rate of err(h) = C h^p fitted to the differences between successive
+    values ``y`` at the sizes ``h`` (coarsest first; ``np.polyfit`` on the logs) and the value
+    extrapolated from the last two (Richardson); NaN where no positive rate fits."""
+    diff = np.abs(np.diff(y))
+    p = float(np.polyfit(np.log(h[1:]), np.log(diff), 1)[0]) if np.all(diff > 0) else np.nan
+    if not p > 0:
+        return p, np.nan
+    return p, float(y[-1] + (y[-1] - y[-2]) / ((h[-2] / h[-1]) ** p - 1.0))
+
+
+def report(done: dict, wedge: bool = False) -> None:
     metrics = WEDGE_METRICS if wedge else METRICS
-    tag = (":wedge" if wedge else "") + (f":edge{edge_h:g}" if edge_h > 0.0 else "")
     for name in DESIGNS:
         rows = sorted(
-            (
-                v
-                for k, v in done.items()
-                if v["design"] == name and k.partition("@")[2].lstrip("0123456789.") == tag
-            ),
+            (v for k, v in done.items() if v["design"] == name and k.endswith(":wedge") == wedge),
             key=lambda v: v["refine"],
         )
         if len(rows) < 3:
@@ -119,11 +118,8 @@ def report(done: dict, wedge: bool = False, edge_h: float = 0.0) -> None:
         h = 1.0 / np.array([r["refine"] for r in rows])
         for m in metrics:
             y = np.array([r["metrics"][m] or np.nan for r in rows])
-            diff = np.abs(np.diff(y))
-            p = np.polyfit(np.log(h[1:]), np.log(diff), 1)[0] if np.all(diff > 0) else np.nan
-            ratio = h[-2] / h[-1]
-            best = y[-1] + (y[-1] - y[-2]) / (ratio**p - 1.0) if np.isfinite(p) else y[-1]
-            errs = ", ".join(f"{100 * (v / best - 1):+.2f}%" for v in y)
+            p, best = richardson(h, y)
+            errs = ", ".join(f"{100 * (v / best - 1):+.2f}%" for v in y) if best == best else "-"
             print(f"  {m:26s} rate {p:4.2f}  extrapolated {best:.4g}  errors {errs}")
 
 
@@ -131,6 +127,5 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--levels", type=float, nargs="+", default=list(LEVELS))
     ap.add_argument("--wedge", action="store_true", help="the wedge instead of tap and plate")
-    ap.add_argument("--edge-h", type=float, default=0.0, help="the wedge's band at f = 1 (mm)")
     args = ap.parse_args()
-    report(run(tuple(args.levels), args.wedge, args.edge_h), args.wedge, args.edge_h)
+    report(run(tuple(args.levels), args.wedge), args.wedge)

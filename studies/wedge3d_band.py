@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from mesh3d_convergence import DESIGNS, WEDGE_METRICS
+from mesh3d_convergence import DESIGNS, WEDGE_METRICS, richardson
 
 from sim.design import design_from_dict
 from sim.geometry import DEFAULT_MESH_3D
@@ -77,16 +77,9 @@ def report(done: dict) -> None:
         h = np.array([r["edge_h_mm"] for r in rows])
         for m in WEDGE_METRICS:
             y = np.array([r["metrics"][m] or np.nan for r in rows])
-            diff = np.abs(np.diff(y))
-            p = np.polyfit(np.log(h[1:]), np.log(diff), 1)[0] if np.all(diff > 0) else np.nan
-            ratio = h[-2] / h[-1]
-            best = (
-                y[-1] + (y[-1] - y[-2]) / (ratio**p - 1.0) if np.isfinite(p) and p > 0 else np.nan
-            )
+            p, best = richardson(h, y)
             values = ", ".join(f"{v:.4g}" for v in y)
-            errs = (
-                ", ".join(f"{100 * (v / best - 1):+.2f}%" for v in y) if np.isfinite(best) else "-"
-            )
+            errs = ", ".join(f"{100 * (v / best - 1):+.2f}%" for v in y) if best == best else "-"
             print(f"  {m:26s} {values}  rate {p:4.2f}  extrapolated {best:.4g}  errors {errs}")
 
 
