@@ -136,6 +136,9 @@ class MeshOptions3D:
     around_divisions: int = 2
     box_fraction: float = 0.5
     edge_h_mm: float = 0.0
+    #: the 2D model's growth away from its finely meshed apex
+    #: (``sim.geometry.mesh2d.MeshOptions.grading``); studies/wedge3d_band.py measured a
+    #: narrower band, 0.5, to keep its dofs down (docs/model_3d.md, "Mesh convergence")
     edge_grading: float = 0.3
 
     def __post_init__(self) -> None:
