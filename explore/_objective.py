@@ -44,11 +44,13 @@ __all__ = [
 
 WEDGE_REFERENCE_N = 2.35  # silicone GLS 40 on the reference geometry (docs/validation.md)
 #: The same reference for the 3D model, whose wedge force is the whole pad's (N): silicone GLS 40
-#: on the reference outline as the default pad (c = 11 mm, m = 2), the simulations' mesh,
-#: `fingertip simulate --material silicone_gls40 --model 3d --protocol wedge` (solver 2.7:
-#: 0.6060 N). A straight edge across the curved pad touches it over a few millimetres only,
-#: so the pad takes a quarter of the plane-strain section's force per 10 mm.
-WEDGE_REFERENCE_3D_N = 0.606
+#: on the reference outline as the default pad (c = 11 mm, m = 2), the simulations' mesh with
+#: its band along the wedge's edge (``sim.geometry.DEFAULT_MESH_3D``),
+#: `fingertip simulate --material silicone_gls40 --model 3d --protocol wedge` (solver 2.9:
+#: 0.5215 N; 0.6060 N on the mesh without the band, which does not resolve the flanks'
+#: contact). A straight edge across the curved pad touches it over a few millimetres only,
+#: so the pad takes about a fifth of the plane-strain section's force per 10 mm.
+WEDGE_REFERENCE_3D_N = 0.5215
 #: the wedge reference of each model's forces (by ``SimOptions.dimension``): a score compares
 #: like with like, a 2D force per 10 mm of finger with the 2D reference, a pad's with the pad's
 _WEDGE_REFERENCES = {"2d": WEDGE_REFERENCE_N, "3d": WEDGE_REFERENCE_3D_N}

@@ -102,15 +102,14 @@ class SimOptions:
         ``mesh``. ``options_from_dict`` gives the defaults to the sections left out. The 3D
         model's ``model.inclination_deg`` is there only when it is not 0 (so the records of
         the flat plate keep the keys they had before the option existed), and the wedge's
-        band (``mesh3d.edge_h_mm``, ``edge_grading``) only when not at their defaults."""
+        band (``mesh3d.edge_h_mm``, ``edge_grading``) only when it is on (``edge_h_mm`` > 0)."""
         d = dataclasses.asdict(self)
         if "model" in d and d["model"]["inclination_deg"] == 0.0:
             del d["model"]["inclination_deg"]
-        # the wedge's band, only when set: the records made before it keep their keys
-        default = MeshOptions3D()
-        for name in ("edge_h_mm", "edge_grading"):
-            if d["mesh3d"][name] == getattr(default, name):
-                del d["mesh3d"][name]
+        # the wedge's band, only when on (its grading means nothing without it): the records
+        # made before it existed keep their keys
+        if "mesh3d" in d and d["mesh3d"]["edge_h_mm"] == 0.0:
+            del d["mesh3d"]["edge_h_mm"], d["mesh3d"]["edge_grading"]
         return {k: v for k, v in d.items() if k not in _UNREAD[self.dimension]}
 
     def with_steps_scaled(self, factor: float) -> SimOptions:
@@ -147,8 +146,14 @@ def options_from_dict(d: dict[str, Any]) -> SimOptions:
     """SimOptions from their ``dataclasses.asdict`` form (as a sweep's config.json holds).
 
     A section missing from ``d`` (a config written before the section existed, e.g. the shipped
-    sweep's before ``validity``) keeps its defaults."""
+    sweep's before ``validity``) keeps its defaults. A ``mesh3d`` section without the wedge's
+    band (``edge_h_mm``) has it off: ``as_dict`` leaves the band out when it is off, and the
+    3D configs written before it existed have none, while the default mesh has one."""
     base = SimOptions()
+    mesh3d = d.get("mesh3d")
+    if mesh3d is not None and "edge_h_mm" not in mesh3d:
+        off = MeshOptions3D().without_edge()
+        d = {**d, "mesh3d": {**mesh3d, "edge_h_mm": 0.0, "edge_grading": off.edge_grading}}
     return dataclasses.replace(
         base,
         **{

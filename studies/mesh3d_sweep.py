@@ -5,7 +5,7 @@ design by design (``docs/model_3d.md``, "Mesh convergence").
         --set mesh3d.h_apex_mm=1.0 --set mesh3d.h_contact_mm=1.5 --set mesh3d.grading=0.6 \\
         --set mesh3d.h_max_mm=3.0 --set mesh3d.layer_divisions=2 --set mesh3d.around_divisions=2
     python studies/mesh3d_sweep.py --coarse COARSE \\
-        --fine datasets/default3d/seg_0-31 datasets/default3d/part_32-63
+        --fine datasets/default3d_plain/seg_0-31 datasets/default3d_plain/part_32-63
 
 The two elastic pads of ``studies/mesh3d_convergence.py`` tell how the metrics converge; this
 tells how far apart two meshes are on the designs a dataset is made of (layers, soft and

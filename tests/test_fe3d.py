@@ -389,12 +389,12 @@ def test_a_plane_strain_slab_carries_the_2d_line_load():
     """The 2D section extruded into a slab of Q2 hexahedra (``extruded_section_mesh``) with
     u_z = 0 everywhere: plane strain, the middle of a long extrusion. Its plate force per unit
     thickness is the 2D model's line load up to the two discretisations' errors (P2 triangles
-    of ``MeshOptions()`` against Q2 hexahedra on ``DEFAULT_MESH_3D``'s face z = 0): measured
+    of ``MeshOptions()`` against Q2 hexahedra on ``PAD_MESH_3D``'s face z = 0): measured
     -0.69 % and +0.62 % at 0.5 and 1 mm; -0.05 % and +0.27 % on the finest meshes of
     ``python studies/plane_strain_slab.py`` (docs/model_3d.md). Its force per mm does not
     depend on the slab's thickness (to Newton's tolerance, which is per node)."""
     from sim.fe import Discretization
-    from sim.geometry import DEFAULT_MESH_3D, MeshOptions, build_mesh, extruded_section_mesh
+    from sim.geometry import PAD_MESH_3D, MeshOptions, build_mesh, extruded_section_mesh
     from sim.verification import press_plate
 
     mat = material_from_table({"model": "neo_hookean", "mu_MPa": 0.05, "nu": 0.49})
@@ -411,7 +411,7 @@ def test_a_plane_strain_slab_carries_the_2d_line_load():
 
     per_mm = {}
     for thickness in (0.5, 2.0):
-        slab = extruded_section_mesh(build_pad_mesh(PAD, (), DEFAULT_MESH_3D), thickness)
+        slab = extruded_section_mesh(build_pad_mesh(PAD, (), PAD_MESH_3D), thickness)
         body = Body(Discretization3D(slab, [mat], fixed=plane_strain), Plate())
         per_mm[thickness] = press_plate(body, depths, 0.1) / thickness
     rel = per_mm[0.5] / line_load - 1.0

@@ -7,6 +7,7 @@ the verification against closed forms and FElupe: ``tests/test_fe3d_felupe.py``,
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from sim.options import ModelOptions, SimOptions, apply_overrides, options_from_
 from sim.protocols import contact_patch
 from sim.simulate import discretize, simulate
 
+ROOT = Path(__file__).resolve().parents[1]
 COARSE = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
 OPTS_3D = SimOptions(model=ModelOptions("3d"), mesh3d=COARSE)
 ELASTIC = {"model": "neo_hookean", "mu_MPa": 0.08, "nu": 0.49}
@@ -97,6 +99,15 @@ def test_the_wedge_runs_on_its_own_mesh_refined_along_its_edge(tmp_path):
     assert "edge_h_mm" not in OPTS_3D.as_dict()["mesh3d"]
     assert band.as_dict()["mesh3d"]["edge_h_mm"] == 0.3
     assert options_from_dict(band.as_dict()) == dataclasses.replace(band, mesh=SimOptions().mesh)
+    # the default mesh has a band; a 3D dict without one (the band off, or written before the
+    # band existed: the kept plain segments' configs) reads back without it
+    assert SimOptions(model=ModelOptions("3d")).as_dict()["mesh3d"]["edge_h_mm"] == 0.05
+    assert options_from_dict(OPTS_3D.as_dict()).mesh3d == COARSE
+    from sim.sweep import read_config
+
+    plain = read_config(ROOT / "datasets" / "default3d_plain" / "seg_0-31")["options"]
+    assert "edge_h_mm" not in plain["mesh3d"]
+    assert options_from_dict(plain).mesh3d.edge_h_mm == 0.0
     design = homogeneous_design("silicone_gls40")
     wedge_disc = discretize(design, band, "wedge")
     other = discretize(design, band)

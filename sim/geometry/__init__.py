@@ -14,6 +14,7 @@ from .mesh2d import DEFAULT_MESH, FingertipMesh, MeshOptions, build_mesh
 from .mesh3d import (
     COARSE_MESH_3D,
     DEFAULT_MESH_3D,
+    PAD_MESH_3D,
     MeshOptions3D,
     PadMesh,
     build_pad_mesh,
@@ -30,6 +31,7 @@ __all__ = [
     "DEFAULT_MESH_3D",
     "HALF_LENGTH_RANGE_MM",
     "LENGTH_EXPONENT_RANGE",
+    "PAD_MESH_3D",
     "REFERENCE_GEOMETRY",
     "REFERENCE_PAD",
     "FingertipMesh",

@@ -70,6 +70,7 @@ from .pad import REFERENCE_PAD, PadGeometry, level, unit_radius
 __all__ = [
     "COARSE_MESH_3D",
     "DEFAULT_MESH_3D",
+    "PAD_MESH_3D",
     "MeshOptions3D",
     "PadMesh",
     "boundary_faces",
@@ -194,8 +195,9 @@ class MeshOptions3D:
         return h
 
     def without_edge(self) -> MeshOptions3D:
-        """The mesh of the protocols other than the wedge (no band along its edge)."""
-        return replace(self, edge_h_mm=0.0)
+        """The mesh of the protocols other than the wedge (no band along its edge; the band's
+        grading back at its field default, as it means nothing without the band)."""
+        return replace(self, edge_h_mm=0.0, edge_grading=_NO_BAND.edge_grading)
 
     def refined(self, factor: float) -> MeshOptions3D:
         """All sizes and the gradings divided by ``factor``, the minimum counts multiplied by it
@@ -216,6 +218,8 @@ class MeshOptions3D:
         )
 
 
+_NO_BAND = MeshOptions3D()  # the field defaults: no band along the wedge's edge
+
 #: The simulations' mesh (``SimOptions.mesh3d``): the family of ``studies/mesh3d_convergence.py``
 #: (its coarsest member, below, refined by f) at f = 1.41, about 11 000-12 000 dofs on the
 #: default-size pads. Over f = 1, 1.41, 2 the displacements at 1 N and 4 N moved by at most
@@ -223,8 +227,17 @@ class MeshOptions3D:
 #: plate force is within 1.5-3 % of the finest and the contact area at 4 N within 1.3 %, at
 #: 1 N only within 10-15 % (docs/model_3d.md, "Mesh convergence"). The field defaults of
 #: ``MeshOptions3D`` are the finer mesh of the FElupe comparison (``tests/test_fe3d_felupe.py``).
+#: The wedge runs on that mesh with a band of 0.05 mm elements along its edge, growing by 0.5
+#: per mm (``edge_h_mm``, ``edge_grading``): without it the wedge's force and profile are 20-33 %
+#: too high, with it within 1.6-1.8 % of the values extrapolated from bands of 0.4 to 0.05 mm
+#: (fitted rates 0.8-1.1; ``studies/wedge3d_band.py``, docs/model_3d.md, "Mesh convergence").
+#: 0.05 mm is also the 2D model's element at the wedge's apex (``MeshOptions.h_apex_mm``), so
+#: the two models resolve the tip alike. A 1 % wedge needs about 0.025 mm at roughly twice the
+#: cost of the band's factorisations, not taken for the 3D datasets (docs/model_3d.md).
 COARSE_MESH_3D = MeshOptions3D(h_apex_mm=1.0, h_contact_mm=1.5, h_max_mm=3.0, grading=0.6)
-DEFAULT_MESH_3D = COARSE_MESH_3D.refined(1.41)
+DEFAULT_MESH_3D = replace(COARSE_MESH_3D.refined(1.41), edge_h_mm=0.05, edge_grading=0.5)
+#: ``DEFAULT_MESH_3D`` without the band: the mesh of the tapping and the plate
+PAD_MESH_3D = DEFAULT_MESH_3D.without_edge()
 
 
 @dataclass(frozen=True, eq=False)
@@ -286,12 +299,14 @@ class PadMesh:
 def build_pad_mesh(
     geometry: PadGeometry = REFERENCE_PAD,
     thicknesses_mm: tuple[float, ...] = (),
-    options: MeshOptions3D = DEFAULT_MESH_3D,
+    options: MeshOptions3D = PAD_MESH_3D,
     inclination_deg: float = 0.0,
     half: bool | None = None,
 ) -> PadMesh:
     """Mesh the quarter pad with interfaces at the cumulative depths of ``thicknesses_mm``
-    (the thicknesses of all layers but the last, outermost first).
+    (the thicknesses of all layers but the last, outermost first). By default the mesh of the
+    tapping and the plate; ``DEFAULT_MESH_3D`` itself, with its band along the wedge's edge, is
+    the wedge's (``sim.simulate.discretize``).
 
     ``inclination_deg`` > 0: graded for a plate tilted by that angle about x (the finest
     elements at its first-touch point, ``MeshOptions3D.size``) and, as the tilted plate breaks
