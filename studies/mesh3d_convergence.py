@@ -21,6 +21,8 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Callable, Iterable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -64,34 +66,49 @@ DESIGNS = {
 }
 
 
+def measured(design, protocols: tuple[str, ...], options: SimOptions, metrics) -> dict:
+    """Simulate ``protocols``: the figures a mesh study keeps (the largest protocol mesh's
+    dofs, the ``metrics``, the factorisations, the wall time and any failures)."""
+    t0 = time.perf_counter()
+    res = simulate(design, protocols, options)
+    return {
+        "dofs": max(p.get("n_dofs", res.n_dofs) for p in res.protocols.values()),
+        "metrics": {m: res.metrics.get(m) for m in metrics},
+        "factorizations": sum(p.get("factorizations", 0) for p in res.protocols.values()),
+        "wall_s": time.perf_counter() - t0,
+        "failures": [fl.__dict__ for fl in res.failures],
+    }
+
+
+def run_cases(out: Path, cases: Iterable[tuple[str, Callable[[], dict]]]) -> dict:
+    """Each ``(key, case)`` whose key the JSON file ``out`` does not hold yet: run, and write
+    the file after each (a killed study resumes where it stopped)."""
+    done = json.loads(out.read_text()) if out.exists() else {}
+    for key, case in cases:
+        if key in done:
+            continue
+        done[key] = case()
+        out.write_text(json.dumps(done, indent=1) + "\n")
+        print(key, done[key], flush=True)
+    return done
+
+
 def run(levels: tuple[float, ...], wedge: bool = False) -> dict:
-    done = json.loads(OUT.read_text()) if OUT.exists() else {}
     protocols, metrics, tag = (
         (("wedge",), WEDGE_METRICS, ":wedge") if wedge else (("tapping", "plate"), METRICS, "")
     )
-    for name, table in DESIGNS.items():
-        design = design_from_dict(table)
-        for f in levels:
-            key = f"{name}@{f:g}{tag}"
-            if key in done:
-                continue
-            options = SimOptions(
-                model=ModelOptions("3d"), mesh3d=BASE.refined(f)
-            ).without_validity_stop()
-            t0 = time.perf_counter()
-            res = simulate(design, protocols, options)
-            done[key] = {
-                "design": name,
-                "refine": f,
-                "dofs": max(p.get("n_dofs", res.n_dofs) for p in res.protocols.values()),
-                "metrics": {m: res.metrics.get(m) for m in metrics},
-                "factorizations": sum(p.get("factorizations", 0) for p in res.protocols.values()),
-                "wall_s": time.perf_counter() - t0,
-                "failures": [fl.__dict__ for fl in res.failures],
-            }
-            OUT.write_text(json.dumps(done, indent=1) + "\n")
-            print(key, done[key], flush=True)
-    return done
+
+    def case(name: str, f: float) -> dict:
+        options = SimOptions(model=ModelOptions("3d"), mesh3d=BASE.refined(f))
+        figures = measured(
+            design_from_dict(DESIGNS[name]), protocols, options.without_validity_stop(), metrics
+        )
+        return {"design": name, "refine": f, **figures}
+
+    return run_cases(
+        OUT,
+        ((f"{n}@{f:g}{tag}", partial(case, n, f)) for n in DESIGNS for f in levels),
+    )
 
 
 def richardson(h: np.ndarray, y: np.ndarray) -> tuple[float, float]:

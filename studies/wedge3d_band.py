@@ -18,17 +18,15 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
-import time
+from functools import partial
 from pathlib import Path
 
 import numpy as np
-from mesh3d_convergence import DESIGNS, WEDGE_METRICS, richardson
+from mesh3d_convergence import DESIGNS, WEDGE_METRICS, measured, richardson, run_cases
 
 from sim.design import design_from_dict
 from sim.geometry import DEFAULT_MESH_3D
 from sim.options import ModelOptions, SimOptions
-from sim.simulate import simulate
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "wedge3d_band.json"
 SIZES = (0.4, 0.2, 0.1, 0.05)
@@ -38,30 +36,13 @@ GRADING = 0.5
 
 
 def run(sizes: tuple[float, ...]) -> dict:
-    done = json.loads(OUT.read_text()) if OUT.exists() else {}
-    for name, table in DESIGNS.items():
-        design = design_from_dict(table)
-        for h in sizes:
-            key = f"{name}@{h:g}"
-            if key in done:
-                continue
-            mesh = dataclasses.replace(DEFAULT_MESH_3D, edge_h_mm=h, edge_grading=GRADING)
-            options = SimOptions(model=ModelOptions("3d"), mesh3d=mesh).without_validity_stop()
-            t0 = time.perf_counter()
-            res = simulate(design, ("wedge",), options)
-            figures = res.protocols["wedge"]
-            done[key] = {
-                "design": name,
-                "edge_h_mm": h,
-                "dofs": figures.get("n_dofs"),
-                "metrics": {m: res.metrics.get(m) for m in WEDGE_METRICS},
-                "factorizations": figures.get("factorizations"),
-                "wall_s": time.perf_counter() - t0,
-                "failures": [fl.__dict__ for fl in res.failures],
-            }
-            OUT.write_text(json.dumps(done, indent=1) + "\n")
-            print(key, done[key], flush=True)
-    return done
+    def case(name: str, h: float) -> dict:
+        mesh = dataclasses.replace(DEFAULT_MESH_3D, edge_h_mm=h, edge_grading=GRADING)
+        options = SimOptions(model=ModelOptions("3d"), mesh3d=mesh).without_validity_stop()
+        figures = measured(design_from_dict(DESIGNS[name]), ("wedge",), options, WEDGE_METRICS)
+        return {"design": name, "edge_h_mm": h, **figures}
+
+    return run_cases(OUT, ((f"{n}@{h:g}", partial(case, n, h)) for n in DESIGNS for h in sizes))
 
 
 def report(done: dict) -> None:
