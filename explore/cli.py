@@ -48,10 +48,13 @@ def _add_catalogue_option(p) -> None:
 
 
 def _user_catalogues(args: argparse.Namespace):
-    """The ``--catalogue`` files and the merged catalogue (shipped + user)."""
+    """The ``--catalogue`` files and the merged catalogue (shipped + user), read once per
+    command (the note on untested materials and the command itself share them)."""
     from sim.materials import load_user_catalogues
 
-    return load_user_catalogues(args.catalogue or [])
+    if getattr(args, "_catalogues", None) is None:
+        args._catalogues = load_user_catalogues(args.catalogue or [])
+    return args._catalogues
 
 
 def _note_untested_materials(args: argparse.Namespace) -> None:

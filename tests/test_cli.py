@@ -995,7 +995,7 @@ def test_a_user_catalogue_with_an_unphysical_modulus_is_one_line(
 
 
 def test_a_user_material_without_a_tested_range_is_noted_once(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Its own tests are unknown: the paper's limit holds it, and the user is told so."""
     cat = write(
@@ -1006,8 +1006,16 @@ def test_a_user_material_without_a_tested_range_is_noted_once(
         "max_compressive_log_strain = 0.9\n",
         "cat.toml",
     )
+    import sim.materials
+
+    reads = []
+    load = sim.materials.load_user_catalogues
+    monkeypatch.setattr(
+        sim.materials, "load_user_catalogues", lambda paths: reads.append(paths) or load(paths)
+    )
     argv = ["simulate", "--material", "soft", "--catalogue", str(cat), "--protocol", "plate"]
     assert main(argv) == 0
+    assert len(reads) == 1  # the note and the command share one reading of the files
     err = capsys.readouterr().err
     notes = [line for line in err.splitlines() if line.startswith("note: cat.toml:")]
     assert notes == [
