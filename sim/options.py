@@ -152,8 +152,9 @@ def options_from_dict(d: dict[str, Any]) -> SimOptions:
     base = SimOptions()
     mesh3d = d.get("mesh3d")
     if mesh3d is not None and "edge_h_mm" not in mesh3d:
-        off = MeshOptions3D().without_edge()
-        d = {**d, "mesh3d": {**mesh3d, "edge_h_mm": 0.0, "edge_grading": off.edge_grading}}
+        off = MeshOptions3D()  # the field defaults: no band
+        band = {"edge_h_mm": off.edge_h_mm, "edge_grading": off.edge_grading}
+        d = {**d, "mesh3d": {**mesh3d, **band}}
     return dataclasses.replace(
         base,
         **{

@@ -62,10 +62,10 @@ def test_each_answer_is_simulated_once_in_3d_and_judged_like_the_2d_one(checked)
     assert best["tapping_rms_error"] == pytest.approx(rms, rel=1e-12)
     # the wedge's effort against the 3D reference, the paper's silicone as the default pad:
     # this design is that silicone, on the coarse pad mesh without the band along the wedge's
-    # edge, which is stiffer under the wedge than the reference's banded mesh (the plain
-    # meshes' wedge forces are 24-44 % above the converged value on the two pads of
-    # docs/model_3d.md, "Mesh convergence", the banded one 1.6-1.8 %: 1.23 here); the 2D
-    # reference would give about a quarter of it
+    # edge, which is stiffer under the wedge than the reference's banded mesh (on the two pads
+    # of docs/model_3d.md, "Mesh convergence", the plain meshes' wedge forces lie 30-44 %
+    # above the converged value, the banded one's 1.6-1.8 %): 1.23 here; the 2D reference
+    # would give about a quarter of it
     effort = best["wedge_effort"]
     assert effort == pytest.approx(fe["wedge_peak_force_N"] / WEDGE_REFERENCE_3D_N, rel=1e-12)
     assert 1.05 < effort < 1.5
