@@ -150,18 +150,16 @@ def options_from_dict(d: dict[str, Any]) -> SimOptions:
     band (``edge_h_mm``) has it off: ``as_dict`` leaves the band out when it is off, and the
     3D configs written before it existed have none, while the default mesh has one."""
     base = SimOptions()
-    mesh3d = d.get("mesh3d")
-    if mesh3d is not None and "edge_h_mm" not in mesh3d:
-        off = MeshOptions3D()  # the field defaults: no band
-        band = {"edge_h_mm": off.edge_h_mm, "edge_grading": off.edge_grading}
-        d = {**d, "mesh3d": {**mesh3d, **band}}
-    return dataclasses.replace(
+    options = dataclasses.replace(
         base,
         **{
             f.name: dataclasses.replace(getattr(base, f.name), **d.get(f.name, {}))
             for f in dataclasses.fields(base)
         },
     )
+    if "mesh3d" in d and "edge_h_mm" not in d["mesh3d"]:  # the band off (``as_dict``)
+        options = dataclasses.replace(options, mesh3d=options.mesh3d.without_edge())
+    return options
 
 
 def option_names(options: SimOptions | None = None) -> list[str]:

@@ -65,7 +65,7 @@ def test_each_answer_is_simulated_once_in_3d_and_judged_like_the_2d_one(checked)
     # edge, which is stiffer under the wedge than the reference's banded mesh (on the two pads
     # of docs/model_3d.md, "Mesh convergence", the plain meshes' wedge forces lie 30-44 %
     # above the converged value, the banded one's 1.6-1.8 %): 1.23 here; the 2D reference
-    # would give about a quarter of it
+    # (2.35 N against 0.5215 N) would give about a fifth of it
     effort = best["wedge_effort"]
     assert effort == pytest.approx(fe["wedge_peak_force_N"] / WEDGE_REFERENCE_3D_N, rel=1e-12)
     assert 1.05 < effort < 1.5

@@ -23,7 +23,7 @@ from sim.errors import DesignError
 from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate, model_newton
 from sim.geometry import (
     COARSE_MESH_3D,
-    DEFAULT_MESH_3D,
+    PAD_MESH_3D,
     Geometry,
     MeshOptions3D,
     PadGeometry,
@@ -242,7 +242,7 @@ def test_the_default_inclination_leaves_records_unchanged(monkeypatch):
     from sim.sweep import record_key, sample_points
 
     # the 3D options of records made before the wedge's band was the default (without it)
-    three = SimOptions(model=ModelOptions("3d"), mesh3d=DEFAULT_MESH_3D.without_edge())
+    three = SimOptions(model=ModelOptions("3d"), mesh3d=PAD_MESH_3D)
     assert three.as_dict()["model"] == {"dimension": "3d"}
     assert "model" not in SimOptions().as_dict()
     assert options_from_dict(three.as_dict()) == three

@@ -197,7 +197,7 @@ class MeshOptions3D:
     def without_edge(self) -> MeshOptions3D:
         """The mesh of the protocols other than the wedge (no band along its edge; the band's
         grading back at its field default, as it means nothing without the band)."""
-        return replace(self, edge_h_mm=0.0, edge_grading=_NO_BAND.edge_grading)
+        return replace(self, edge_h_mm=0.0, edge_grading=MeshOptions3D.edge_grading)
 
     def refined(self, factor: float) -> MeshOptions3D:
         """All sizes and the gradings divided by ``factor``, the minimum counts multiplied by it
@@ -217,8 +217,6 @@ class MeshOptions3D:
             self.edge_grading / factor if self.edge_h_mm > 0.0 else self.edge_grading,
         )
 
-
-_NO_BAND = MeshOptions3D()  # the field defaults: no band along the wedge's edge
 
 #: The simulations' mesh (``SimOptions.mesh3d``): the family of ``studies/mesh3d_convergence.py``
 #: (its coarsest member, below, refined by f) at f = 1.41, about 11 000-12 000 dofs on the
