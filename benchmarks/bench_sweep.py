@@ -2,13 +2,17 @@
 
     python benchmarks/bench_sweep.py [--n 16] [--seed 0] [--space SPACE.toml]
     python benchmarks/bench_sweep.py --model 3d --n 8 --workers 1   # the 3D pad's mean
+    python benchmarks/bench_sweep.py --model 3d --n 8 --workers 1 --keep runs/seg3d_0_31
 
 Runs the same ``n`` designs of the (default) design space twice, with 1 and with 2 local worker
 processes (``--workers``: only these), in fresh temporary folders, and prints wall times,
 designs per hour, the speed-up and the mean FE time per design. ``--model 3d``: the 3D pad on
 the default 3D space (``sim/data/default_space_3d.toml``), as ``fingertip sweep --model 3d``
-runs it. Targets: speed-up >= 1.8 on this 2-core machine (the sweep issue); the FE time per
-default-space design <= 2.0 s in 2D and <= 60 s in 3D, one core (the FE speed issue).
+runs it. ``--keep FOLDER`` (one ``--workers`` value only): run in FOLDER and keep it, so that
+the benchmark's designs start a sweep that ``fingertip sweep --start 0 --n N`` (same seed and
+model) resumes; a sweep's records do not depend on the number of workers. Targets: speed-up
+>= 1.8 on this 2-core machine (the sweep issue); the FE time per default-space design
+<= 2.0 s in 2D and <= 60 s in 3D, one core (the FE speed issue).
 """
 
 from __future__ import annotations
@@ -35,19 +39,23 @@ def main() -> None:
     ap.add_argument("--space", type=Path, default=None)
     ap.add_argument("--model", choices=["2d", "3d"], default="2d")
     ap.add_argument("--workers", type=int, nargs="+", choices=[1, 2], default=[1, 2])
+    ap.add_argument("--keep", type=Path, default=None, metavar="FOLDER")
     args = ap.parse_args()
+    if args.keep is not None and len(args.workers) != 1:
+        ap.error("--keep: give one --workers value (the kept folder holds one run)")
     default = DEFAULT_SPACE_3D_PATH if args.model == "3d" else None
     space = load_space(args.space or default)
     options = SimOptions(model=ModelOptions(args.model))
     walls = {}
     with tempfile.TemporaryDirectory() as tmp:
         for workers in args.workers:
+            folder = args.keep or Path(tmp) / f"w{workers}"
             s = run_sweep(
-                space, args.n, Path(tmp) / f"w{workers}", workers=workers, seed=args.seed,
-                options=options, progress=False,
+                space, args.n, folder, workers=workers, seed=args.seed, options=options,
+                progress=False,
             )  # fmt: skip
             walls[workers] = s.wall_time_s
-            with (Path(tmp) / f"w{workers}" / "table.csv").open() as fh:
+            with (folder / "table.csv").open() as fh:
                 fe = [float(r["wall_time_s"]) for r in csv.DictReader(fh)]
             print(
                 f"{workers} worker(s): {args.n} designs ({s.ok} ok, {s.failed} failed) in "

@@ -34,8 +34,22 @@ def main() -> None:
         help="the folder of `fingertip train SWEEP --seeds ... --out FOLDER` for this sweep: its "
         "spread.md (the targets over other seeds' splits) is shipped beside the report",
     )
+    ap.add_argument(
+        "--migrated-from",
+        metavar="SOURCE",
+        help="for a sweep begun by `fingertip migrate-sweep SOURCE SWEEP --revalidate`: the "
+        "folder it was first carried from, named in the README's commands (a record keeps only "
+        "its last hop, which may be a folder of the machine it was made on)",
+    )
     args = ap.parse_args()
     spread = args.spread / SPREAD_MD if args.spread else None
+    computed_by = _computed_by(args.sweep)
+    migrated = sum(n for (_, carried), n in computed_by.items() if carried)
+    if migrated and not args.migrated_from:
+        raise SystemExit(
+            f"--migrated-from: {migrated} of the sweep's records were carried over by "
+            "fingertip migrate-sweep; name the folder the sweep was first carried from"
+        )
     if spread is not None and not spread.is_file():  # before anything is copied
         raise SystemExit(f"--spread: {spread} not found (run fingertip train --seeds first)")
     model = load_checkpoint(args.run / "model.safetensors")
@@ -63,14 +77,17 @@ def main() -> None:
     data = header["training_data"]
     report = json.loads((args.run / "report.json").read_text())
     sweep, run = args.sweep.as_posix(), args.run.as_posix()
-    migrated = _migrated(args.sweep)
     lines = [
         "# The shipped surrogate of the default design space",
         "",
         "How it was made (on the 2-core development machine):",
         "",
         "```bash",
-        *(f"fingertip migrate-sweep {src} {sweep}" for src in sorted(migrated)),
+        *(
+            [f"fingertip migrate-sweep {args.migrated_from} {sweep} --revalidate"]
+            if migrated
+            else []
+        ),
         *_sweep_commands(sweep, sweep_cfg),
         f"fingertip train {sweep} --out {run} --seed {header['training']['seed']}",
         f"python studies/ship_pretrained.py {run} {sweep}"
@@ -78,11 +95,7 @@ def main() -> None:
         "```",
         "",
         *_segments_note(sweep_cfg),
-        *(
-            f"{n} of the sweep's records were carried over from `{src}` (an earlier solver "
-            "version that computed them bit for bit as this one; `migrated` in each record)."
-            for src, n in sorted(migrated.items())
-        ),
+        *_computed_by_note(computed_by, header["solver_version"]),
         "",
         f"- design space: `sim/data/default_space.toml` ({sweep_cfg['sampler']} sampling, "
         f"seed {sweep_cfg['seed']}), solver version {header['solver_version']}",
@@ -141,14 +154,34 @@ def _segments_note(cfg: dict) -> list[str]:
     ]
 
 
-def _migrated(sweep: Path) -> dict[str, int]:
-    """Source folder -> how many of the sweep's records ``fingertip migrate-sweep`` carried."""
-    out: dict[str, int] = {}
+def _computed_by(sweep: Path) -> dict[tuple[str, bool], int]:
+    """(solver version, carried over by ``fingertip migrate-sweep``) -> how many of the sweep's
+    records. A computed record names the version that computed it; a carried one that of the
+    folder it was carried from (a row carried from a table alone has no version of its own)."""
+    out: dict[tuple[str, bool], int] = {}
     for path in (sweep / "records").glob("*.json"):
-        src = json.loads(path.read_text()).get("migrated", {}).get("from")
-        if src:
-            out[src] = out.get(src, 0) + 1
+        rec = json.loads(path.read_text())
+        key = (str(rec.get("solver_version")), "migrated" in rec)
+        out[key] = out.get(key, 0) + 1
     return out
+
+
+def _computed_by_note(computed_by: dict[tuple[str, bool], int], solver: str) -> list[str]:
+    """A line on the records carried over from earlier solver versions; none if none were."""
+    if not any(carried for _, carried in computed_by):
+        return []
+    counts = "; ".join(
+        f"{n} carried over from a sweep of solver {version}"
+        if carried
+        else f"{n} computed by solver {version}"
+        for (version, carried), n in sorted(computed_by.items())
+    )
+    return [
+        f"The sweep's records: {counts}. A carried record is what solver {solver} computes, "
+        "within the tolerance `sim.metrics.SAME_METRICS_AS` records for the versions between "
+        "(`sim/sweep/_migrate.py`, `sim/sweep/_revalidate.py`); `migrated` in each record "
+        "names the folder it was carried from.",
+    ]
 
 
 if __name__ == "__main__":
