@@ -1,0 +1,83 @@
+"""The protocols' adaptive sub-steps (``sim.protocols.loading._march``): cut on failure, grow
+back after easy steps, by the rule ``StepGrowth`` the wedge chooses per model dimension."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from sim.errors import SimulationError
+from sim.fe import Control
+from sim.fe.solver import StepResult
+from sim.protocols.loading import WEDGE_STEP_GROWTH, StepGrowth, _march
+
+
+class _Stub:
+    """A body whose step converges in ``iterations`` when it spans at most ``largest`` s and
+    fails otherwise; it logs every attempt as (start, end, converged)."""
+
+    def __init__(self, largest: float, iterations: int = 3) -> None:
+        self.t = 0.0
+        self.disc = SimpleNamespace(dim=3)
+        self.largest, self.iterations = largest, iterations
+        self.log: list[tuple[float, float, bool]] = []
+
+    def advance(self, t_new: float, control: Control, guess=None) -> StepResult:
+        ok = t_new - self.t <= self.largest + 1e-12
+        self.log.append((self.t, t_new, ok))
+        if ok:
+            self.t = t_new
+            return StepResult(True, self.iterations)
+        return StepResult(False, 8, "stalled")
+
+
+def _run(growth: StepGrowth, largest: float, iterations: int = 3) -> _Stub:
+    body = _Stub(largest, iterations)
+    times = np.linspace(0.1, 1.0, 10)
+    _march(body, times, lambda t: Control.position(-t), "wedge", growth=growth)  # type: ignore[arg-type]
+    assert body.t == pytest.approx(1.0)
+    return body
+
+
+def test_the_default_grows_back_after_one_easy_step():
+    # steps of 0.1 fail, of 0.05 converge: cut, one easy step, doubled to 0.1 which fails again
+    body = _run(StepGrowth(), largest=0.05)
+    sizes = [round(b - a, 6) for a, b, _ in body.log[:6]]
+    assert sizes == [0.1, 0.05, 0.05, 0.1, 0.05, 0.05]
+    assert [ok for *_, ok in body.log[:4]] == [False, True, True, False]
+    assert sum(not ok for *_, ok in body.log) == 10  # one failure in every schedule step
+
+
+def test_two_easy_steps_in_a_row_before_the_step_grows():
+    # steps of at most 0.025 converge: by the default every easy step at 0.025 doubles to 0.05,
+    # which fails (fail, ok, fail, ok, ...); with (4, 2) two steps of 0.025 come first
+    body = _run(StepGrowth(within_iterations=4, easy_steps=2), largest=0.025)
+    sizes = [round(b - a, 6) for a, b, _ in body.log[:8]]
+    assert sizes == [0.1, 0.05, 0.025, 0.025, 0.05, 0.025, 0.025, 0.05]
+    default = _run(StepGrowth(), largest=0.025)
+    assert [round(b - a, 6) for a, b, _ in default.log[:6]] == [0.1, 0.05, 0.025, 0.05, 0.025, 0.05]
+    # the same 40 converged sub-steps, and about half the failed attempts
+    assert sum(ok for *_, ok in body.log) == sum(ok for *_, ok in default.log) == 40
+    assert sum(not ok for *_, ok in body.log) == 21
+    assert sum(not ok for *_, ok in default.log) == 40
+
+
+def test_a_step_not_easy_does_not_count_toward_growth():
+    # converged steps of 5 iterations: easy by the default, not by within_iterations = 4, so
+    # after the first cut the step never grows again
+    body = _run(StepGrowth(within_iterations=4, easy_steps=2), largest=0.05, iterations=5)
+    assert sum(not ok for *_, ok in body.log) == 1
+    default = _run(StepGrowth(), largest=0.05, iterations=5)
+    assert sum(not ok for *_, ok in default.log) == 10
+
+
+def test_the_2d_wedge_keeps_the_rule_its_records_were_made_with():
+    assert WEDGE_STEP_GROWTH[2] == StepGrowth(within_iterations=5, easy_steps=1)
+    assert WEDGE_STEP_GROWTH[3] != WEDGE_STEP_GROWTH[2]
+
+
+def test_a_step_that_always_fails_gives_up_after_its_cuts():
+    with pytest.raises(SimulationError, match="after step cutting"):
+        _run(StepGrowth(), largest=0.0)
