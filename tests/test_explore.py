@@ -478,16 +478,46 @@ def test_tiny_pipeline_end_to_end(tiny_model, tmp_path):
     assert _snapshot(out) == before and not (tmp_path / "model").exists()
 
 
+#: One-layer gel pads of 2.5-3 kPa (the default space's softest gels) on the smallest
+#: sections: at 4 N every one compresses its gel beyond the gel's tested limit.
+_TOO_SOFT_SPACE = """
+description = "gels too soft for 4 N: every design strains its gel beyond its tested limit"
+[geometry]
+half_width_mm = { low = 5.0, high = 5.5 }
+height_mm = { low = 4.5, high = 5.0 }
+exponent = { low = 1.3, high = 1.5 }
+[layers]
+count = { choice = [1] }
+[layers.skin]
+thickness_mm = { low = 0.2, high = 1.5 }
+material = { choice = ["gel"] }
+mu0_MPa = { low = 0.0025, high = 0.35, log = true }
+alpha = { low = 1.5, high = 4.0 }
+g_total = { low = 0.0, high = 0.9 }
+tau_s = { low = 0.04, high = 2.0, log = true }
+[layers.core]
+material = { choice = ["gel"] }
+mu0_MPa = { low = 0.0025, high = 0.003, log = true }
+alpha = { low = 1.5, high = 2.0 }
+nu = { low = 0.0, high = 0.3 }
+g_total = { low = 0.0, high = 0.1 }
+tau_s = { low = 0.04, high = 0.1, log = true }
+"""
+
+
 def test_the_issue_31_run_without_a_credible_design_finishes(tmp_path):
-    """Issue 31, item 1, its command on the shipped surrogate (~15 s): the one confirmed design
-    goes beyond the validity limits (log strain 0.602 > 0.600). The run finishes (exit 0) with
-    summary.json (its round's ``best_fe_score`` null) and a report saying no credible design
-    was found (before, it crashed writing summary.json, at every re-run too)."""
+    """Issue 31, item 1, its command on the shipped surrogate (~15 s), in a space where every
+    design goes beyond the validity limits (``_TOO_SOFT_SPACE``), so the one confirmed design
+    does. The run finishes (exit 0) with summary.json (its round's ``best_fe_score`` null) and
+    a report saying no credible design was found (before, it crashed writing summary.json, at
+    every re-run too)."""
     out = tmp_path / "x"
+    space = tmp_path / "soft.toml"
+    space.write_text(_TOO_SOFT_SPACE)
     args = [
-        "optimize", "--out", str(out), "--trials", "16", "--family-trials", "0",
-        "--buildable-trials", "0", "--screen", "256", "--confirm", "1", "--uncertain", "0",
-        "--rounds", "1", "--buildable-fe", "0", "--no-progress",
+        "optimize", "--out", str(out), "--space", str(space), "--trials", "16",
+        "--family-trials", "0", "--buildable-trials", "0", "--screen", "256", "--confirm", "1",
+        "--uncertain", "0", "--rounds", "1", "--buildable-fe", "0", "--no-progress",
     ]  # fmt: skip
     proc = _run(args)
     assert proc.returncode == 0, proc.stderr

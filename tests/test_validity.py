@@ -365,14 +365,18 @@ def test_overriding_the_limits_changes_the_verdict(
 def test_options_of_a_sweep_made_before_the_validity_section_load() -> None:
     """A sweep config from before the ``validity`` section (solver < 2.0: the shipped sweep's
     options without it) gets the defaults (``fingertip run`` reads it to confirm designs with
-    the training sweep's options); one that records the single limit it was made with (0.60)
-    keeps it, as an override of every layer's own."""
+    the training sweep's options); one that records the single limit it was made with (0.60,
+    as the sweep shipped before the layers' own limits did) keeps it, as an override of every
+    layer's own. The shipped sweep holds each layer to its own limit: no override."""
     from sim.options import options_from_dict
 
     config = json.loads((REPO / "surrogate/pretrained/default/config.json").read_text())
     old = {k: v for k, v in config["options"].items() if k != "validity"}
     assert options_from_dict(old).validity == ValidityOptions()
-    recorded = options_from_dict(config["options"]).validity
+    assert options_from_dict(config["options"]).validity.overridden == {}
+    one_limit = dict(config["options"])
+    one_limit["validity"] = {**config["options"]["validity"], "max_compressive_log_strain": 0.6}
+    recorded = options_from_dict(one_limit).validity
     assert recorded == ValidityOptions(max_compressive_log_strain=PAPER_LOG_STRAIN)
     assert recorded.overridden == {"max_compressive_log_strain": 0.6}
 
