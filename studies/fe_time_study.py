@@ -4,6 +4,7 @@ phases), in counts.
     python studies/fe_time_study.py --n 12 --seed 1
     python studies/fe_time_study.py --sweep FOLDER
     python studies/fe_time_study.py --breakdown --n 64 --seed 0
+    python studies/fe_time_study.py --breakdown --n 32 --seed 0 --set newton.reuse_ratio=0.5 ...
 
 Simulates ``n`` designs of the default space (a scrambled Sobol sample,
 ``sim.sweep.run.sample_points``) with every protocol and prints, summed over the designs:
@@ -25,7 +26,9 @@ timed parts (factorisation, triangular solves, tangent assembly, residual + mate
 the rest (Python's Newton loop, contact, recording, metrics, and any protocol that failed:
 the solver's figures of a failed protocol are not returned), with the counts per design. The
 factorisations and solves alone are a floor for any faster assembly or law on this mesh:
-seconds, so on a quiet machine only.
+seconds, so on a quiet machine only. ``--set`` changes an option as ``fingertip --set`` does (for
+example the 2D model with the 3D model's modified Newton: docs/fe_speed.md, "Modified Newton in
+2D?").
 
 ``--sweep FOLDER`` instead reads a sweep's ``table.csv`` and prints the share of its FE wall
 time spent on designs beyond the validity limits (as recorded), by protocol.
@@ -42,7 +45,9 @@ from pathlib import Path
 import sim.protocols.validity as validity
 from sim import SimOptions, simulate
 from sim.design import load_space, point_to_design
+from sim.errors import DesignError
 from sim.fe import Wedge
+from sim.options import apply_overrides, parse_override
 from sim.sweep import open_table, sample_points, table_path
 
 COUNTS = ("steps", "factorizations", "evaluations")
@@ -139,15 +144,16 @@ def study(n: int, seed: int) -> None:
     )
 
 
-def breakdown(n: int, seed: int) -> None:
+def breakdown(n: int, seed: int, options: SimOptions | None = None) -> None:
     from sim.fe.solver import TIMED
 
+    options = SimOptions() if options is None else options
     seconds = dict.fromkeys(TIMED, 0.0)
     counts = dict.fromkeys(("factorizations", "evaluations", "newton_iterations"), 0)
     wall = 0.0
     for i, point in enumerate(sample_points(load_space(), n, seed)):
         t0 = time.perf_counter()
-        res = simulate(point_to_design(point))
+        res = simulate(point_to_design(point), options=options)
         dt = time.perf_counter() - t0
         wall += dt
         for fig in res.protocols.values():
@@ -158,7 +164,8 @@ def breakdown(n: int, seed: int) -> None:
         made = sum(f.get("factorizations", 0) or 0 for f in res.protocols.values())
         print(f"design {i}: {dt:.2f} s, {made} factorisations")
     other = wall - sum(seconds.values())
-    print(f"\n{n} designs (seed {seed}), default options (stop at the first violation)")
+    changed = "default options" if options == SimOptions() else "options changed by --set"
+    print(f"\n{n} designs (seed {seed}), {changed} (stop at the first violation)")
     print("per design: " + ", ".join(f"{v / n:.0f} {k}" for k, v in counts.items()))
     print("| part | s per design | share | per call |")
     print("|---|---|---|---|")
@@ -201,9 +208,20 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--sweep", type=Path, help="a sweep folder: time shares by validity")
     ap.add_argument("--breakdown", action="store_true", help="seconds per part, as swept")
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.FIELD=VALUE",
+        help="with --breakdown: a simulation option changed, as fingertip's --set",
+    )
     args = ap.parse_args()
     if args.breakdown:
-        breakdown(args.n, args.seed)
+        try:
+            options = apply_overrides(SimOptions(), dict(parse_override(t) for t in args.set))
+        except DesignError as exc:
+            ap.error(str(exc))
+        breakdown(args.n, args.seed, options)
     elif args.sweep is not None:
         sweep_shares(args.sweep)
     else:

@@ -114,8 +114,10 @@ class NewtonOptions:
     # Modified Newton: keep the last factorisation (within a step and into the next) while
     # the residual falls at least by `reuse_ratio` per iteration, and factorise afresh where it
     # does not or where a step with the kept one fails its line search. Off by default: the 2D
-    # systems factorise in milliseconds, and the 2D records were made with full Newton. On for
-    # 3D, where a factorisation costs as much as a few residual evaluations.
+    # systems factorise in milliseconds, and the 2D records were made with full Newton (with the
+    # 3D model's options the 2D model took 4.49 s a design against full Newton's 3.70, fewer
+    # factorisations but more iterations and solves: docs/fe_speed.md, "Modified Newton in
+    # 2D?"). On for 3D, where a factorisation costs as much as a few residual evaluations.
     reuse_factorization: bool = False
     # 0.25: keep the factorisation only while Newton still contracts fast (on the press of
     # tests/test_fe3d.py full Newton cut the residual 5 to 10 000 times an iteration; the stall
