@@ -2,7 +2,8 @@
 cross-finger axis x on the half pad x >= 0 (docs/model_3d.md, "Inclination").
 
 - the half mesh (``sim.geometry.mesh3d.half_pad_mesh``): the quarter and its mirror image,
-  positive Jacobians, outward faces, twice the volume;
+  positive Jacobians, outward faces, twice the volume; inclined, the quarter glued to a
+  coarser quarter on the heel's side, conforming, and pressed as the mirror image is;
 - the half model at 0 deg reproduces the quarter's plate and tapping readings;
 - global equilibrium on the inclined plate: the base's reaction is the plate's force along its
   normal, with no tangential part;
@@ -75,6 +76,65 @@ def test_the_half_mesh_is_the_quarter_and_its_mirror_image():
         assert len(interface_h) == 2 * len(interface_q) - len(
             np.intersect1d(interface_q, quarter.sym_z)
         )
+
+
+def test_an_inclined_half_is_graded_for_its_heel_side_and_conforming():
+    """At 30 deg the half pad is the quarter graded for the plate (z >= 0) glued on z = 0 to a
+    quarter graded for the heel's side, where the plate does not touch: fewer nodes than the
+    quarter's mirror image would give, the quarter's nodes first and unchanged, z = 0 inside
+    the body (no element face left alone there: the two sides meet node for node), positive
+    Jacobians, every surface face outward, and the volume of the symmetric half to 1e-4 (the
+    two approximate the same curved pad)."""
+    from sim.geometry import _q2
+    from sim.geometry.mesh3d import _build_quarter, half_pad_mesh
+
+    quarter = _build_quarter(PAD, (1.0,), COARSE, 30.0)
+    half = build_pad_mesh(PAD, (1.0,), COARSE, 30.0)
+    symmetric = half_pad_mesh(quarter)
+    X, H = np.asarray(half.nodes), np.asarray(half.hexes)
+    assert half.half and half.inclination_deg == 30.0
+    assert quarter.n_nodes < half.n_nodes < symmetric.n_nodes
+    np.testing.assert_array_equal(X[: quarter.n_nodes], np.asarray(quarter.nodes))
+    assert len(np.unique(X, axis=0)) == half.n_nodes and len(half.sym_z) == 0
+    assert jacobian_determinants(X, H).min() > 0.0
+    # every element face (its 4 corners) used twice inside, once on the boundary; none of
+    # the boundary's on z = 0
+    corners = [(0, 1, 2, 3), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    faces = np.sort(np.concatenate([H[:, list(c)] for c in corners]), axis=1)
+    unique, count = np.unique(faces, axis=0, return_counts=True)
+    assert set(count) == {1, 2}
+    on_plane = np.all(X[unique[count == 1], 2] == 0.0, axis=1)
+    assert not np.any(on_plane)
+    volume = element_volumes(X, H).sum()
+    v_sym = element_volumes(np.asarray(symmetric.nodes), np.asarray(symmetric.hexes)).sum()
+    assert volume == pytest.approx(v_sym, rel=1e-4)
+    F = np.asarray(half.surface_faces)
+    dN = _q2.face_shape_gradients(np.zeros((1, 2)))[0]
+    t = np.einsum("fai,ad->fdi", X[F], dN)
+    assert np.all(np.einsum("fi,fi->f", np.cross(t[:, 0], t[:, 1]), X[F[:, 8]]) > 0.0)
+
+
+def test_the_heel_side_does_not_change_an_inclined_press():
+    """The plate at 30 deg pressing the short pad to 0.3 mm: the same forces, within 1e-4, on
+    the half graded for its heel's side as on the quarter's mirror image (the plate touches
+    the side z > 0, which both mesh alike)."""
+    from sim.geometry.mesh3d import _build_quarter, half_pad_mesh
+
+    forces = []
+    for pmesh in (
+        build_pad_mesh(PAD, (), COARSE, 30.0),
+        half_pad_mesh(_build_quarter(PAD, (), COARSE, 30.0)),
+    ):
+        body = Body(Discretization3D(pmesh, [material_from_table(ELASTIC)]), Plate(30.0), NEWTON_3D)
+        top = body.top_height()
+        f = []
+        for k, d in enumerate(np.linspace(0.1, 0.3, 3)):
+            assert body.advance(0.1 * (k + 1), Control.position(top - d)).converged
+            f.append(body.force)
+        forces.append(f)
+    print(f"forces (N): graded for the heel {forces[0]}, mirror image {forces[1]}")
+    assert forces[0][-1] > 0.01
+    np.testing.assert_allclose(forces[0], forces[1], rtol=1e-4)
 
 
 def test_an_inclined_mesh_is_refined_at_the_first_touch():

@@ -168,7 +168,8 @@ class MeshOptions3D:
 
         ``inclination_deg`` > 0 (a plate tilted about x, ``first_touch_mm``): the apex is
         replaced by the plate's first-touch point (0, y*, z*) and the contact region is
-        centred on it, |z - z*| <= f c, so that the patch is as finely meshed as at 0 deg."""
+        centred on it, |z - z*| <= f c, so that the patch is as finely meshed as at 0 deg.
+        ``points`` may have z < 0 (the heel's side of the half pad, ``half_pad_mesh``)."""
         a, b, c = geometry.semi_axes_mm()
         p = np.asarray(points, dtype=float)
         if inclination_deg != 0.0:
@@ -177,7 +178,7 @@ class MeshOptions3D:
             dz = np.maximum(np.abs(p[..., 2] - z_t) - self.contact_fraction * c, 0.0)
         else:
             d_apex = np.sqrt(p[..., 0] ** 2 + (p[..., 1] - b) ** 2 + p[..., 2] ** 2)
-            dz = np.maximum(p[..., 2] - self.contact_fraction * c, 0.0)
+            dz = np.maximum(np.abs(p[..., 2]) - self.contact_fraction * c, 0.0)
         dx = np.maximum(p[..., 0] - self.contact_fraction * a, 0.0)
         h = np.minimum(self.h_max_mm, self.h_apex_mm + self.grading * d_apex)
         h = np.minimum(h, self.h_contact_mm + self.grading * np.sqrt(dx * dx + dz * dz))
@@ -308,7 +309,9 @@ def build_pad_mesh(
 
     ``inclination_deg`` > 0: graded for a plate tilted by that angle about x (the finest
     elements at its first-touch point, ``MeshOptions3D.size``) and, as the tilted plate breaks
-    the symmetry about z = 0, the half pad x >= 0 (``half_pad_mesh``). ``half``: the half pad
+    the symmetry about z = 0, the half pad x >= 0 (``half_pad_mesh``): the quarter z >= 0
+    graded for the plate, glued to a quarter z <= 0 graded as the same target sizes ask there
+    (coarser: the plate touches on the side z > 0). ``half``: the half pad
     (default: whenever ``inclination_deg`` > 0; ``half=True`` at 0 deg for comparisons with
     the quarter). Raises ``DesignError`` if the layers leave no core
     (``PadGeometry.check_layers``).
@@ -318,7 +321,12 @@ def build_pad_mesh(
     if inclination_deg != 0.0 and not half:
         raise ValueError("an inclined plate needs the half pad (half=True)")
     quarter = _build_quarter(geometry, thicknesses_mm, options, inclination_deg)
-    return half_pad_mesh(quarter) if half else quarter
+    if not half:
+        return quarter
+    heel = None  # at 0 deg the heel's side is the quarter's mirror image
+    if inclination_deg != 0.0:
+        heel = _build_quarter(geometry, thicknesses_mm, options, inclination_deg, heel=True)
+    return half_pad_mesh(quarter, heel)
 
 
 def _build_quarter(
@@ -326,8 +334,12 @@ def _build_quarter(
     thicknesses_mm: tuple[float, ...],
     options: MeshOptions3D,
     inclination_deg: float,
+    heel: bool = False,
 ) -> PadMesh:
-    """The quarter pad's mesh (``build_pad_mesh``), graded for ``inclination_deg``."""
+    """The quarter pad's mesh (``build_pad_mesh``), graded for ``inclination_deg``; ``heel``:
+    the quarter's z distribution graded for its mirror image z <= 0 (the heel's side of the half
+    pad, ``half_pad_mesh``), its other distributions those of the quarter, so that the two
+    meet node for node on z = 0."""
     thicknesses_mm = tuple(float(t) for t in thicknesses_mm)
     geometry.check_layers(thicknesses_mm)
     depths = np.concatenate([[0.0], np.cumsum(thicknesses_mm)])  # surface, then interfaces
@@ -335,7 +347,10 @@ def _build_quarter(
 
     # 1D vertex distributions (graded: D, on the surfaces; uniform: U, on the box), then the
     # Q2 node parameters (vertices and midpoints)
-    graded = [_with_midpoints(_tangential(d, geometry, options, inclination_deg)) for d in range(3)]
+    graded = [
+        _with_midpoints(_tangential(d, geometry, options, inclination_deg, heel and d == 2))
+        for d in range(3)
+    ]
     uniform = [_with_midpoints(np.linspace(0.0, 1.0, (len(D) + 1) // 2)) for D in graded]
     w, shell_depths, radial_layer, levels = _radial_levels(geometry, depths, core, options)
     w = _with_midpoints(w)
@@ -399,37 +414,49 @@ def _reflection(points: np.ndarray, signs: tuple[float, ...]) -> np.ndarray:
     return np.array([np.flatnonzero(np.all(points == r, axis=1))[0] for r in reflected])
 
 
-def half_pad_mesh(quarter: PadMesh) -> PadMesh:
-    """The half pad x >= 0: the quarter ``quarter`` and its mirror image in z = 0.
+def half_pad_mesh(quarter: PadMesh, heel: PadMesh | None = None) -> PadMesh:
+    """The half pad x >= 0: the quarter ``quarter`` (z >= 0) and the mirror image in z = 0 of
+    ``heel``, a quarter of the same pad meshed for the side z <= 0 (default: ``quarter``
+    itself, the symmetric half).
 
-    The mirror of node i is (x, y, -z)_i. The nodes on z = 0 (``sym_z``: z is exactly 0.0
-    there by construction, every one computed from v_z = 0) are their own mirrors and are
-    numbered once; the others are appended after the quarter's (which keep their indices), so
-    the merge needs no coordinate search. Reflecting z turns a cell inside out: each mirrored
-    hexahedron's local nodes are reflected in zeta (VTK order, ``sim.geometry._q2``) and each
-    mirrored surface face's in s, so every Jacobian stays positive and every face normal points
-    out. No node is on a symmetry plane z = 0 any more (``sym_z`` empty)."""
-    X = np.asarray(quarter.nodes)
+    The mirror of node i is (x, y, -z)_i. The nodes on z = 0 (``sym_z``: z is exactly 0.0 there
+    by construction, every one computed from v_z = 0) are shared and numbered once; the heel's
+    others are appended after the quarter's nodes (which keep their indices). The two quarters
+    meet node for node on z = 0: ``heel`` differs from ``quarter`` in its z distribution only
+    (``build_pad_mesh``), and each numbers its nodes block by block in C order with v_z last,
+    so the k-th node on the plane of one is the k-th of the other (checked to 1e-9 mm; no
+    coordinate search). Reflecting z turns a cell inside out: each mirrored hexahedron's local
+    nodes are reflected in zeta (VTK order, ``sim.geometry._q2``) and each mirrored surface
+    face's in s, so every Jacobian stays positive and every face normal points out. No node is
+    on a symmetry plane z = 0 any more (``sym_z`` empty)."""
+    heel = quarter if heel is None else heel
+    X, Xh = np.asarray(quarter.nodes), np.asarray(heel.nodes)
     n = len(X)
-    on_plane = np.zeros(n, dtype=bool)
-    on_plane[np.asarray(quarter.sym_z)] = True
-    mirror = np.empty(n, dtype=np.int64)  # the index of each quarter node's mirror image
-    mirror[on_plane] = np.flatnonzero(on_plane)
+    plane, plane_h = np.asarray(quarter.sym_z), np.asarray(heel.sym_z)
+    if len(plane) != len(plane_h) or not np.allclose(X[plane], Xh[plane_h], rtol=0.0, atol=1e-9):
+        raise ValueError("the heel's quarter does not meet the quarter node for node on z = 0")
+    on_plane = np.zeros(len(Xh), dtype=bool)
+    on_plane[plane_h] = True
+    mirror = np.empty(len(Xh), dtype=np.int64)  # the index of each heel node's mirror image
+    mirror[plane_h] = plane
     mirror[~on_plane] = n + np.arange(int(np.count_nonzero(~on_plane)))
-    nodes = np.concatenate([X, X[~on_plane] * np.array([1.0, 1.0, -1.0])])
-    hexes = np.asarray(quarter.hexes)
+    nodes = np.concatenate([X, Xh[~on_plane] * np.array([1.0, 1.0, -1.0])])
     flip_cell = _reflection(_q2.REFERENCE_POINTS, (1.0, 1.0, -1.0))
-    faces = np.asarray(quarter.surface_faces)
     flip_face = _reflection(_q2.FACE_REFERENCE_POINTS, (-1.0, 1.0))
+    hexes, faces = np.asarray(quarter.hexes), np.asarray(quarter.surface_faces)
+    hexes_h, faces_h = np.asarray(heel.hexes), np.asarray(heel.surface_faces)
     out = PadMesh(
         nodes=nodes,
-        hexes=np.concatenate([hexes, mirror[hexes][:, flip_cell]]),
-        layer=np.concatenate([quarter.layer, quarter.layer]),
+        hexes=np.concatenate([hexes, mirror[hexes_h][:, flip_cell]]),
+        layer=np.concatenate([quarter.layer, heel.layer]),
         base=np.flatnonzero(nodes[:, 1] == 0.0),
         sym_x=np.flatnonzero(nodes[:, 0] == 0.0),
         sym_z=np.zeros(0, dtype=np.int64),
-        surface_faces=np.concatenate([faces, mirror[faces][:, flip_face]]),
-        interfaces=tuple(np.union1d(ids, mirror[ids]) for ids in quarter.interfaces),
+        surface_faces=np.concatenate([faces, mirror[faces_h][:, flip_face]]),
+        interfaces=tuple(
+            np.union1d(ids, mirror[ids_h])
+            for ids, ids_h in zip(quarter.interfaces, heel.interfaces, strict=True)
+        ),
         geometry=quarter.geometry,
         thicknesses_mm=quarter.thicknesses_mm,
         half=True,
@@ -599,11 +626,16 @@ def _equidistribute(param: np.ndarray, density: np.ndarray, n_min: int) -> np.nd
 
 
 def _tangential(
-    axis: int, geometry: PadGeometry, options: MeshOptions3D, inclination_deg: float = 0.0
+    axis: int,
+    geometry: PadGeometry,
+    options: MeshOptions3D,
+    inclination_deg: float = 0.0,
+    mirrored: bool = False,
 ) -> np.ndarray:
     """The vertex distribution D_axis on [0, 1]: the number of elements needed along the
     outer-surface lines v_axis = t of the two cube faces that use it (five lines on each), the
-    densest line deciding each interval."""
+    densest line deciding each interval; ``mirrored``: the sizes those lines' mirror images in
+    z = 0 ask for (the heel's side of the half pad)."""
     t = np.linspace(0.0, 1.0, _FINE + 1)
     lines = []
     for face in range(3):
@@ -617,6 +649,8 @@ def _tangential(
     X = geometry.surface_points(np.stack(lines))  # (L, K + 1, 3) on the outer surface
     seg = np.linalg.norm(np.diff(X, axis=1), axis=-1)
     mid = 0.5 * (X[:, 1:] + X[:, :-1])
+    if mirrored:
+        mid = mid * np.array([1.0, 1.0, -1.0])
     size = options.size(mid, geometry, inclination_deg, along_z=axis == 2)
     density = np.max(seg / size, axis=0)
     return _equidistribute(t, density, options.around_divisions)
