@@ -364,20 +364,28 @@ def test_the_inclined_patch_is_the_metrics_patch(inclined_tap, inclined_info):
 
 def test_the_inclined_section_runs_from_the_heel_to_the_tip(inclined_tap, inclined_info):
     """The section x = 0 is the half pad's, not mirrored: from the heel's end (z = -c) to the
-    tip's (z = c) on the base, the undeformed one symmetric, the deformed one not (pressed on
-    the tip's side); no point beyond the plate, the plate's face reached; the interfaces too."""
+    tip's (z = c) on the base, the undeformed one on the pad's outline y = b s(z), symmetric in
+    z (the heel's side is meshed apart: its nodes are not the tip's mirror images), the
+    deformed one not symmetric (pressed on the tip's side); no point beyond the plate, the
+    plate's face reached; the interfaces too."""
     info = inclined_info
-    c = inclined_tap.discretization.pmesh.geometry.semi_axes_mm()[2]
+    pad = inclined_tap.discretization.pmesh.geometry
+    _, b, c = pad.semi_axes_mm()
+    m = float(pad.length_exponent)
     ref = info.section_reference_zy_mm
     np.testing.assert_allclose(ref[[0, -1]], [[-c, 0.0], [c, 0.0]], atol=1e-12)
     assert np.all(np.diff(ref[:, 0]) > 0.0)  # heel to tip
-    assert _same_rows(ref * np.array([-1.0, 1.0]), ref)  # the undeformed pad is symmetric
+    outline = b * np.maximum(1.0 - np.abs(ref[:, 0] / c) ** m, 0.0) ** (1.0 / m)
+    np.testing.assert_allclose(ref[:, 1], outline, atol=1e-9)  # the symmetric outline
+    zs = np.linspace(0.1, 0.8, 8) * c
     e = info.plate_normal
     for st in info.states:
         sec = st.section_zy_mm
         assert sec.shape == ref.shape
         np.testing.assert_allclose(sec[[0, -1]], ref[[0, -1]], atol=1e-12)  # the bonded base
-        assert not _same_rows(sec * np.array([-1.0, 1.0]), sec, decimals=3)
+        assert np.all(np.diff(sec[:, 0]) > 0.0)
+        tip, heel = np.interp(zs, sec[:, 0], sec[:, 1]), np.interp(-zs, sec[:, 0], sec[:, 1])
+        assert np.max(heel - tip) > 1e-3  # pressed down on the tip's side
         height = sec[:, 1] * e[1] + sec[:, 0] * e[2]
         assert height.max() == pytest.approx(st.plate_position_mm, abs=1e-3)
         assert sec[np.argmax(height), 0] > 0.0  # it touches on the tip's side
