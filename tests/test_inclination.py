@@ -44,7 +44,11 @@ NEWTON_3D = model_newton(NewtonOptions(), 3)
 
 
 def _body(pad: PadGeometry, inclination_deg: float, half: bool | None = None) -> Body:
-    pmesh = build_pad_mesh(pad, (), COARSE, inclination_deg, half=half)
+    return _body_on(build_pad_mesh(pad, (), COARSE, inclination_deg, half=half), inclination_deg)
+
+
+def _body_on(pmesh, inclination_deg: float) -> Body:
+    """The elastic pad on the mesh ``pmesh`` under a plate inclined by ``inclination_deg``."""
     disc = Discretization3D(pmesh, [material_from_table(ELASTIC)])
     return Body(disc, Plate(inclination_deg), NEWTON_3D)
 
@@ -117,7 +121,7 @@ def test_an_inclined_half_is_graded_for_its_heel_side_and_conforming():
 def test_the_heel_side_does_not_change_an_inclined_press():
     """The plate at 30 deg pressing the short pad to 0.3 mm: the same forces, within 1e-4, on
     the half graded for its heel's side as on the quarter's mirror image (the plate touches
-    the side z > 0, which both mesh alike)."""
+    the side z > 0, which both mesh alike; measured 5e-6 at 0.3 mm)."""
     from sim.geometry.mesh3d import _build_quarter, half_pad_mesh
 
     forces = []
@@ -125,7 +129,7 @@ def test_the_heel_side_does_not_change_an_inclined_press():
         build_pad_mesh(PAD, (), COARSE, 30.0),
         half_pad_mesh(_build_quarter(PAD, (), COARSE, 30.0)),
     ):
-        body = Body(Discretization3D(pmesh, [material_from_table(ELASTIC)]), Plate(30.0), NEWTON_3D)
+        body = _body_on(pmesh, 30.0)
         top = body.top_height()
         f = []
         for k, d in enumerate(np.linspace(0.1, 0.3, 3)):
