@@ -2,6 +2,7 @@
 
     python benchmarks/bench_simulate.py [--repeat 3] [--material silicone_gls40 ...]
     python benchmarks/bench_simulate.py --model 3d --repeat 1 --design docs/designs/*.toml
+    python benchmarks/bench_simulate.py ... --set newton.reuse_ratio=0.25   # an option changed
 
 Runs on one core (BLAS threads pinned to 1 before numpy loads; the process is bound to CPU 0
 where the OS allows). Prints, per material: wall time (best of --repeat), dofs, and per protocol
@@ -23,7 +24,8 @@ from pathlib import Path  # noqa: E402
 
 from sim import homogeneous_design, simulate  # noqa: E402
 from sim.design import load_design  # noqa: E402
-from sim.options import ModelOptions, SimOptions  # noqa: E402
+from sim.errors import DesignError  # noqa: E402
+from sim.options import ModelOptions, SimOptions, apply_overrides, parse_override  # noqa: E402
 
 
 def main() -> None:
@@ -35,8 +37,19 @@ def main() -> None:
     ap.add_argument(
         "--refine", type=float, default=1.0, help="the model's mesh refined by this factor"
     )
+    ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="SECTION.FIELD=VALUE",
+        help="a simulation option changed, as fingertip's --set",
+    )
     args = ap.parse_args()
     options = dataclasses.replace(SimOptions(), model=ModelOptions(args.model))
+    try:
+        options = apply_overrides(options, dict(parse_override(t) for t in args.set))
+    except DesignError as exc:
+        ap.error(str(exc))
     options = options.with_mesh_refined(args.refine) if args.refine != 1.0 else options
     designs = (
         {p.stem: load_design(p) for p in args.design}

@@ -25,6 +25,8 @@ from sim.materials import (
     Yeoh,
     catalogue_material,
     material_from_spec,
+    prony_stress,
+    prony_stress_split,
     prony_update,
     prony_update_split,
 )
@@ -164,6 +166,29 @@ def test_batch_shapes(name: str) -> None:
     assert np.ndim(W1) == 0 and S1.shape == (3,) and D1.shape == (3, 3)
     np.testing.assert_allclose(S1, S[:, 1, 2], rtol=1e-14, atol=0)
     np.testing.assert_allclose(D1, D[:, :, 1, 2], rtol=1e-14, atol=0)
+
+
+@pytest.mark.parametrize("name", LAW_IDS)
+def test_a_layers_strided_slice_gives_the_bits_of_a_contiguous_copy(name: str) -> None:
+    """The compiled laws read a layer's points as the assembly hands them over, a slice of the
+    elements (not contiguous in memory): the same bits as on a contiguous copy, in plane strain
+    and in 3D, whole and split."""
+    law, ln_j = LAW_CASES[name]
+    C = C_of(deformations(ln_j, 24, seed=4)).reshape(3, 6, 4)
+    C3 = np.zeros((6, 6, 4))
+    C3[[0, 1, 3]], C3[2] = C, 1.0 + 0.1 * C[2]
+    C3[4], C3[5] = 0.05 * C[0], -0.03 * C[1]
+    for array, methods in (
+        (C, ("stress_tangent", "stress_tangent_split")),
+        (C3, ("stress_tangent3", "stress_tangent3_split")),
+    ):
+        strided = array[:, 1:5]
+        assert not strided.flags.c_contiguous
+        for method in methods if law.decoupled else methods[:1]:
+            got = getattr(law, method)(strided)
+            want = getattr(law, method)(np.ascontiguousarray(strided))
+            for g, w in zip(got, want, strict=True):
+                np.testing.assert_array_equal(g, w)
 
 
 # --------------------------------------------------------------------------------------------
@@ -598,6 +623,23 @@ def test_shear_only_relaxation_keeps_the_pressure_and_relaxes_the_shear(name: st
     C = C_of(F[None])[:, 0]
     p = [-np.trace(cauchy3(C, F, S, S33)) / 3.0 for _, S, S33 in relax_held(whole, C, TIMES)]
     np.testing.assert_allclose(np.array(p) / p[0], g_t, rtol=1e-12)
+
+
+def test_history_held_is_the_weighted_sum_of_the_state() -> None:
+    """With the history held (a re-equilibration after a cycle jump), the compiled recursion
+    gives S = g_inf S0 + sum g_i H_i, and split, + k_inf S0_vol + sum k_i H_i^vol."""
+    rng = np.random.default_rng(11)
+    g, k = np.array(G2), np.array([0.1, 0.05])
+    S0, H = rng.normal(size=(3, 5, 2)), rng.normal(size=(2, 3, 5, 2))
+    S, g_inf = prony_stress(S0, H, g)
+    assert g_inf == pytest.approx(1.0 - g.sum(), rel=1e-15)
+    np.testing.assert_allclose(S, g_inf * S0 + g[0] * H[0] + g[1] * H[1], rtol=1e-14, atol=1e-14)
+    S0s, Hs = rng.normal(size=(2, 3, 5, 2)), rng.normal(size=(2, 2, 3, 5, 2))
+    Ss, factors = prony_stress_split(S0s, Hs, g, k)
+    want = factors[0] * S0s[0] + factors[1] * S0s[1]
+    want = want + g[0] * Hs[0, 0] + g[1] * Hs[1, 0] + k[0] * Hs[0, 1] + k[1] * Hs[1, 1]
+    np.testing.assert_allclose(Ss, want, rtol=1e-14, atol=1e-14)
+    np.testing.assert_allclose(factors, [1.0 - g.sum(), 1.0 - k.sum()], rtol=1e-15)
 
 
 @pytest.mark.parametrize("name", SPLIT_IDS)

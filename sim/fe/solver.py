@@ -119,11 +119,15 @@ class NewtonOptions:
     # factorisations but more iterations and solves: docs/fe_speed.md, "Modified Newton in
     # 2D?"). On for 3D, where a factorisation costs as much as a few residual evaluations.
     reuse_factorization: bool = False
-    # 0.25: keep the factorisation only while Newton still contracts fast (on the press of
-    # tests/test_fe3d.py full Newton cut the residual 5 to 10 000 times an iteration; the stall
-    # rule above gives up below a halving over six), so a kept one never drags a step toward
-    # the stall rule; there it made 7 factorisations of full Newton's 12, to the same state
-    reuse_ratio: float = 0.25
+    # 0.5: keep the factorisation while the residual at least halves an iteration. 0.25 (until
+    # solver 2.12, chosen on a plate press before the contact corrections and the wedge's band)
+    # threw away factorisations that still converged: on the banded 3D wedge the iteration after
+    # a fresh one often barely moves the residual (a ratio near 0.9) and is refactorised at any
+    # ratio, but one that halves it is worth keeping. On five pads (studies/reuse_ratio3d.py)
+    # 0.5 made 25 % fewer factorisations than 0.25 and was faster on four of them; 0.75 made
+    # fewer still but took up to twice the Newton iterations of a creeping pad's tapping and was
+    # slower on the viscoelastic pads (docs/fe_speed.md, "The 3D model's kept factorisation")
+    reuse_ratio: float = 0.5
     # With reuse: a kept factorisation also serves where the contact set has changed since it
     # was made, corrected exactly for the change of the contact's stiffness (a few surface
     # nodes' blocks: Woodbury's identity, ``_ContactCorrected``), from a step's first iteration

@@ -63,6 +63,7 @@ from sim.materials._ogden import Ogden
 from sim.materials._prony import (
     MAX_PRONY_TERMS,
     Prony,
+    prony_stress,
     prony_stress_split,
     prony_update,
     prony_update_split,
@@ -91,6 +92,7 @@ __all__ = [
     "material_from_spec",
     "material_tables",
     "merge_catalogues",
+    "prony_stress",
     "prony_stress_split",
     "prony_update",
     "prony_update_split",

@@ -21,6 +21,9 @@ derivatives are written with ``exprel(x) = (e^x - 1)/x`` so nothing cancels for 
 
 3D (``evaluate3`` etc.): the same split with the three eigenvalues of ``C`` and ``G(det C)``,
 the spectral tangent of :mod:`sim.materials._law3` (:meth:`Hyperfoam.evaluate3`).
+
+The stress and the tangent are compiled (:mod:`sim.materials._kernels`, where the
+divided difference's series is written out); the energy stays numpy.
 """
 
 from __future__ import annotations
@@ -32,31 +35,10 @@ from typing import Any, ClassVar
 import numpy as np
 
 from sim.materials import _validate as v
-from sim.materials._law import (
-    Array,
-    Law,
-    as_C,
-    check_ogden_terms,
-    list_field,
-    td_stress,
-    td_tangent,
-)
-from sim.materials._law3 import (
-    eigh3,
-    flat3,
-    inv_stress,
-    inv_tangent,
-    invariants3,
-    mirror,
-    pair_values,
-    spectral_bases,
-    spectral_stress,
-    spectral_tangent,
-)
+from sim.materials._law import Array, Law, as_C, check_ogden_terms, list_field, run_kernel
+from sim.materials._law3 import as_C3, eigh3, flat3, invariants3
 from sim.materials._special import exprel
 
-# Relative eigenvalue split below which the divided difference uses its Taylor series.
-_SPLIT_TOL = 5e-3
 # psi(x) = sum_k x^k / (k + 2)!, used for |x| < 0.1 (truncation < 1e-21).
 _PSI_SERIES = tuple(1.0 / np.prod(np.arange(1.0, k + 3.0)) for k in range(11))
 
@@ -122,164 +104,73 @@ class Hyperfoam(Law):
         """``K0 = sum 2 mu_i (1/3 + beta)`` (MPa)."""
         return 2.0 * self.initial_shear_modulus_MPa * (1.0 / 3.0 + self.beta)
 
-    # -- pieces ---------------------------------------------------------------------------
-    def _f(self, c: Array, s: Array, slope: bool) -> tuple[Array, Array | None]:
-        """``f(c) = sum (mu/2) s exprel(alpha s/2) / c`` and, if ``slope``, ``f'(c)``."""
-        f = np.zeros_like(c)
-        df = np.zeros_like(c) if slope else None
-        for mu, alpha in zip(self.mu_MPa, self.alpha, strict=True):
-            a = 0.5 * alpha
-            g = 0.5 * s * exprel(a * s)  # expm1(alpha s / 2) / alpha
-            f += mu * g
-            if df is not None:
-                df += mu * ((a - 1.0) * g + 0.5)
-        f /= c
-        if df is not None:
-            df /= c * c
-        return f, df
+    # -- the compiled stress and tangent -------------------------------------------------
+    def _compiled(self, C: Array, tangent: bool) -> tuple[Array, Array | None]:
+        """``(S, D)`` from :mod:`sim.materials._kernels` (``run_kernel``), plane
+        strain or 3D by the components of ``C``."""
+        from sim.materials._kernels import hyperfoam2, hyperfoam3
 
-    def _divided_difference(self, c1: Array, c2: Array, f1: Array, f2: Array) -> Array:
-        """``(f(c1) - f(c2)) / (c1 - c2)``, ``f'`` in the limit, accurate for any split."""
-        mean = 0.5 * (c1 + c2)
-        h = 0.5 * (c1 - c2)
-        near = np.abs(h) <= 0.5 * _SPLIT_TOL * mean
-        out = (f1 - f2) / np.where(near, 1.0, c1 - c2)
-        if near.any():
-            cm, hm = mean[near], h[near]
-            s = np.log(cm)
-            d1 = np.zeros_like(cm)
-            d3 = np.zeros_like(cm)
-            d5 = np.zeros_like(cm)
-            for mu, alpha in zip(self.mu_MPa, self.alpha, strict=True):
-                # f^(n)(c) = mu c^(-1-n) [(a-1)_n g + P_n(a)], (k)_n the falling factorial,
-                # P_n = ((a-1)_n - (-1)_n) / alpha expanded to avoid cancellation.
-                a = 0.5 * alpha
-                g = 0.5 * s * exprel(a * s)
-                k3 = (a - 1.0) * (a - 2.0) * (a - 3.0)
-                k5 = k3 * (a - 4.0) * (a - 5.0)
-                p3 = 0.5 * (11.0 + a * (-6.0 + a))
-                p5 = 0.5 * (274.0 + a * (-225.0 + a * (85.0 + a * (-15.0 + a))))
-                d1 += mu * ((a - 1.0) * g + 0.5)
-                d3 += mu * (k3 * g + p3)
-                d5 += mu * (k5 * g + p5)
-            x2 = (hm / cm) ** 2
-            out[near] = (d1 + x2 * (d3 / 6.0 + x2 * d5 / 120.0)) / (cm * cm)
-        return out
+        mu, alpha, beta = np.array(self.mu_MPa), np.array(self.alpha), self.beta
+        if C.shape[0] == 6:
 
-    def _volumetric(self, d: Array, second: bool) -> tuple[Array, Array, Array | None]:
-        """``ln J``, ``G'(d)`` and, if ``second``, ``G''(d)`` of the volumetric part."""
-        lnJ = 0.5 * np.log(d)
+            def kernel(C: Array, S: Array, D: Array) -> None:
+                c, N = eigh3(C)
+                hyperfoam3(C, c, N, mu, alpha, beta, tangent, S, D)
+
+        else:
+
+            def kernel(C: Array, S: Array, D: Array) -> None:
+                hyperfoam2(C, mu, alpha, beta, tangent, S, D)
+
+        return run_kernel(C, False, tangent, kernel)
+
+    def _energy(self, s: Array, lnJ: Array) -> Array:
+        """``U = sum_a F(c_a) + G`` from the log-eigenvalues ``s`` (``(k, n)``, k = 2 or 3)
+        and ``ln J``."""
+        W = np.zeros_like(lnJ)
         beta = self.beta
-        dG = np.zeros_like(d)
-        ddG = np.zeros_like(d) if second else None
         for mu, alpha in zip(self.mu_MPa, self.alpha, strict=True):
-            y = -alpha * beta * lnJ
-            e = exprel(y)
-            dG += mu * e
-            if ddG is not None:
-                ddG += mu * (0.5 * (1.0 + y * e) - lnJ * e)
-        dG *= beta * lnJ / d
-        if ddG is not None:
-            ddG *= beta / (d * d)
-        return lnJ, dG, ddG
-
-    @staticmethod
-    def _iso_stress(f1: Array, f2: Array, cos2: Array, sin2: Array) -> Array:
-        """``2 (f1 N1(x)N1 + f2 N2(x)N2)`` in Voigt form."""
-        mean, diff = f1 + f2, f1 - f2
-        return np.stack((mean + diff * cos2, mean - diff * cos2, diff * sin2))
+            W += 0.5 * mu * (s * s * _psi(0.5 * alpha * s)).sum(axis=0)
+            W += 2.0 * mu * beta * lnJ * lnJ * _psi(-alpha * beta * lnJ)
+        return W
 
     # -- public -----------------------------------------------------------------------------
     def stress(self, C: Any) -> Array:
         """In-plane 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(3, *batch)``."""
-        C = as_C(C)
-        c1, c2, d, cos2, sin2 = _spectral(C)
-        f1, _ = self._f(c1, np.log(c1), slope=False)
-        f2, _ = self._f(c2, np.log(c2), slope=False)
-        _, dG, _ = self._volumetric(d, second=False)
-        return self._iso_stress(f1, f2, cos2, sin2) + td_stress(C, None, dG)
+        return self._compiled(as_C(C), tangent=False)[0]
 
     def evaluate(self, C: Any) -> tuple[Array, Array, Array]:
         """``(W, S, D)`` (MPa) at ``C``; shapes ``batch``, ``(3, *batch)``, ``(3, 3, *batch)``."""
         C = as_C(C)
-        batch = C.shape[1:]
         c1, c2, d = _spectral(C.reshape(3, -1))[:3]
-        s1, s2, lnJ = np.log(c1), np.log(c2), 0.5 * np.log(d)
-        W = np.zeros_like(d)
-        beta = self.beta
-        for mu, alpha in zip(self.mu_MPa, self.alpha, strict=True):
-            a = 0.5 * alpha
-            W += 0.5 * mu * (s1 * s1 * _psi(a * s1) + s2 * s2 * _psi(a * s2))
-            W += 2.0 * mu * beta * lnJ * lnJ * _psi(-alpha * beta * lnJ)
+        W = self._energy(np.log(np.stack((c1, c2))), 0.5 * np.log(d))
         S, D = self.stress_tangent(C)
-        return W.reshape(batch), S, D
+        return W.reshape(C.shape[1:]), S, D
 
     def stress_tangent(self, C: Any) -> tuple[Array, Array]:
-        """``(S, D)`` (MPa) at ``C`` without the energy (what a Newton iteration needs)."""
-        C = as_C(C)
-        batch = C.shape[1:]
-        C = C.reshape(3, -1)
-        c1, c2, d, cos2, sin2 = _spectral(C)
-        s1, s2 = np.log(c1), np.log(c2)
-        f1, df1 = self._f(c1, s1, slope=True)
-        f2, df2 = self._f(c2, s2, slope=True)
-        _, dG, ddG = self._volumetric(d, second=True)
-        S = self._iso_stress(f1, f2, cos2, sin2) + td_stress(C, None, dG)
+        """``(S, D)`` (MPa) at ``C`` without the energy (what a Newton iteration needs).
 
-        # Spectral part: 4 f'(c1) P1(x)P1 + 4 f'(c2) P2(x)P2 + 2 f[c1, c2] w(x)w with
-        # P1 = [u, v, q], P2 = [v, u, -q], w = [-sin2, sin2, cos2] (Voigt, engineering shear).
-        A, B = 4.0 * df1, 4.0 * df2
-        F2 = 2.0 * self._divided_difference(c1, c2, f1, f2)
-        u, w_, q = 0.5 * (1.0 + cos2), 0.5 * (1.0 - cos2), 0.5 * sin2
-        ss, sc = F2 * sin2 * sin2, F2 * sin2 * cos2
-        D = np.empty((3, 3, C.shape[1]))
-        D[0, 0] = A * u * u + B * w_ * w_ + ss
-        D[1, 1] = A * w_ * w_ + B * u * u + ss
-        D[0, 1] = D[1, 0] = (A + B) * u * w_ - ss
-        D[0, 2] = D[2, 0] = q * (A * u - B * w_) - sc
-        D[1, 2] = D[2, 1] = q * (A * w_ - B * u) + sc
-        D[2, 2] = (A + B) * q * q + F2 * cos2 * cos2
-        td_tangent(C, dG, None, None, ddG, out=D)
-        return S.reshape(3, *batch), D.reshape(3, 3, *batch)
+        Spectral part: ``4 f'(c1) P1(x)P1 + 4 f'(c2) P2(x)P2 + 2 f[c1, c2] w(x)w`` with
+        ``P1 = [u, v, q]``, ``P2 = [v, u, -q]``, ``w = [-sin2, sin2, cos2]`` (Voigt, engineering
+        shear), ``f[c1, c2]`` the divided difference; plus ``G(d)`` by the ``W(t, d)`` chain
+        rule."""
+        return self._compiled(as_C(C), tangent=True)
 
     def S33(self, C: Any) -> Array:
         """Out-of-plane 2nd Piola-Kirchhoff stress ``S33 = sum 2 mu_i beta ln J exprel(y_i)``.
 
-        (MPa), shape ``batch``; ``y_i = -alpha_i beta ln J``.
+        (MPa), shape ``batch``; ``y_i = -alpha_i beta ln J``: ``2 G'(d) d``.
         """
         C = as_C(C)
         C11, C22, C12 = C
         d = C11 * C22 - C12 * C12
-        _, dG, _ = self._volumetric(d, second=False)
-        return 2.0 * dG * d
+        lnJ = 0.5 * np.log(d)
+        dG = np.zeros_like(d)
+        for mu, alpha in zip(self.mu_MPa, self.alpha, strict=True):
+            dG += mu * exprel(-alpha * self.beta * lnJ)
+        return 2.0 * self.beta * lnJ * dG
 
     # -- 3D (sim.materials._law3 conventions) -----------------------------------------------
-    def _parts3(self, C: Array, energy: bool, tangent: bool) -> tuple[Any, Array, Any]:
-        """``(W, S, D)`` for ``C`` of shape ``(6, n)`` (``W``/``D`` ``None`` unless asked)."""
-        c, N = eigh3(C)
-        s = np.log(c)
-        I1, _, I3, cof = invariants3(C)
-        f, df = self._f(c, s, slope=tangent)
-        lnJ, dG, ddG = self._volumetric(I3, second=tangent)
-        m, w = spectral_bases(N)
-        S = spectral_stress(f, m) + inv_stress(C, cof, I1, None, None, dG)
-        D = None
-        if tangent:
-            c_a, c_b = pair_values(c)
-            f_a, f_b = pair_values(f)
-            theta = self._divided_difference(c_a, c_b, f_a, f_b)
-            D = np.zeros((6, 6, C.shape[1]))
-            spectral_tangent(df, theta, m, w, out=D)
-            mirror(inv_tangent(C, cof, I1, None, dG, {(3, 3): ddG}, out=D))
-        W = None
-        if energy:
-            W = np.zeros_like(I3)
-            beta = self.beta
-            for mu, alpha in zip(self.mu_MPa, self.alpha, strict=True):
-                W += 0.5 * mu * (s * s * _psi(0.5 * alpha * s)).sum(axis=0)
-                W += 2.0 * mu * beta * lnJ * lnJ * _psi(-alpha * beta * lnJ)
-        return W, S, D
-
     def evaluate3(self, C: Any) -> tuple[Array, Array, Array]:
         """3D ``(W, S, D)`` (MPa) at ``C = [C11, C22, C33, C12, C23, C13]``; shapes ``batch``,
         ``(6, *batch)``, ``(6, 6, *batch)``.
@@ -288,21 +179,21 @@ class Hyperfoam(Law):
         ``s_1 + s_2 + s_3 = ln I3 = 2 ln J``), ``c_a`` the three eigenvalues of ``C``:
         ``S = 2 sum_a f(c_a) M_a + 2 G'(I3) cof C`` and the spectral tangent of
         :mod:`sim.materials._law3` with ``Phi_ab = delta_ab f'(c_a)`` and
-        ``theta_ab = (f(c_a) - f(c_b)) / (c_a - c_b)`` from :meth:`_divided_difference` (its
+        ``theta_ab = (f(c_a) - f(c_b)) / (c_a - c_b)`` from the divided difference of
+        ``sim.materials._kernels`` (its
         Taylor series about the mean for relative splits below ``5e-3``, so the tangent is
         continuous at equal eigenvalues), plus ``4 G'' cof (x) cof + 4 G' dcof/dC``.
         """
         Cf, batch = flat3(C)
-        W, S, D = self._parts3(Cf, energy=True, tangent=True)
-        return W.reshape(batch), S.reshape(6, *batch), D.reshape(6, 6, *batch)
+        c, _ = eigh3(Cf)
+        W = self._energy(np.log(c), 0.5 * np.log(invariants3(Cf)[2]))
+        S, D = self.stress_tangent3(C)
+        return W.reshape(batch), S, D
 
     def stress3(self, C: Any) -> Array:
         """3D 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(6, *batch)``; no tangent."""
-        Cf, batch = flat3(C)
-        return self._parts3(Cf, energy=False, tangent=False)[1].reshape(6, *batch)
+        return self._compiled(as_C3(C), tangent=False)[0]
 
     def stress_tangent3(self, C: Any) -> tuple[Array, Array]:
         """3D ``(S, D)`` (MPa) without the energy."""
-        Cf, batch = flat3(C)
-        _, S, D = self._parts3(Cf, energy=False, tangent=True)
-        return S.reshape(6, *batch), D.reshape(6, 6, *batch)
+        return self._compiled(as_C3(C), tangent=True)

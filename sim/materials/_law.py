@@ -10,8 +10,15 @@ Conventions (shared by every law, plane strain, total Lagrangian, ``C33 = 1``):
 
 Many laws are functions of ``t = tr C`` and ``d = det C`` of the 2x2 block only (``I1 = t + 1``,
 ``I2 = d + t``, ``J = sqrt(d)``).  ``dt/dC = I`` and ``dd/dC = cof C`` (linear in ``C``), so the
-stress and tangent follow from the derivatives of ``W(t, d)`` exactly, without eigenvalues
-(:func:`td_stress`, :func:`td_tangent`).
+stress and tangent follow from the derivatives of ``W(t, d)`` exactly, without eigenvalues:
+``S = 2 (W_t I + W_d cof C)`` and ``D = 4 (W_tt I(x)I + W_td (I(x)cof + cof(x)I) + W_dd
+cof(x)cof) + 4 W_d dcof/dC``, where in Voigt form with engineering shear ``4 dcof/dC = [[0, 4,
+0], [4, 0, 0], [0, 0, -2]]`` (``cof = [C22, C11, -C12]``, ``dC = 2 dE``, ``dC12 = gamma``);
+compiled with the laws (``sim.materials._kernels.td_stress``, ``td_tangent``).
+
+The laws' stress and tangent are compiled loops over the points (one ``*_kernels`` module per
+law, run by :func:`run_kernel`); their energies, which only the tests and the fitting read, stay
+numpy.
 
 A *decoupled* law (``Law.decoupled``; the invariant laws, ``W = W_iso(C) + W_vol(J)``) also gives
 its energy, stress and tangent split into the isochoric and the volumetric part, stacked on a
@@ -23,7 +30,7 @@ The Prony series can then relax shear and bulk with different coefficients.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar, Self
 
 import numpy as np
@@ -45,43 +52,29 @@ def as_C(C: Any) -> Array:
     return C
 
 
-def td_stress(C: Array, W_t: Any, W_d: Any) -> Array:
-    """``S = 2 (W_t I + W_d cof C)`` for ``W(t, d)``; ``W_t`` may be ``None`` (zero)."""
-    C11, C22, C12 = C
-    S = np.empty_like(C)
-    S[0] = 2.0 * W_d * C22
-    S[1] = 2.0 * W_d * C11
-    S[2] = -2.0 * W_d * C12
-    if W_t is not None:
-        S[0] += 2.0 * W_t
-        S[1] += 2.0 * W_t
-    return S
+#: the kernels' placeholder for a tangent not asked for
+_NO_TANGENT = np.empty((1, 1, 1, 1))
 
 
-def td_tangent(C: Array, W_d: Any, W_tt: Any, W_td: Any, W_dd: Any, out: Array) -> Array:
-    """Add the Voigt tangent of ``W(t, d)`` to ``out`` (shape ``(3, 3, *batch)``) and return it.
-
-    ``D = 4 (W_tt I(x)I + W_td (I(x)cof + cof(x)I) + W_dd cof(x)cof) + 4 W_d dcof/dC`` where,
-    in Voigt form with engineering shear, ``4 dcof/dC = [[0, 4, 0], [4, 0, 0], [0, 0, -2]]``
-    (``cof = [C22, C11, -C12]`` and ``dC = 2 dE``, ``dC12 = gamma``).  ``W_tt`` and ``W_td`` may
-    be ``None`` (zero).
-    """
-    C11, C22, C12 = C
-    W_tt = 0.0 if W_tt is None else W_tt
-    W_td = 0.0 if W_td is None else W_td
-    out[0, 0] += 4.0 * (W_tt + C22 * (2.0 * W_td + W_dd * C22))
-    out[1, 1] += 4.0 * (W_tt + C11 * (2.0 * W_td + W_dd * C11))
-    d01 = 4.0 * (W_tt + W_td * (C11 + C22) + W_dd * C11 * C22 + W_d)
-    d02 = -4.0 * C12 * (W_td + W_dd * C22)
-    d12 = -4.0 * C12 * (W_td + W_dd * C11)
-    out[0, 1] += d01
-    out[1, 0] += d01
-    out[0, 2] += d02
-    out[2, 0] += d02
-    out[1, 2] += d12
-    out[2, 1] += d12
-    out[2, 2] += 4.0 * W_dd * C12 * C12 - 2.0 * W_d
-    return out
+def run_kernel(
+    C: Array, split: bool, tangent: bool, kernel: Callable[[Array, Array, Array], None]
+) -> tuple[Array, Array | None]:
+    """``(S, D)`` of a compiled law at ``C`` (``(nv, *batch)``; nv = 3 plane strain, 6 in 3D):
+    ``kernel(C_flat, S, D)`` fills ``S`` (P, nv, n) and, with ``tangent``, ``D`` (P, nv, nv, n),
+    ``P = 2`` with ``split`` (``[iso, vol]``), else 1. Returns shapes ``(2, nv, *batch)``,
+    ``(2, nv, nv, *batch)`` with ``split``, else ``(nv, *batch)``, ``(nv, nv, *batch)``; ``D``
+    None without ``tangent``."""
+    nv, batch = C.shape[0], C.shape[1:]
+    flat = C.reshape(nv, -1)
+    parts = 2 if split else 1
+    S = np.empty((parts, nv, flat.shape[1]))
+    D = np.empty((parts, nv, nv, flat.shape[1])) if tangent else _NO_TANGENT
+    kernel(flat, S, D)
+    S = S.reshape(parts, nv, *batch)
+    D = D.reshape(parts, nv, nv, *batch) if tangent else None
+    if split:
+        return S, D
+    return S[0], (D[0] if D is not None else None)
 
 
 def check_ogden_terms(values: Mapping[str, Any], field: str) -> None:

@@ -13,7 +13,8 @@ Conventions (every law's ``evaluate3``; total Lagrangian, units MPa):
 With ``C33 = 1``, ``C23 = C13 = 0`` the rows and columns ``[0, 1, 3]`` are the plane-strain
 ``evaluate`` (``C = [C11, C22, C12]``) and ``S[2]`` is ``S33``.
 
-**Invariant part** (:func:`inv_stress`, :func:`inv_tangent`).  For ``W(I1, I2, I3)`` with
+**Invariant part** (compiled: ``sim.materials._kernels.volumetric3`` and the invariant laws'
+kernels).  For ``W(I1, I2, I3)`` with
 ``I1 = tr C``, ``I2`` the sum of the principal 2x2 minors, ``I3 = det C`` and
 ``G1 = dI1/dC = I``, ``G2 = dI2/dC = I1 I - C``, ``G3 = dI3/dC = cof C``:
 
@@ -24,9 +25,10 @@ With ``C33 = 1``, ``C23 = C13 = 0`` the rows and columns ``[0, 1, 3]`` are the p
         + 4 W_3 \frac{\partial\, \mathrm{cof}\, C}{\partial C}
 
 (``𝕀`` the symmetric fourth-order identity, Voigt ``diag(1, 1, 1, 1/2, 1/2, 1/2)``); the last
-term is polynomial in ``C`` (:func:`_add_dcof`), so nothing is divided by ``det C``.
+term is polynomial in ``C`` (``sim.materials._kernels.add_dcof``), so nothing is divided
+by ``det C``.
 
-**Spectral part** (:func:`eigh3`, :func:`spectral_stress`, :func:`spectral_tangent`).  For a
+**Spectral part** (:func:`eigh3`; compiled: ``sim.materials._kernels.spectral3``).  For a
 symmetric function ``Phi(c1, c2, c3)`` of the eigenvalues ``c_a`` of ``C`` (eigenvectors
 ``N_a``, ``M_a = N_a (x) N_a``), the stress and the tangent are (Ogden, *Non-linear Elastic
 Deformations*, 1984; Simo and Taylor, Comput. Methods Appl. Mech. Engrg. 85 (1991) 273-310)
@@ -114,104 +116,6 @@ def invariants3(C: Array) -> tuple[Array, Array, Array, Array]:
     return I1, I2, I3, cof
 
 
-def _eye(C: Array) -> Array:
-    return _EYE.reshape((6,) + (1,) * (C.ndim - 1))
-
-
-def inv_stress(C: Array, cof: Array, I1: Array, W1: Any, W2: Any, W3: Any) -> Array:
-    """``S = 2 (W1 I + W2 (I1 I - C) + W3 cof C)``; ``W1``, ``W2`` may be ``None`` (zero)."""
-    S = 2.0 * W3 * cof
-    diag = None
-    if W1 is not None:
-        diag = W1
-    if W2 is not None:
-        S -= 2.0 * W2 * C
-        diag = W2 * I1 if diag is None else diag + W2 * I1
-    if diag is not None:
-        S[:3] += 2.0 * diag
-    return S
-
-
-def _add_dcof(C: Array, coef: Any, out: Array) -> None:
-    """Add ``coef * d(cof C)/dE`` (Voigt, engineering shear; ``dC = 2 dE``) to ``out``.
-
-    Rows are ``cof = [C22 C33 - C23^2, C11 C33 - C13^2, C11 C22 - C12^2, C13 C23 - C12 C33,
-    C12 C13 - C11 C23, C12 C23 - C13 C22]`` differentiated by ``[2 dC11, 2 dC22, 2 dC33, dC12,
-    dC23, dC13]``; the matrix is symmetric."""
-    C11, C22, C33, C12, C23, C13 = C
-    two = 2.0 * coef
-    for i, j, value in (
-        (0, 1, two * C33),
-        (0, 2, two * C22),
-        (1, 2, two * C11),
-        (0, 4, -two * C23),
-        (1, 5, -two * C13),
-        (2, 3, -two * C12),
-        (3, 4, coef * C13),
-        (3, 5, coef * C23),
-        (4, 5, coef * C12),
-    ):
-        out[i, j] += value
-        out[j, i] += value
-    out[3, 3] -= coef * C33
-    out[4, 4] -= coef * C11
-    out[5, 5] -= coef * C22
-
-
-def inv_tangent(
-    C: Array,
-    cof: Array,
-    I1: Array,
-    W2: Any,
-    W3: Any,
-    second: dict[tuple[int, int], Any],
-    out: Array,
-) -> Array:
-    """Add the Voigt tangent of ``W(I1, I2, I3)`` to ``out`` (shape ``(6, 6, *batch)``).
-
-    ``W2``, ``W3``: first derivatives (``None`` = zero); ``second``: ``{(a, b): W_ab}`` for
-    ``a <= b`` in ``1..3`` (missing = zero).  See the module docstring; ``out`` is returned
-    exactly symmetric only after :func:`mirror`.
-    """
-    G: dict[int, Array] = {3: cof}
-    if any(1 in key for key in second):
-        G[1] = _eye(C)
-    if any(2 in key for key in second):
-        G[2] = I1 * _eye(C) - C
-    V: dict[int, Any] = {}
-    for (a, b), Wab in second.items():
-        if Wab is None:
-            continue
-        # 4 W_ab (G_a (x) G_b + G_b (x) G_a) for a < b, 4 W_aa G_a (x) G_a: accumulate the
-        # vectors V_a = sum_b W_ab G_b and add 4 sum_a G_a (x) V_a
-        V[a] = Wab * G[b] if a not in V else V[a] + Wab * G[b]
-        if a != b:
-            V[b] = Wab * G[a] if b not in V else V[b] + Wab * G[a]
-    for a, Va in V.items():
-        out += 4.0 * G[a][:, None] * Va[None, :]
-    if W2 is not None:
-        # 4 W2 (I (x) I - Isym)
-        four = 4.0 * W2
-        for i in range(3):
-            for j in range(3):
-                if i != j:
-                    out[i, j] += four
-            out[i + 3, i + 3] -= 0.5 * four
-    if W3 is not None:
-        _add_dcof(C, 2.0 * W3, out)  # 4 W3 dcof/dC = 2 W3 dcof/dE
-    return out
-
-
-def mirror(D: Array) -> Array:
-    """Copy the upper triangle of ``D`` (``(m, m, *batch)``) onto the lower one: symmetric to
-    the bit."""
-    m = D.shape[0]
-    for i in range(m):
-        for j in range(i):
-            D[i, j] = D[j, i]
-    return D
-
-
 def eigh3(C: Array) -> tuple[Array, Array]:
     """Eigenvalues ``c`` (shape ``(3, n)``, ascending) and eigenvectors ``N`` (shape
     ``(3, 3, n)``, ``N[a]`` the unit eigenvector of ``c[a]``) of ``C`` (shape ``(6, n)``).
@@ -221,46 +125,3 @@ def eigh3(C: Array) -> tuple[Array, Array]:
     from ._eigh3 import eigh3_voigt
 
     return eigh3_voigt(np.ascontiguousarray(C, dtype=np.float64))
-
-
-def spectral_bases(N: Array) -> tuple[Array, Array]:
-    """``m[a]`` = Voigt of ``N_a (x) N_a`` (shape ``(3, 6, n)``) and ``w[p]`` = Voigt of
-    ``N_a (x) N_b + N_b (x) N_a`` for the pairs :data:`PAIRS` (shape ``(3, 6, n)``)."""
-    m = np.empty((3, 6, N.shape[2]))
-    w = np.empty_like(m)
-    for k, (i, j) in enumerate(VOIGT3):
-        m[:, k] = N[:, i] * N[:, j]
-        for p, (a, b) in enumerate(PAIRS):
-            w[p, k] = N[a, i] * N[b, j] + N[b, i] * N[a, j]
-    return m, w
-
-
-def spectral_stress(phi: Array, m: Array) -> Array:
-    """``S = 2 sum_a Phi_a M_a`` (Voigt, shape ``(6, n)``) from ``phi`` (shape ``(3, n)``)."""
-    return 2.0 * (phi[0] * m[0] + phi[1] * m[1] + phi[2] * m[2])
-
-
-def spectral_tangent(phi2: Array, theta: Array, m: Array, w: Array, out: Array) -> Array:
-    """Add ``4 sum_ab Phi_ab M_a (x) M_b + 2 sum_p theta_p W_p (x) W_p`` to ``out``.
-
-    ``phi2``: ``Phi_ab``, shape ``(3, 3, n)``, or shape ``(3, n)`` for a diagonal one (a sum of
-    functions of one eigenvalue each); ``theta``: ``(Phi_a - Phi_b) / (c_a - c_b)`` (its limit
-    ``Phi_aa - Phi_ab`` for equal eigenvalues) for the pairs :data:`PAIRS`, shape ``(3, n)``.
-    ``out`` is exactly symmetric only after :func:`mirror`.
-    """
-    for a in range(3):
-        if phi2.ndim == 2:
-            V = phi2[a] * m[a]
-        else:
-            V = phi2[a, 0] * m[0] + phi2[a, 1] * m[1] + phi2[a, 2] * m[2]
-        out += 4.0 * m[a][:, None] * V[None, :]
-    for p in range(3):
-        out += 2.0 * theta[p] * w[p][:, None] * w[p][None, :]
-    return out
-
-
-def pair_values(x: Array) -> tuple[Array, Array]:
-    """``(x[a], x[b])`` for the pairs :data:`PAIRS`, each of shape ``(3, *rest)``."""
-    first = np.stack([x[a] for a, _ in PAIRS])
-    second = np.stack([x[b] for _, b in PAIRS])
-    return first, second

@@ -16,7 +16,7 @@ from sim.materials._hyperfoam import Hyperfoam
 from sim.materials._invariant import MooneyRivlin, NeoHookean, Yeoh
 from sim.materials._law import Law
 from sim.materials._ogden import Ogden
-from sim.materials._prony import Prony, prony_stress_split, prony_update_split
+from sim.materials._prony import Prony, prony_stress, prony_stress_split, prony_update_split
 
 Array = np.ndarray
 
@@ -216,8 +216,7 @@ class Material:
         """``(S, factor)`` with the history ``H`` held as it is (no time passes):
         ``S = g_inf S0 + sum g_i H_i`` (split: plus the bulk terms with ``k``)."""
         if not self.split_relaxation:
-            g = np.asarray(self.prony.g, dtype=float)
-            return self.prony.g_inf * S0 + np.tensordot(g, H, axes=1), self.prony.g_inf
+            return prony_stress(S0, H, self.prony.g)
         return prony_stress_split(S0, H, self.prony.g, self.prony_k)
 
     def tangent(self, D0: Array, factor: Any) -> Array:

@@ -24,7 +24,8 @@ the spectral form with the cross term ``Phi_12`` and the divided difference
 
 so nothing cancels when the eigenvalues meet (the undeformed state): ``sinh(n d)/sinh(d) -> n``.
 The volumetric part depends on ``d = det C`` only and goes through the shared ``W(t, d)`` chain
-rule (:func:`sim.materials._law.td_tangent`).
+rule (:mod:`sim.materials._law`). The stress and the tangent are compiled
+(:mod:`sim.materials._kernels`); the energy stays numpy.
 
 3D (``evaluate3`` etc.): the same energy in the three eigenvalues of ``C``, the spectral tangent
 of :mod:`sim.materials._law3` with the divided differences in closed form
@@ -41,34 +42,8 @@ import numpy as np
 
 from sim.materials import _validate as v
 from sim.materials._hyperfoam import _psi
-from sim.materials._law import (
-    Array,
-    Law,
-    as_C,
-    check_ogden_terms,
-    list_field,
-    td_stress,
-    td_tangent,
-)
-from sim.materials._law3 import (
-    eigh3,
-    flat3,
-    inv_stress,
-    inv_tangent,
-    invariants3,
-    mirror,
-    pair_values,
-    spectral_bases,
-    spectral_stress,
-    spectral_tangent,
-)
-
-
-def _sinh_ratio(n: float, d: Array) -> Array:
-    """``sinh(n d) / sinh(d)``, ``n`` at ``d = 0`` (``np.sinh`` is accurate for small ``d``)."""
-    zero = d == 0.0
-    safe = np.where(zero, 1.0, d)
-    return np.where(zero, n, np.sinh(n * safe) / np.sinh(safe))
+from sim.materials._law import Array, Law, as_C, check_ogden_terms, list_field, run_kernel
+from sim.materials._law3 import as_C3, eigh3, flat3, invariants3
 
 
 def _eigen(C: Array) -> tuple[Array, ...]:
@@ -132,125 +107,69 @@ class Ogden(Law):
             )
         return W
 
-    def _iso_first(self, c1: Array, c2: Array, s1: Array, s2: Array) -> tuple[Array, Array]:
-        """``(dU/dc1, dU/dc2)`` of the isochoric part."""
-        p1 = np.zeros_like(c1)
-        p2 = np.zeros_like(c1)
-        for k, a in self._terms():
-            A = np.exp(a * (2.0 * s1 - s2))
-            B = np.exp(a * (2.0 * s2 - s1))
-            Cc = np.exp(-a * (s1 + s2))
-            p1 += k * a * (2.0 * A - B - Cc)
-            p2 += k * a * (2.0 * B - A - Cc)
-        return p1 / c1, p2 / c2
+    def _compiled(self, C: Array, split: bool, tangent: bool) -> tuple[Array, Array | None]:
+        """``(S, D)`` from :mod:`sim.materials._kernels` (``run_kernel``), plane strain
+        or 3D by the components of ``C``."""
+        from sim.materials._kernels import ogden2, ogden3
 
-    def _iso_stress(self, C: Array, eig: tuple[Array, ...]) -> Array:
-        c1, c2, _, s1, s2, _, cos2, sin2 = eig
-        f1, f2 = self._iso_first(c1, c2, s1, s2)
-        mean, diff = f1 + f2, f1 - f2
-        return np.stack((mean + diff * cos2, mean - diff * cos2, diff * sin2))
-
-    def _iso_tangent(self, C: Array, eig: tuple[Array, ...], out: Array) -> Array:
-        """Add the isochoric Voigt tangent to ``out`` (shape ``(3, 3, n)``)."""
-        c1, c2, _, s1, s2, d, cos2, sin2 = eig
-        f11 = np.zeros_like(c1)
-        f22 = np.zeros_like(c1)
-        f12 = np.zeros_like(c1)
-        dd = np.zeros_like(c1)  # (f1 - f2) / (c1 - c2)
-        m = 0.5 * (s1 + s2)
-        for k, a in self._terms():
-            A = np.exp(a * (2.0 * s1 - s2))
-            B = np.exp(a * (2.0 * s2 - s1))
-            Cc = np.exp(-a * (s1 + s2))
-            ka2 = k * a * a
-            # d2 Phi / ds_a ds_b, then to c: Phi_11 = (Phi_s1s1 - Phi_s1) / c1^2, ...
-            f11 += ka2 * (4.0 * A + B + Cc) - k * a * (2.0 * A - B - Cc)
-            f22 += ka2 * (4.0 * B + A + Cc) - k * a * (2.0 * B - A - Cc)
-            f12 += ka2 * (Cc - 2.0 * A - 2.0 * B)
-            ratio = 2.0 * _sinh_ratio(3.0 * a - 1.0, d) + _sinh_ratio(3.0 * a + 1.0, d)
-            dd += k * a * np.exp(-2.0 * m) * (np.exp(a * m) * ratio + np.exp(-2.0 * a * m))
-        f11 /= c1 * c1
-        f22 /= c2 * c2
-        f12 /= c1 * c2
-        # 4 Phi_ab P_a (x) P_b + 2 (2 (f1 - f2) / (c1 - c2)) w (x) w, with P1 = [u, w_, q],
-        # P2 = [w_, u, -q], w = [-sin2, sin2, cos2] (Voigt, engineering shear)
-        u, w_, q = 0.5 * (1.0 + cos2), 0.5 * (1.0 - cos2), 0.5 * sin2
-        P1 = (u, w_, q)
-        P2 = (w_, u, -q)
-        F2 = 2.0 * dd
-        w = (-sin2, sin2, cos2)
-        for i in range(3):
-            for j in range(i, 3):
-                part = (
-                    4.0 * (f11 * (P1[i] * P1[j]) + f22 * (P2[i] * P2[j]))
-                    + 4.0 * f12 * (P1[i] * P2[j] + P2[i] * P1[j])
-                    + F2 * (w[i] * w[j])
-                )
-                out[i, j] += part
-                if j != i:
-                    out[j, i] += part
-        return out
-
-    # -- volumetric part -------------------------------------------------------------------
-    def _vol(self, det: Array) -> tuple[Array, Array, Array]:
-        """``J``, ``dW_vol/dd`` and ``d2W_vol/dd2`` of ``K/2 (J - 1)^2``, ``J = sqrt(d)``."""
+        k = np.array([kt for kt, _ in self._terms()])
+        a = np.array([at for _, at in self._terms()])
         K = self.bulk_modulus_MPa
-        J = np.sqrt(det)
-        J_d = 0.5 / J
-        U_J = K * (J - 1.0)
-        return J, U_J * J_d, K * J_d * J_d - U_J * 0.25 * J / (det * det)
+        if C.shape[0] == 6:
+
+            def kernel(C: Array, S: Array, D: Array) -> None:
+                c, N = eigh3(C)
+                ogden3(C, c, N, k, a, K, split, tangent, S, D)
+
+        else:
+
+            def kernel(C: Array, S: Array, D: Array) -> None:
+                ogden2(C, k, a, K, split, tangent, S, D)
+
+        return run_kernel(C, split, tangent, kernel)
 
     # -- public -----------------------------------------------------------------------------
     def _flat(self, C: Any) -> tuple[Array, tuple[int, ...]]:
         C = as_C(C)
         return C.reshape(3, -1), C.shape[1:]
 
-    def stress(self, C: Any) -> Array:
-        """In-plane 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(3, *batch)``."""
-        S = self.stress_split(C)
-        return S[0] + S[1]
-
-    def stress_split(self, C: Any) -> Array:
-        """``S`` split as ``[iso, vol]``, shape ``(2, 3, *batch)`` (MPa)."""
-        Cf, batch = self._flat(C)
-        eig = _eigen(Cf)
-        _, W_d, _ = self._vol(eig[2])
-        S = np.stack((self._iso_stress(Cf, eig), td_stress(Cf, None, W_d)))
-        return S.reshape(2, 3, *batch)
-
-    def stress_tangent_split(self, C: Any) -> tuple[Array, Array]:
-        """``(S, D)`` split as ``[iso, vol]`` (MPa), shapes ``(2, 3, *batch)``,
-        ``(2, 3, 3, *batch)``."""
-        Cf, batch = self._flat(C)
-        eig = _eigen(Cf)
-        _, W_d, W_dd = self._vol(eig[2])
-        S = np.stack((self._iso_stress(Cf, eig), td_stress(Cf, None, W_d)))
-        D = np.zeros((2, 3, 3, Cf.shape[1]))
-        self._iso_tangent(Cf, eig, D[0])
-        td_tangent(Cf, W_d, None, None, W_dd, out=D[1])
-        return S.reshape(2, 3, *batch), D.reshape(2, 3, 3, *batch)
-
-    def evaluate_split(self, C: Any) -> tuple[Array, Array, Array]:
-        """``(W, S, D)`` split as ``[iso, vol]`` (MPa): ``W_iso = U_iso``,
-        ``W_vol = K/2 (J - 1)^2``; shapes ``(2, *batch)``, ``(2, 3, *batch)``,
-        ``(2, 3, 3, *batch)``."""
+    def _energy2(self, C: Any) -> Array:
+        """``[U_iso, U_vol]``, shape ``(2, *batch)``."""
         Cf, batch = self._flat(C)
         eig = _eigen(Cf)
         W = np.stack(
             (self._iso(eig[3], eig[4]), 0.5 * self.bulk_modulus_MPa * (np.sqrt(eig[2]) - 1.0) ** 2)
         )
+        return W.reshape(2, *batch)
+
+    def stress(self, C: Any) -> Array:
+        """In-plane 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(3, *batch)``."""
+        return self._compiled(as_C(C), split=False, tangent=False)[0]
+
+    def stress_split(self, C: Any) -> Array:
+        """``S`` split as ``[iso, vol]``, shape ``(2, 3, *batch)`` (MPa)."""
+        return self._compiled(as_C(C), split=True, tangent=False)[0]
+
+    def stress_tangent_split(self, C: Any) -> tuple[Array, Array]:
+        """``(S, D)`` split as ``[iso, vol]`` (MPa), shapes ``(2, 3, *batch)``,
+        ``(2, 3, 3, *batch)``."""
+        return self._compiled(as_C(C), split=True, tangent=True)
+
+    def evaluate_split(self, C: Any) -> tuple[Array, Array, Array]:
+        """``(W, S, D)`` split as ``[iso, vol]`` (MPa): ``W_iso = U_iso``,
+        ``W_vol = K/2 (J - 1)^2``; shapes ``(2, *batch)``, ``(2, 3, *batch)``,
+        ``(2, 3, 3, *batch)``."""
         S, D = self.stress_tangent_split(C)
-        return W.reshape(2, *batch), S, D
+        return self._energy2(C), S, D
 
     def stress_tangent(self, C: Any) -> tuple[Array, Array]:
         """``(S, D)`` (MPa) at ``C`` without the energy (what a Newton iteration needs)."""
-        S, D = self.stress_tangent_split(C)
-        return S[0] + S[1], D[0] + D[1]
+        return self._compiled(as_C(C), split=False, tangent=True)
 
     def evaluate(self, C: Any) -> tuple[Array, Array, Array]:
         """``(W, S, D)`` (MPa) at ``C``; shapes ``batch``, ``(3, *batch)``, ``(3, 3, *batch)``."""
-        W, S, D = self.evaluate_split(C)
-        return W[0] + W[1], S[0] + S[1], D[0] + D[1]
+        S, D = self.stress_tangent(C)
+        return self._energy2(C).sum(axis=0), S, D
 
     def S33_split(self, C: Any) -> Array:
         """``S33`` split as ``[iso, vol]``, shape ``(2, *batch)`` (MPa).
@@ -276,70 +195,19 @@ class Ogden(Law):
         return S[0] + S[1]
 
     # -- 3D (sim.materials._law3 conventions) -----------------------------------------------
-    def _iso3(self, c: Array, s: Array, tangent: bool) -> tuple[Array, Any, Any]:
-        """``(Phi_a, Phi_ab, theta_ab)`` of the isochoric energy in the eigenvalues ``c``
-        (log-eigenvalues ``s``, shape ``(3, n)``); see :meth:`evaluate3_split`."""
-        s_mean = s.mean(axis=0)
-        e = s - s_mean
-        dW = np.zeros_like(c)  # dU/ds_a
-        d2W = np.zeros((3, 3, c.shape[1])) if tangent else None  # d2U/ds_a ds_b
-        theta = np.zeros_like(c) if tangent else None
-        if tangent:
-            s_a, s_b = pair_values(s)
-            sig = 0.5 * (s_a + s_b)
-            dl = 0.5 * (s_a - s_b)
-            zero = dl == 0.0
-            dl_safe = np.where(zero, 1.0, dl)
-            scale = np.exp(-2.0 * sig)
-        for k, a6 in self._terms():
-            b = 3.0 * a6  # alpha / 2
-            em = np.expm1(b * e)  # lb^alpha - 1
-            em_mean = em.mean(axis=0)
-            dW += (k * b) * (em - em_mean)
-            if tangent:
-                ex = 1.0 + em
-                kb2 = k * b * b
-                third = (1.0 + em_mean) / 3.0  # E / 9
-                for i in range(3):
-                    for j in range(3):
-                        d2W[i, j] += kb2 * (float(i == j) * ex[i] - (ex[i] + ex[j]) / 3.0 + third)
-                u = b * (sig - s_mean)
-                ratio = np.where(zero, b, np.sinh(b * dl_safe) / np.tanh(dl_safe))
-                r1 = ratio - 2.0 * np.sinh(0.5 * b * dl) ** 2  # sinh((b - 1) dl)/sinh(dl) + 1
-                theta += (k * b) * scale * (np.exp(u) * r1 - np.expm1(u) + em_mean)
-        phi = dW / c
-        if not tangent:
-            return phi, None, None
-        phi2 = d2W
-        for i in range(3):
-            phi2[i, i] -= dW[i]
-        phi2 /= c[:, None] * c[None, :]
-        return phi, phi2, theta
-
-    def _parts3(self, C: Array, energy: bool, tangent: bool) -> tuple[Any, Array, Any]:
-        """``(W, S, D)`` split as ``[iso, vol]`` for ``C`` of shape ``(6, n)`` (``W``/``D``
-        ``None`` unless asked for)."""
-        c, N = eigh3(C)
+    def _energy3(self, C: Array) -> Array:
+        """``[U_iso, U_vol]`` (shape ``(2, n)``) at ``C`` (``(6, n)``): ``U_iso = k sum_a x_a^2
+        psi(x_a)`` with ``x_a = b (s_a - s_mean)`` (see :meth:`evaluate3_split`)."""
+        c, _ = eigh3(C)
         s = np.log(c)
-        I1, _, I3, cof = invariants3(C)
-        J, W_d, W_dd = self._vol(I3)
-        m, w = spectral_bases(N)
-        phi, phi2, theta = self._iso3(c, s, tangent)
-        S = np.stack((spectral_stress(phi, m), inv_stress(C, cof, I1, None, None, W_d)))
-        D = None
-        if tangent:
-            D = np.zeros((2, 6, 6, C.shape[1]))
-            mirror(spectral_tangent(phi2, theta, m, w, out=D[0]))
-            mirror(inv_tangent(C, cof, I1, None, W_d, {(3, 3): W_dd}, out=D[1]))
-        W = None
-        if energy:
-            W = np.zeros((2, C.shape[1]))
-            e = s - s.mean(axis=0)
-            for k, a6 in self._terms():
-                x = 3.0 * a6 * e  # sum_a x_a = 0: k sum (e^x - 1) = k sum (e^x - 1 - x)
-                W[0] += k * (x * x * _psi(x)).sum(axis=0)
-            W[1] = 0.5 * self.bulk_modulus_MPa * (J - 1.0) ** 2
-        return W, S, D
+        e = s - s.mean(axis=0)
+        W = np.zeros((2, C.shape[1]))
+        for k, a6 in self._terms():
+            x = 3.0 * a6 * e  # sum_a x_a = 0: k sum (e^x - 1) = k sum (e^x - 1 - x)
+            W[0] += k * (x * x * _psi(x)).sum(axis=0)
+        I3 = invariants3(C)[2]
+        W[1] = 0.5 * self.bulk_modulus_MPa * (np.sqrt(I3) - 1.0) ** 2
+        return W
 
     def evaluate3_split(self, C: Any) -> tuple[Array, Array, Array]:
         r"""3D ``(W, S, D)`` split as ``[iso, vol]`` (MPa); shapes ``(2, *batch)``,
@@ -376,34 +244,30 @@ class Ogden(Law):
         are taken with ``expm1``, and the energy as ``k sum_a x_a^2 psi(x_a)``,
         ``psi(x) = (e^x - 1 - x) / x^2`` (``sum_a x_a = 0``; no cancellation for small
         ``alpha``).  Volumetric part ``K/2 (J - 1)^2`` through ``I3 = det C``
-        (:func:`sim.materials._law3.inv_tangent`).
+        (``sim.materials._kernels.volumetric3``).
         """
         Cf, batch = flat3(C)
-        W, S, D = self._parts3(Cf, energy=True, tangent=True)
-        return W.reshape(2, *batch), S.reshape(2, 6, *batch), D.reshape(2, 6, 6, *batch)
+        S, D = self._compiled(as_C3(C), split=True, tangent=True)
+        return self._energy3(Cf).reshape(2, *batch), S, D
 
     def stress3_split(self, C: Any) -> Array:
         """3D ``S`` split as ``[iso, vol]``, shape ``(2, 6, *batch)`` (MPa)."""
-        Cf, batch = flat3(C)
-        return self._parts3(Cf, energy=False, tangent=False)[1].reshape(2, 6, *batch)
+        return self._compiled(as_C3(C), split=True, tangent=False)[0]
 
     def stress_tangent3_split(self, C: Any) -> tuple[Array, Array]:
         """3D ``(S, D)`` split as ``[iso, vol]`` (MPa)."""
-        Cf, batch = flat3(C)
-        _, S, D = self._parts3(Cf, energy=False, tangent=True)
-        return S.reshape(2, 6, *batch), D.reshape(2, 6, 6, *batch)
+        return self._compiled(as_C3(C), split=True, tangent=True)
 
     def evaluate3(self, C: Any) -> tuple[Array, Array, Array]:
         """3D ``(W, S, D)`` (MPa); shapes ``batch``, ``(6, *batch)``, ``(6, 6, *batch)``."""
-        W, S, D = self.evaluate3_split(C)
-        return W[0] + W[1], S[0] + S[1], D[0] + D[1]
+        Cf, batch = flat3(C)
+        S, D = self.stress_tangent3(C)
+        return self._energy3(Cf).sum(axis=0).reshape(batch), S, D
 
     def stress3(self, C: Any) -> Array:
         """3D 2nd Piola-Kirchhoff stress ``S`` (MPa), shape ``(6, *batch)``; no tangent."""
-        S = self.stress3_split(C)
-        return S[0] + S[1]
+        return self._compiled(as_C3(C), split=False, tangent=False)[0]
 
     def stress_tangent3(self, C: Any) -> tuple[Array, Array]:
         """3D ``(S, D)`` (MPa) without the energy."""
-        S, D = self.stress_tangent3_split(C)
-        return S[0] + S[1], D[0] + D[1]
+        return self._compiled(as_C3(C), split=False, tangent=True)

@@ -41,6 +41,43 @@ Array = np.ndarray
 MAX_PRONY_TERMS = 6
 
 
+def _step(
+    S0_new: Array,
+    S0_old: Array,
+    H_old: Array,
+    dt_s: float | None,
+    coef: Array,
+    tau_s: Sequence[float],
+    parts: int,
+) -> tuple[Array, Array, Array]:
+    """``(S, H_new, gamma)`` of the compiled recursion (:func:`sim.materials._prony_kernels.
+    prony_step`) for ``parts`` parts stacked on the first axis of ``S0_new`` (1: the whole
+    stress with a leading axis of length 1 added, ``coef`` (N,); 2: ``[iso, vol]``, ``coef``
+    (N, 2)); ``dt_s = None`` holds the history as it is (``gamma = 0``)."""
+    from sim.materials._prony_kernels import prony_step
+
+    S0_new = np.asarray(S0_new, dtype=float)
+    H_old = np.asarray(H_old, dtype=float)
+    n = len(tau_s)
+    if dt_s is None:
+        decay, gamma = np.ones(n), np.zeros(n)
+    else:
+        z = dt_s / np.asarray(tau_s, dtype=float)
+        decay = np.exp(-z)
+        gamma = np.asarray(exprel(-z), dtype=float)  # (1 - exp(-z)) / z, 1 at z = 0
+    coef = coef.reshape(n, parts)
+    inf = 1.0 - coef.sum(axis=0)
+    flat_new = S0_new.reshape(parts, -1)
+    flat_old = np.asarray(S0_old, dtype=float).reshape(parts, -1)
+    H_new = np.empty_like(H_old)
+    S = np.empty(flat_new.shape[1])
+    prony_step(
+        flat_new, flat_old, H_old.reshape(n, parts, -1), decay, gamma, coef, inf, S,
+        H_new.reshape(n, parts, -1),
+    )  # fmt: skip
+    return S.reshape(S0_new.shape[1:]), H_new, gamma
+
+
 def prony_update(
     S0_new: Array,
     S0_old: Array,
@@ -63,16 +100,10 @@ def prony_update(
     if not dt_s >= 0.0:
         raise ValueError(f"dt_s must be >= 0, got {dt_s}")
     g_arr = np.asarray(g, dtype=float)
-    g_inf = 1.0 - float(g_arr.sum())
     if g_arr.size == 0:
         return np.array(S0_new, dtype=float, copy=True), np.asarray(H_old), 1.0
-    z = dt_s / np.asarray(tau_s, dtype=float)
-    decay = np.exp(-z)
-    gamma = exprel(-z)  # (1 - exp(-z)) / z, 1 at z = 0
-    expand = (slice(None),) + (None,) * np.ndim(S0_new)
-    H_new = decay[expand] * H_old + gamma[expand] * (S0_new - S0_old)
-    S = g_inf * S0_new + np.tensordot(g_arr, H_new, axes=1)
-    return S, H_new, g_inf + float(g_arr @ gamma)
+    S, H_new, gamma = _step(S0_new[None], S0_old, H_old, dt_s, g_arr, tau_s, 1)
+    return S, H_new, 1.0 - float(g_arr.sum()) + float(g_arr @ gamma)
 
 
 def prony_update_split(
@@ -99,16 +130,11 @@ def prony_update_split(
         raise ValueError(f"dt_s must be >= 0, got {dt_s}")
     g_arr = np.asarray(g, dtype=float)
     k_arr = np.asarray(k, dtype=float)
-    g_inf = 1.0 - float(g_arr.sum())
-    k_inf = 1.0 - float(k_arr.sum())
     if g_arr.size == 0:
         return S0_new[0] + S0_new[1], np.asarray(H_old), np.ones(2)
-    z = dt_s / np.asarray(tau_s, dtype=float)
-    decay = np.exp(-z)
-    gamma = exprel(-z)  # (1 - exp(-z)) / z, 1 at z = 0
-    expand = (slice(None),) + (None,) * np.ndim(S0_new)
-    H_new = decay[expand] * H_old + gamma[expand] * (S0_new - S0_old)
-    S = prony_stress_split(S0_new, H_new, g_arr, k_arr)[0]
+    coef = np.stack((g_arr, k_arr), axis=1)
+    S, H_new, gamma = _step(S0_new, S0_old, H_old, dt_s, coef, tau_s, 2)
+    g_inf, k_inf = 1.0 - float(g_arr.sum()), 1.0 - float(k_arr.sum())
     return S, H_new, np.array([g_inf + float(g_arr @ gamma), k_inf + float(k_arr @ gamma)])
 
 
@@ -120,12 +146,21 @@ def prony_stress_split(
     sum k_i H_i^vol``, ``factors = [g_inf, k_inf]`` (the tangent with the history held fixed)."""
     g_arr = np.asarray(g, dtype=float)
     k_arr = np.asarray(k, dtype=float)
+    factors = np.array([1.0 - float(g_arr.sum()), 1.0 - float(k_arr.sum())])
+    if not g_arr.size:
+        return factors[0] * S0[0] + factors[1] * S0[1], factors
+    coef = np.stack((g_arr, k_arr), axis=1)
+    return _step(S0, S0, H, None, coef, [1.0] * g_arr.size, 2)[0], factors
+
+
+def prony_stress(S0: Array, H: Array, g: Sequence[float]) -> tuple[Array, float]:
+    """``(S, g_inf)`` for the whole-stress state ``S0`` and history ``H`` (``(N_G, *S0.shape)``)
+    held as they are: ``S = g_inf S0 + sum g_i H_i``."""
+    g_arr = np.asarray(g, dtype=float)
     g_inf = 1.0 - float(g_arr.sum())
-    k_inf = 1.0 - float(k_arr.sum())
-    S = g_inf * S0[0] + k_inf * S0[1]
-    if g_arr.size:
-        S = S + np.tensordot(g_arr, H[:, 0], axes=1) + np.tensordot(k_arr, H[:, 1], axes=1)
-    return S, np.array([g_inf, k_inf])
+    if not g_arr.size:
+        return g_inf * np.asarray(S0, dtype=float), g_inf
+    return _step(S0[None], S0, H, None, g_arr, [1.0] * g_arr.size, 1)[0], g_inf
 
 
 @dataclasses.dataclass(frozen=True)
