@@ -10,6 +10,7 @@ from collections.abc import Mapping
 from typing import Any
 
 __all__ = [
+    "DEFAULTS_BEFORE",
     "DIAGNOSTIC_KEYS",
     "METRICS",
     "METRICS_3D",
@@ -43,6 +44,14 @@ SOLVER_VERSION = "2.12"
 #: laws compiled, every model within Newton's tolerance, and the 3D model's factorisation kept
 #: while the residual halves, its metrics within the time discretisation's error).
 SAME_METRICS_AS = ("2.11", "2.10", "2.9", "2.8", "2.7", "2.6", "2.5", "2.4", "2.3", "2.2", "2.1")
+#: Options whose default a solver of this line changed, with that version and the default
+#: before it: a sweep of an earlier version made at the old default counts as made at today's
+#: (its metrics are this solver's: ``SAME_METRICS_AS``), so that it is carried over, resumed and
+#: joined with the later segments under today's options (``sim.sweep.with_todays_defaults``).
+#: ``newton.reuse_ratio``: 0.25 until 2.12 (the 3D model's; the 2D model does not read it).
+DEFAULTS_BEFORE: dict[tuple[str, str], tuple[str, float]] = {
+    ("newton", "reuse_ratio"): ("2.12", 0.25)
+}
 # 2.12: the material laws' stress and tangent and the Prony update are compiled loops
 #      (sim.materials._kernels, sim.materials._prony_kernels; was: numpy), the same formulas:
 #      the laws equal to rounding (4e-16), 2D metrics within 1e-11 of 2.11 (Newton's tolerance).

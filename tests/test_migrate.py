@@ -13,7 +13,7 @@ from sweep_fixtures import FAST, TINY
 import explore.cli
 from sim.errors import DesignError
 from sim.metrics import METRICS, SAME_METRICS_AS, SOLVER_VERSION, role_strain_names
-from sim.sweep import SweepStore, read_config, write_config
+from sim.sweep import SweepStore, read_config, with_todays_defaults, write_config
 from sim.sweep._migrate import carried, largest_difference, migrate
 
 #: a strict strain limit, so that some of the tiny designs are beyond it (their tapping strains
@@ -146,6 +146,34 @@ def test_options_added_since_the_source_take_their_defaults(tmp_path):
     assert new["solver_version"] == SOLVER_VERSION
     assert new["options"]["newton"]["rtol"] == 1e-7
     assert new["options"]["newton"]["contact_update"] is False
+
+
+@pytest.mark.parametrize(("source", "carried_as"), [(0.25, 0.5), (0.3, 0.3)])
+def test_an_option_at_a_default_changed_since_takes_todays(tmp_path, source, carried_as):
+    """A source made at the old default of an option whose default a carried-over solver
+    changed (``newton.reuse_ratio``: 0.25 until 2.12) is carried over to today's default, and
+    the resume command sets nothing; a source made at another value keeps it; a config of
+    today's solver is never changed."""
+    from sim.metrics import DEFAULTS_BEFORE
+    from sim.options import SimOptions
+    from sim.sweep._migrate import resume_command
+
+    assert DEFAULTS_BEFORE[("newton", "reuse_ratio")] == ("2.12", 0.25)
+    assert SimOptions().newton.reuse_ratio == 0.5
+    space = tmp_path / "space.toml"
+    space.write_text(TINY)
+    old = tmp_path / "old"
+    _previous_solver_config(old, space)
+    config = read_config(old)
+    config["options"]["newton"]["reuse_ratio"] = source
+    write_config(old, config)
+    *_, new_config = migrate(old, tmp_path / "new")
+    assert read_config(tmp_path / "new")["options"]["newton"]["reuse_ratio"] == carried_as
+    command = resume_command(tmp_path / "new", new_config)
+    assert ("--set newton.reuse_ratio" in command) == (carried_as != 0.5)
+    today = {**config, "solver_version": SOLVER_VERSION}
+    assert with_todays_defaults(today) == today
+    assert with_todays_defaults(config)["options"]["newton"]["reuse_ratio"] == carried_as
 
 
 def test_the_resume_command_names_the_options_the_folder_keeps(tmp_path):

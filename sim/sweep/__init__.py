@@ -35,6 +35,7 @@ from .run import (
     run_sweep,
     sample_points,
     sweep_config,
+    with_todays_defaults,
 )
 
 __all__ = [
@@ -61,6 +62,7 @@ __all__ = [
     "table_header",
     "table_path",
     "table_sha256",
+    "with_todays_defaults",
     "write_config",
     "write_meta",
     "write_table_gz",

@@ -45,7 +45,7 @@ from ..metrics import SAME_METRICS_AS, SOLVER_VERSION
 from ..options import SimOptions, options_from_dict
 from ..provenance import json_safe, provenance
 from .folder import SweepStore, read_config, write_config, write_meta
-from .run import evaluate_point, record_key, sample_points, sweep_config
+from .run import evaluate_point, record_key, sample_points, sweep_config, with_todays_defaults
 
 __all__ = [
     "MAX_METRICS_RTOL",
@@ -112,6 +112,7 @@ def migrate(source: str | Path, target: str | Path) -> tuple[list[str], list[str
             f"{source} is a sweep of solver {old.get('solver_version')}; only one of "
             f"{', '.join(SAME_METRICS_AS)} is carried over to {SOLVER_VERSION}",
         )
+    old = with_todays_defaults(old)  # options at a default changed since: today's
     options = options_from_dict(old["options"])
     # the sections the model reads, in JSON form: those a sweep's config.json records
     ours = json.loads(json.dumps(options.as_dict()))

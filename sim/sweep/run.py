@@ -27,7 +27,7 @@ import numpy as np
 from ..design import DesignSpace, point_to_design, space_from_dict
 from ..errors import DesignError, SimulationError, check_seed
 from ..materials import Material, UserCatalogue, catalogue_from_tables, material_tables
-from ..metrics import SOLVER_VERSION, same_metrics
+from ..metrics import DEFAULTS_BEFORE, SOLVER_VERSION, same_metrics
 from ..options import SimOptions, apply_overrides, options_from_dict
 from ..pool import process_pool
 from ..provenance import check_folder_kind, json_safe, provenance
@@ -342,6 +342,37 @@ def run_sweep(
     )
 
 
+def _version(text: str | None) -> tuple[int, ...]:
+    try:
+        return tuple(int(x) for x in str(text).split("."))
+    except ValueError:
+        return ()
+
+
+def with_todays_defaults(config: dict) -> dict:
+    """A sweep's ``config`` with each option of ``sim.metrics.DEFAULTS_BEFORE`` that its solver
+    version kept at the default before today's set to today's default: how a sweep of an
+    earlier solver whose metrics are this one's is carried over and joined. Other configs are
+    returned as they are."""
+    version = _version(config.get("solver_version"))
+    options = config.get("options")
+    changes = {
+        key: before
+        for key, (since, before) in DEFAULTS_BEFORE.items()
+        if options
+        and version
+        and version < _version(since)
+        and options.get(key[0], {}).get(key[1]) == before
+    }
+    if not changes:
+        return config
+    today = SimOptions().as_dict()
+    options = {section: dict(fields) for section, fields in options.items()}
+    for section, name in changes:
+        options[section][name] = today[section][name]
+    return {**config, "options": options}
+
+
 def merge_sweeps(folders: Sequence[str | Path], out: str | Path) -> tuple[int, int]:
     """Join segments of one sample (``run_sweep(..., start=)``: the same space, seed, sampler,
     options and catalogues, and the same solver version or versions whose metrics are this
@@ -364,9 +395,11 @@ def merge_sweeps(folders: Sequence[str | Path], out: str | Path) -> tuple[int, i
             configs.append(read_config(folder))
         except (OSError, ValueError) as exc:
             raise DesignError("SWEEPS", f"{folder} is not a sweep folder ({exc})") from None
-    first = configs[0]
     versions = sorted({c.get("solver_version") for c in configs}, key=str)
     mixed = len(versions) > 1 and all(same_metrics(v) for v in versions)
+    if mixed:  # an earlier version's segment at a default changed since: as made at today's
+        configs = [with_todays_defaults(c) for c in configs]
+    first = configs[0]
     for folder, config in zip(folders[1:], configs[1:], strict=True):
         for field, words in _FIELD_WORDS.items():
             if field == "start" or (field == "solver_version" and mixed):
