@@ -174,6 +174,15 @@ def test_an_option_at_a_default_changed_since_takes_todays(tmp_path, source, car
     today = {**config, "solver_version": SOLVER_VERSION}
     assert with_todays_defaults(today) == today
     assert with_todays_defaults(config)["options"]["newton"]["reuse_ratio"] == carried_as
+    # carried over from its table (--revalidate) alike
+    from sim.sweep._revalidate import revalidate
+
+    config["options"]["validity"]["stop_at_violation"] = True
+    write_config(old, config)
+    (old / "table.csv").write_text("index\n")
+    revalidate(old, tmp_path / "from_table")
+    got = read_config(tmp_path / "from_table")["options"]["newton"]["reuse_ratio"]
+    assert got == carried_as
 
 
 def test_the_resume_command_names_the_options_the_folder_keeps(tmp_path):

@@ -50,7 +50,7 @@ from ..options import options_from_dict
 from ..protocols.validity import layer_limit
 from ..provenance import json_safe, provenance
 from .folder import SweepStore, open_table, read_config, table_path, write_config, write_meta
-from .run import record_key, sample_points, sweep_config
+from .run import record_key, sample_points, sweep_config, with_todays_defaults
 
 __all__ = ["REVALIDATED_OPTIONS", "layer_limits", "rerun_reason", "revalidate"]
 
@@ -175,6 +175,7 @@ def revalidate(
         )  # fmt: skip
     if target.exists():
         raise DesignError("TARGET", f"{target} exists; choose a new folder")
+    old = with_todays_defaults(old)  # options at a default changed since: today's
     options = options_from_dict(old["options"])
     options = dataclasses.replace(
         options, validity=dataclasses.replace(options.validity, max_compressive_log_strain=None)
