@@ -81,6 +81,29 @@ def td_tangent(C11, C22, C12, W_d, W_tt, W_td, W_dd, D, p, q, add):
 
 
 @nb.njit(cache=True, inline="always")
+def eigen2(C11, C22, C12):
+    """The in-plane eigenvalues ``c1 >= c2`` of ``C``, ``det C`` and ``cos 2theta``, ``sin
+    2theta`` of the principal direction ``N_1`` (``N_1 = e_1`` when ``c1 = c2``); ``c2 = det /
+    c1`` without cancellation, so that ``ln c1 + ln c2 = ln det``."""
+    half_diff = 0.5 * (C11 - C22)
+    r = math.hypot(half_diff, C12)
+    det = C11 * C22 - C12 * C12
+    c1 = 0.5 * (C11 + C22) + r
+    if r > 0.0:
+        return c1, det / c1, det, r, half_diff / r, C12 / r
+    return c1, det / c1, det, r, 1.0, 0.0
+
+
+@nb.njit(cache=True, inline="always")
+def spectral_stress2(f1, f2, cos2, sin2, S, q):
+    """``S[0, :, q] = 2 (f1 N1 (x) N1 + f2 N2 (x) N2)`` (plane strain, Voigt)."""
+    mean, diff = f1 + f2, f1 - f2
+    S[0, 0, q] = mean + diff * cos2
+    S[0, 1, q] = mean - diff * cos2
+    S[0, 2, q] = diff * sin2
+
+
+@nb.njit(cache=True, inline="always")
 def cofactor(C, q, G3):
     """``cof C`` of point ``q`` into ``G3`` (Voigt, 6) and ``(I1, I2, I3)``."""
     C11, C22, C33, C12, C23, C13 = C[0, q], C[1, q], C[2, q], C[3, q], C[4, q], C[5, q]
@@ -324,15 +347,7 @@ def ogden2(C, k, a, K, split, tangent, S, D):
     pv = 1 if split else 0
     for q in range(C.shape[1]):
         C11, C22, C12 = C[0, q], C[1, q], C[2, q]
-        half_diff = 0.5 * (C11 - C22)
-        r = math.hypot(half_diff, C12)
-        det = C11 * C22 - C12 * C12
-        c1 = 0.5 * (C11 + C22) + r
-        c2 = det / c1
-        if r > 0.0:
-            cos2, sin2 = half_diff / r, C12 / r
-        else:
-            cos2, sin2 = 1.0, 0.0
+        c1, c2, det, r, cos2, sin2 = eigen2(C11, C22, C12)
         s1, s2 = math.log(c1), math.log(c2)
         d = 0.5 * math.log1p(2.0 * r / c2)  # (s1 - s2) / 2 without cancellation
         m = 0.5 * (s1 + s2)
@@ -353,11 +368,7 @@ def ogden2(C, k, a, K, split, tangent, S, D):
                 f12 += ka2 * (Cc - 2.0 * A - 2.0 * B)
                 ratio = 2.0 * _sinh_ratio(3.0 * at - 1.0, d) + _sinh_ratio(3.0 * at + 1.0, d)
                 dd += ka * math.exp(-2.0 * m) * (math.exp(at * m) * ratio + math.exp(-2.0 * at * m))
-        f1, f2 = p1 / c1, p2 / c2
-        mean, diff = f1 + f2, f1 - f2
-        S[0, 0, q] = mean + diff * cos2
-        S[0, 1, q] = mean - diff * cos2
-        S[0, 2, q] = diff * sin2
+        spectral_stress2(p1 / c1, p2 / c2, cos2, sin2, S, q)
         J = math.sqrt(det)
         J_d = 0.5 / J
         U_J = K * (J - 1.0)
@@ -533,22 +544,11 @@ def hyperfoam2(C, mu, alpha, beta, tangent, S, D):
     and its tangent (:meth:`sim.materials._hyperfoam.Hyperfoam.stress_tangent`)."""
     for q in range(C.shape[1]):
         C11, C22, C12 = C[0, q], C[1, q], C[2, q]
-        half_diff = 0.5 * (C11 - C22)
-        r = math.hypot(half_diff, C12)
-        d = C11 * C22 - C12 * C12
-        c1 = 0.5 * (C11 + C22) + r
-        c2 = d / c1  # no cancellation, and ln c1 + ln c2 = ln d
-        if r > 0.0:
-            cos2, sin2 = half_diff / r, C12 / r
-        else:
-            cos2, sin2 = 1.0, 0.0
+        c1, c2, d, _, cos2, sin2 = eigen2(C11, C22, C12)
         f1, df1 = _f(c1, mu, alpha)
         f2, df2 = _f(c2, mu, alpha)
         dG, ddG = _volumetric(d, mu, alpha, beta)
-        mean, diff = f1 + f2, f1 - f2
-        S[0, 0, q] = mean + diff * cos2
-        S[0, 1, q] = mean - diff * cos2
-        S[0, 2, q] = diff * sin2
+        spectral_stress2(f1, f2, cos2, sin2, S, q)
         td_stress(C11, C22, C12, 0.0, dG, S, 0, q, True)
         if not tangent:
             continue
