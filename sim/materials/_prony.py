@@ -102,7 +102,8 @@ def prony_update(
     g_arr = np.asarray(g, dtype=float)
     if g_arr.size == 0:
         return np.array(S0_new, dtype=float, copy=True), np.asarray(H_old), 1.0
-    S, H_new, gamma = _step(S0_new[None], S0_old, H_old, dt_s, g_arr, tau_s, 1)
+    S0 = np.asarray(S0_new, dtype=float)[None]  # one part
+    S, H_new, gamma = _step(S0, S0_old, H_old, dt_s, g_arr, tau_s, 1)
     return S, H_new, 1.0 - float(g_arr.sum()) + float(g_arr @ gamma)
 
 
@@ -160,6 +161,7 @@ def prony_stress(S0: Array, H: Array, g: Sequence[float]) -> tuple[Array, float]
     g_inf = 1.0 - float(g_arr.sum())
     if not g_arr.size:
         return g_inf * np.asarray(S0, dtype=float), g_inf
+    S0 = np.asarray(S0, dtype=float)
     return _step(S0[None], S0, H, None, g_arr, [1.0] * g_arr.size, 1)[0], g_inf
 
 
