@@ -474,7 +474,9 @@ def ogden3(C, c, N, k, a, K, split, tangent, S, D):
 
 
 #: relative eigenvalue split below which the divided difference is its Taylor series (the
-#: error of the series' truncation, h^6 f^(7), stays below rounding there)
+#: value of sim.materials._hyperfoam before it was compiled; the tangent is checked against
+#: finite differences on both sides of it: tests/test_materials.py,
+#: test_hyperfoam_tangent_on_both_sides_of_the_series_branch)
 _SPLIT_TOL = 5e-3
 
 
