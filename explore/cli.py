@@ -382,7 +382,7 @@ def _add_sweep(p: argparse.ArgumentParser) -> None:
 
 #: the methods of ``fingertip train SWEEP3D --method`` (``surrogate.MULTIFIDELITY_METHODS``,
 #: named here so that the parser does not import the surrogate; a test holds them equal)
-MULTIFIDELITY_METHODS = ("3d", "input", "delta", "delta-contact", "finetune")
+MULTIFIDELITY_METHODS = ("3d", "input", "delta", "delta-contact", "delta-trend", "finetune")
 
 
 def _sweep_dimension(folder) -> str:

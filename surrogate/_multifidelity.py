@@ -20,6 +20,14 @@ enter is the method (``METHODS``, by name):
 - ``"delta-contact"``: as ``"delta"``, and the contact patch's area, width and length at 1 N
   and 4 N learnt as their log ratio to the 2D displacement from touch at the same force (Hertz:
   the patch grows with the approach, its ratio to it depends on the pad's curvatures);
+- ``"delta-trend"``: as ``"delta-contact"``, and the base of each FE metric the 2D model has
+  also carries a trend linear in the logs of the pad's half-length, length exponent and
+  half-width (least squares on the training designs, ``fit_trend``): the part of the 3D / 2D
+  ratio that the pad's shape explains (``studies/ratio3d.py``) is fitted with four numbers, and
+  the ensemble, whose predicted mean of every delta output starts at 0 (at the base and the
+  training designs' mean difference to it), learns only what is left
+  (Kennedy & O'Hagan 2000's autoregressive model on the log scale, its scale factor a
+  regression on the pad's shape);
 - ``"finetune"``: the 2D ensemble itself trained further on the 3D designs: its first layer
   gets the pad's inputs (zero weights), its last layer the 3D-only metrics (fresh weights), so
   that training starts from the 2D surrogate's predictions (``fine_tune``'s warm start, with
@@ -116,6 +124,12 @@ class Method:
     lr_factor: ClassVar[float] = 1.0
     #: with ``delta``: a 3D-only metric -> the 2D output whose prediction is its base
     proxies: ClassVar[dict[str, str]] = {}
+    #: with ``delta``: the parameters whose logs a delta output's base is linear in (the trend
+    #: fitted on the training designs, ``fit_trend``); those that are floats of the space
+    trend_inputs: ClassVar[tuple[str, ...]] = ()
+    #: with ``delta``: each delta output's predicted mean starts at 0 (the last layer's weights
+    #: and bias of its mean set to zero), so that training starts from the base
+    zero_start: ClassVar[bool] = False
 
     @classmethod
     def start(
@@ -161,6 +175,25 @@ class ContactDelta(LowFidelityDelta):
         for f in (1, 4)
         for what, unit in (("area", "mm2"), ("width", "mm"), ("length", "mm"))
     }
+
+
+class ShapeTrendDelta(ContactDelta):
+    name = "delta-trend"
+    summary = (
+        "as delta-contact, and each delta output's base with a trend linear in the logs of the "
+        "pad's half-length, length exponent and half-width, fitted on the 3D designs"
+    )
+    #: the pad's shape decides most of the 3D / 2D ratio: on the first 64 designs of the
+    #: default 3D sweep a fit of the log ratio in ln c, ln m and ln a (the section's
+    #: half-width) left a leave-one-out median error of 5 % on the displacements, against 12-17 %
+    #: for its mean alone (docs/multifidelity.md, "How far 3D is from 2D")
+    trend_inputs: ClassVar[tuple[str, ...]] = (
+        "geometry.half_length_mm",
+        "geometry.length_exponent",
+        "geometry.half_width_mm",
+    )
+    #: the ensemble starts from the trend: what a few designs do not teach, it does not invent
+    zero_start = True
 
 
 class FineTune(Method):
@@ -215,7 +248,15 @@ class FineTune(Method):
 
 #: the methods by name (the checkpoint records the name; ``fingertip train --method``)
 METHODS: dict[str, type[Method]] = {
-    m.name: m for m in (ThreeDOnly, LowFidelityInput, LowFidelityDelta, ContactDelta, FineTune)
+    m.name: m
+    for m in (
+        ThreeDOnly,
+        LowFidelityInput,
+        LowFidelityDelta,
+        ContactDelta,
+        ShapeTrendDelta,
+        FineTune,
+    )
 }
 
 
@@ -312,7 +353,10 @@ class MultiFidelitySurrogate:
     ``normaliser``: per output, the transform t of its values (log, shifted log or linear) and the
     shift and scale of what the network learns, ``z = (t(y) - base - shift) / scale``; ``base`` is
     0 but for the delta method's metrics (``delta[j]``: the 2D output whose prediction is its
-    base), where t is the 2D surrogate's transform of that output and base its predicted t.
+    base), where t is the 2D surrogate's transform of that output and base its predicted t,
+    plus, with a ``trend`` (``"delta-trend"``: (n_metrics, 1 + k), a zero row for an output
+    learnt directly), ``trend[j] . [1, ln x_1, ..., ln x_k]`` for the design's values x of the
+    method's ``trend_inputs`` (``trend_inputs``: those the space varies).
     """
 
     def __init__(
@@ -326,6 +370,7 @@ class MultiFidelitySurrogate:
         header: Mapping[str, Any] | None = None,
         *,
         low_file: str | Path | None = None,
+        trend: np.ndarray | None = None,
     ) -> None:
         self.method = method_class(method)
         #: the low fidelity's checkpoint file (recorded, with its sha256, by a checkpoint)
@@ -344,6 +389,19 @@ class MultiFidelitySurrogate:
         self._base_index = [
             (j, low.metric_names.index(d)) for j, d in enumerate(self.delta) if d is not None
         ]
+        floats = {p.name: p for p in encoder.space.parameters if p.kind == "float"}
+        #: the trend's inputs: (feature column, parameter) of each of the method's that the
+        #: space varies
+        self._trend_params = [
+            (encoder.encoder.feature_names.index(n), floats[n])
+            for n in self.method.trend_inputs
+            if n in floats
+        ]
+        if trend is not None:
+            trend = np.asarray(trend, dtype=np.float64)
+            if trend.shape != (len(self.metric_names), 1 + len(self._trend_params)):
+                raise ValueError("the trend's shape does not match the metrics and its inputs")
+        self.trend = trend
         # the network's part: a Surrogate evaluates it (batched, frozen, on one thread)
         self._net = Surrogate(model, encoder.encoder, normaliser, self.metric_names)
 
@@ -373,9 +431,27 @@ class MultiFidelitySurrogate:
         n = self.encoder.n_own + (self.encoder.n_low if self.method.low_inputs else 0)
         return np.ascontiguousarray(features[:, :n])
 
+    @property
+    def trend_inputs(self) -> list[str]:
+        """The parameters whose logs the trend is linear in (after its constant)."""
+        return [p.name for _, p in self._trend_params]
+
+    def trend_matrix(self, features: np.ndarray) -> np.ndarray:
+        """[1, ln x_1, ..., ln x_k] (n, 1 + k) of the encoded designs ``features``: each trend
+        input's value read back from its feature (``Encoder``: its place in [low, high])."""
+        H = np.ones((len(features), 1 + len(self._trend_params)))
+        for i, (col, p) in enumerate(self._trend_params, start=1):
+            u = features[:, col].astype(np.float64)
+            if p.log:
+                H[:, i] = math.log(p.low) + u * (math.log(p.high) - math.log(p.low))
+            else:
+                H[:, i] = np.log(p.low + u * (p.high - p.low))
+        return H
+
     def base(self, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(base, base_std)``, each (n, n_metrics), in the transformed units t: the 2D
-        prediction's mean and (calibrated) std of each delta output, 0 elsewhere."""
+        prediction's mean (plus the ``trend``) and (calibrated) std of each delta output, 0
+        elsewhere."""
         n = len(features)
         base = np.zeros((n, len(self.metric_names)))
         base_std = np.zeros((n, len(self.metric_names)))
@@ -387,6 +463,8 @@ class MultiFidelitySurrogate:
             base[:, j] = low.shift[k] + low.scale[k] * features[:, start + k].astype(np.float64)
             sd = features[:, start + self.encoder.n_low + k].astype(np.float64)
             base_std[:, j] = low.scale[k] * low.interval_scale[k] * sd
+        if self.trend is not None:
+            base += self.trend_matrix(features) @ self.trend.T
         return base, base_std
 
     def predict_normalised(self, features: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -506,6 +584,39 @@ def delta_outputs(
     return tuple(out)
 
 
+#: the fewest training values per trend coefficient: below it an output's trend stays 0 (the
+#: ensemble learns the whole difference, as ``"delta"``)
+TREND_MIN_ROWS_PER_COEFFICIENT = 2
+
+
+def fit_trend(
+    targets: np.ndarray,
+    base: np.ndarray,
+    H: np.ndarray,
+    delta: Sequence[str | None],
+    low: Surrogate,
+    names: Sequence[str],
+) -> np.ndarray:
+    """The trend (n_metrics, H's columns) of ``"delta-trend"``: per delta output ``names[j]``
+    that the 2D model has, the least squares fit of ``t(y) - base`` (the FE value's difference
+    to the 2D prediction on the 2D surrogate's scale, over the training rows where it is
+    finite) on ``H`` (``trend_matrix``); a zero row for an output learnt directly, for the
+    contact patch (its ratio to the 2D displacement, a proxy: on the first 64 designs of the
+    default 3D sweep a trend made its predictions worse, ``docs/multifidelity.md``) and for an
+    output with fewer than ``TREND_MIN_ROWS_PER_COEFFICIENT`` values per coefficient."""
+    trend = np.zeros((len(delta), H.shape[1]))
+    for j, d in enumerate(delta):
+        if d is None or d != names[j]:  # learnt directly, or a proxy's ratio (the patch)
+            continue
+        k = low.metric_names.index(d)
+        r = _transform_with(low.normaliser, k, targets[:, j]) - base[:, j]
+        ok = np.isfinite(r)
+        if ok.sum() < TREND_MIN_ROWS_PER_COEFFICIENT * H.shape[1]:
+            continue
+        trend[j] = np.linalg.lstsq(H[ok], r[ok], rcond=None)[0]
+    return trend
+
+
 def _fit_normaliser(
     targets: np.ndarray,
     base: np.ndarray,
@@ -609,6 +720,14 @@ def fit_multifidelity(
     blank = OutputNormaliser.fit(targets[split.train])
     surrogate = MultiFidelitySurrogate(kind.name, model, encoder, blank, names, delta)
     base, _ = surrogate.base(features)
+    trend = None
+    if kind.trend_inputs and delta is not None:
+        H = surrogate.trend_matrix(features)
+        trend = fit_trend(
+            targets[split.train], base[split.train], H[split.train], delta, low, names
+        )
+        surrogate.trend = trend
+        base, _ = surrogate.base(features)
     start = low.normaliser if kind.warm_start else None
     normaliser = _fit_normaliser(
         targets[split.train],
@@ -622,6 +741,11 @@ def fit_multifidelity(
     surrogate.normaliser = normaliser
     if kind.warm_start:
         kind.start(model, low, own, names)
+    if kind.zero_start and delta is not None:
+        cols = [j for j, d in enumerate(delta) if d is not None]  # their means' columns
+        with torch.no_grad():
+            model.weights[-1][:, :, cols] = 0.0
+            model.biases[-1][:, :, cols] = 0.0
     z_all = surrogate.transform(targets, features)
     mask_all = np.isfinite(z_all)
     z_all = np.where(mask_all, z_all, 0.0)
@@ -641,7 +765,14 @@ def fit_multifidelity(
         best, history, epochs = _train(model, config, train, val, progress)
     best.restore(model)
     surrogate = MultiFidelitySurrogate(
-        kind.name, model, encoder, normaliser, names, delta, low_file=low_file if low else None
+        kind.name,
+        model,
+        encoder,
+        normaliser,
+        names,
+        delta,
+        low_file=low_file if low else None,
+        trend=trend,
     )
     mean_z, std_z = surrogate.predict_normalised(features[split.val])
     z_val = surrogate.transform(targets[split.val], features[split.val])

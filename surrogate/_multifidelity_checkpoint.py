@@ -112,8 +112,9 @@ def _header(surrogate: MultiFidelitySurrogate) -> dict[str, Any]:
             "protocol": registry[m][0] if m in registry else "",
             "description": registry[m][2] if m in registry else "",
             "delta_of": d,
+            "trend": None if surrogate.trend is None else [float(b) for b in surrogate.trend[j]],
         }
-        for m, d in zip(surrogate.metric_names, surrogate.delta, strict=True)
+        for j, (m, d) in enumerate(zip(surrogate.metric_names, surrogate.delta, strict=True))
     ]
     for m, d in zip(surrogate.metric_names, surrogate.delta, strict=True):
         if d is not None:
@@ -127,6 +128,7 @@ def _header(surrogate: MultiFidelitySurrogate) -> dict[str, Any]:
         "method": surrogate.method.name,
         "method_summary": surrogate.method.summary,
         "network_inputs": surrogate.model.n_inputs,
+        "trend_inputs": surrogate.trend_inputs if surrogate.trend is not None else None,
         "low_fidelity": None if surrogate.low is None else _low_identity(surrogate),
     }
 
@@ -262,9 +264,15 @@ def load_multifidelity(
         encoder = MultiFidelityEncoder(own, low)
         if encoder.feature_names != list(header["features"]):
             raise ValueError("the features differ from the recorded ones")
+        trend = None
+        if header.get("trend_inputs") is not None:
+            trend = np.array([m["trend"] for m in header["metrics"]], dtype=np.float64)
         surrogate = MultiFidelitySurrogate(
-            method, model, encoder, normaliser, names, delta, header, low_file=low_file
-        )
+            method, model, encoder, normaliser, names, delta, header, low_file=low_file,
+            trend=trend,
+        )  # fmt: skip
+        if trend is not None and surrogate.trend_inputs != list(header["trend_inputs"]):
+            raise ValueError("the trend's inputs differ from the recorded ones")
         if surrogate.net_features(np.zeros((1, encoder.n_features))).shape[1] != model.n_inputs:
             raise ValueError("the encoding does not match the network's inputs")
         if len(names) != model.n_outputs:

@@ -120,16 +120,18 @@ def test_multifidelity_beats_3d_only_training_at_equal_small_numbers_of_3d_desig
     the 3D metric learnt as its ratio to it, predict the displacements and the hysteresis of
     held-out settled, valid designs far better than training on the 3D designs alone, and the
     contact patch (3D only) better too; as a ratio to the 2D displacement (delta-contact) better
-    still. (On this machine, with the shipped checkpoint as the 2D model: median error on the
-    displacements 3d 23-30 %, input 10-15 %, delta 2.4-3.5 %; hysteresis 60, 41, 4.1 %; contact
-    area 27-34 %, 15-17 %, 16-18 %, delta-contact 9-10 %. The synthetic map is of the shipped
-    2D surrogate's predictions, so the figures move with it: with the checkpoint trained on one
-    strain limit for every layer, input's displacements were 8-12 % against 3d's 36-46 %.)"""
+    still; with a trend in the pad's shape (delta-trend), the ratio that is linear in its logs
+    exactly. (On this machine, with the shipped checkpoint as the 2D model: median error on the
+    displacements 3d 23-30 %, input 10-15 %, delta 2.4-3.5 %, delta-trend 2.0-2.7 %; hysteresis
+    60, 41, 4.1, 0.2 %; contact area 27-34 %, 15-17 %, 16-18 %, delta-contact 9-10 %. The
+    synthetic map is of the shipped 2D surrogate's predictions, so the figures move with it:
+    with the checkpoint trained on one strain limit for every layer, input's displacements were
+    8-12 % against 3d's 36-46 %.)"""
     result = multifidelity_curve(
         sweep3d,
         [48],
         low_fidelity=SHIPPED,
-        methods=["3d", "input", "delta", "delta-contact"],
+        methods=["3d", "input", "delta", "delta-contact", "delta-trend"],
         members=QUICK.members,
         config=QUICK,
         test_fraction=0.4,
@@ -153,23 +155,38 @@ def test_multifidelity_beats_3d_only_training_at_equal_small_numbers_of_3d_desig
     assert sum(med["delta-contact"][m] for m in contact) < 0.85 * sum(
         med["delta"][m] for m in contact
     )
+    # the synthetic hysteresis's log ratio is linear in ln c and ln m: the trend holds all of it
+    # (0.2 % against delta's 4.1 %), and the displacements' (with a term in the 2D value) lose
+    # nothing by it (2.0-2.7 % against 2.4-3.5 %)
+    assert med["delta-trend"]["hysteresis_Nmm"] < 0.25 * med["delta"]["hysteresis_Nmm"]
+    for m in DISPLACEMENTS:
+        assert med["delta-trend"][m] < 1.2 * med["delta"][m], m
     for row in result["rows"]:  # the intervals: calibrated on 9 validation designs
         cover = [row["scores"][m]["coverage_90"] for m in MF_TARGETS]
         assert all(0.5 <= c <= 1.0 for c in cover), (row["method"], cover)
 
 
+@pytest.mark.parametrize("method", ["delta", "delta-trend"])
 def test_a_checkpoint_round_trip_gives_the_same_bits_and_records_both_datasets(
-    small3d, tmp_path, low
+    small3d, tmp_path, low, method
 ):
-    """Saved and loaded, a delta surrogate predicts the same bits (on this machine) for 3D
-    points, the 3D-only metrics among them, in their units; the file records the method, the
-    3D sweep (table sha256, designs, space, solver version) and the low fidelity (its path in
-    the repository, its file's sha256, its own training table); a point outside the 3D space is
+    """Saved and loaded, a delta surrogate (delta-trend: its trend too) predicts the same bits
+    (on this machine) for 3D points, the 3D-only metrics among them, in their units; the file
+    records the method, the 3D sweep (table sha256, designs, space, solver version) and the low
+    fidelity (its path in the repository, its file's sha256, its own training table); a point
+    outside the 3D space is
     flagged out of domain, as the 2D surrogate flags one outside its space."""
     data = read_sweep(small3d, dimension="3d")
-    fit = fit_multifidelity(data, SHIPPED, "delta", TINY, progress=False)
+    fit = fit_multifidelity(data, SHIPPED, method, TINY, progress=False)
     path = save_multifidelity(fit.surrogate, tmp_path / "mf.safetensors")
     loaded = load_multifidelity(path)
+    if method == "delta-trend":
+        assert np.array_equal(loaded.trend, fit.surrogate.trend)
+        assert np.any(loaded.trend != 0.0) and loaded.header["trend_inputs"] == [
+            "geometry.half_length_mm", "geometry.length_exponent", "geometry.half_width_mm"
+        ]  # fmt: skip
+    else:
+        assert loaded.trend is None and loaded.header["trend_inputs"] is None
     points = sample_points(load_space(DEFAULT_SPACE_3D_PATH), 200, 11)
     a, b = fit.surrogate.predict(points), loaded.predict(points)
     for key in ("mean", "median", "std", "lower_90", "upper_90", "in_domain", "by_rule"):
@@ -181,7 +198,7 @@ def test_a_checkpoint_round_trip_gives_the_same_bits_and_records_both_datasets(
     assert b.units[j] == "mm^2" and np.all(np.isfinite(b.median[:, j]) & (b.median[:, j] > 0))
     assert np.all(b.lower_90[:, j] <= b.median[:, j]) and np.all(b.median[:, j] <= b.upper_90[:, j])
     h = loaded.header
-    assert h["method"] == "delta" and h["format"] == "fingertip-multifidelity"
+    assert h["method"] == method and h["format"] == "fingertip-multifidelity"
     assert h["training_data"]["table_sha256"] == sha256_file(small3d / "table.csv")
     assert h["training_data"]["n_rows"] == 40 and h["solver_version"] == SOLVER_VERSION
     pad = h["training_data"]["space"]["geometry"]["half_length_mm"]
@@ -193,15 +210,55 @@ def test_a_checkpoint_round_trip_gives_the_same_bits_and_records_both_datasets(
         == low.header["training_data"]["table_sha256"]
     )
     delta_of = {m["name"]: m["delta_of"] for m in h["metrics"]}
-    assert (
-        delta_of["disp_at_1N_mm"] == "disp_at_1N_mm" and delta_of["contact_area_at_1N_mm2"] is None
-    )
+    contact_base = None if method == "delta" else "disp_at_1N_from_touch_mm"  # the proxy
+    assert delta_of["disp_at_1N_mm"] == "disp_at_1N_mm"
+    assert delta_of["contact_area_at_1N_mm2"] == contact_base
     outside = dict(points[0], **{"geometry.half_length_mm": 20.0})
     pred = loaded.predict([outside, points[0]])
     assert not pred.in_domain[0] and "geometry.half_length_mm outside the space" in pred.reasons[0]
     assert pred.reasons[1] == a.reasons[0]
     with pytest.raises(DesignError, match=r"geometry\.length_exponent"):
         loaded.predict([{k: v for k, v in points[0].items() if k != "geometry.length_exponent"}])
+
+
+def test_the_trend_reads_the_pads_logs_and_recovers_a_map_linear_in_them(small3d, low):
+    """``delta-trend``'s base: the trend's inputs read back from the encoded features are the
+    logs of the pad's half-length, length exponent and half-width (to the features' float32),
+    and ``fit_trend`` recovers the coefficients of FE values whose ratio to the 2D prediction
+    is exactly linear in them; an output with too few values, and the contact patch, keep a zero
+    trend."""
+    from surrogate._multifidelity import (
+        TREND_MIN_ROWS_PER_COEFFICIENT,
+        MultiFidelitySurrogate,
+        fit_trend,
+    )
+
+    data = read_sweep(small3d, dimension="3d")
+    fit = fit_multifidelity(data, SHIPPED, "delta-trend", TINY, progress=False)
+    s = fit.surrogate
+    features = s.encoder.encode(data.points).features
+    H = s.trend_matrix(features)
+    raw = np.log([[p[n] for n in s.trend_inputs] for p in data.points])
+    assert np.allclose(H[:, 0], 1.0) and np.allclose(H[:, 1:], raw, rtol=0, atol=1e-6)
+    plain = MultiFidelitySurrogate(
+        "delta", s.model, s.encoder, s.normaliser, s.metric_names, s.delta
+    )
+    base, _ = plain.base(features)  # the 2D prediction alone
+    j = list(s.metric_names).index("disp_at_1N_mm")
+    k = low.metric_names.index("disp_at_1N_mm")
+    b = np.array([0.3, -0.7, -0.4, 0.1])
+    targets = np.full((len(H), len(s.metric_names)), np.nan)
+    targets[:, j] = np.exp(base[:, j] + H @ b) - low.normaliser.offset[k]
+    trend = fit_trend(targets, base, H, s.delta, low, s.metric_names)
+    assert np.allclose(trend[j], b, rtol=0, atol=1e-9)
+    assert not np.any(np.delete(trend, j, axis=0))  # no values: no trend
+    few = TREND_MIN_ROWS_PER_COEFFICIENT * H.shape[1] - 1
+    assert not np.any(fit_trend(targets[:few], base[:few], H[:few], s.delta, low, s.metric_names))
+    # the contact patch (a ratio to the 2D displacement) has no trend, even with values
+    area = list(s.metric_names).index("contact_area_at_1N_mm2")
+    assert s.delta[area] == "disp_at_1N_from_touch_mm"
+    targets[:, area] = np.exp(base[:, area] + H @ b)
+    assert not np.any(fit_trend(targets, base, H, s.delta, low, s.metric_names)[area])
 
 
 def test_a_changed_low_fidelity_file_or_checkpoint_is_refused(small3d, low_copy, tmp_path):
@@ -289,7 +346,8 @@ def one_line(err: str) -> str:
     ("extra", "message"),
     [
         (["--low-fidelity", SHIPPED, "--method", "kriging"],
-         "--method: must be one of 3d, input, delta, delta-contact, finetune, got 'kriging'"),
+         "--method: must be one of 3d, input, delta, delta-contact, delta-trend, finetune, got "
+         "'kriging'"),
         (["--method", "delta"], "--low-fidelity: --method delta needs the 2D surrogate"),
         (["--low-fidelity", SHIPPED, "--method", "3d"],
          "--method: 3d trains on the 3D designs alone: drop --low-fidelity"),
