@@ -185,7 +185,7 @@ class ShapeTrendDelta(ContactDelta):
     )
     #: the pad's shape decides most of the 3D / 2D ratio: on the first 64 designs of the
     #: default 3D sweep a fit of the log ratio in ln c, ln m and ln a (the section's
-    #: half-width) left a leave-one-out median error of 5 % on the displacements, against 12-17 %
+    #: half-width) left a leave-one-out median error of 5-7 % on the displacements, against 12-19 %
     #: for its mean alone (docs/multifidelity.md, "How far 3D is from 2D")
     trend_inputs: ClassVar[tuple[str, ...]] = (
         "geometry.half_length_mm",
@@ -585,7 +585,9 @@ def delta_outputs(
 
 
 #: the fewest training values per trend coefficient: below it an output's trend stays 0 (the
-#: ensemble learns the whole difference, as ``"delta"``)
+#: ensemble learns the whole difference, as ``"delta"``). 2: the fit keeps as many residual
+#: degrees of freedom as it has coefficients; 3 left every trend at 0 in the 12- and 24-design
+#: subsets of docs/multifidelity.md's study (10-15 trusted training values for 4 coefficients)
 TREND_MIN_ROWS_PER_COEFFICIENT = 2
 
 
