@@ -489,3 +489,36 @@ def test_the_model_root_is_bracketed_and_exact_for_a_linear_body():
     assert 0.0 < a < 1.0
     # a root at the bracket's end is kept 1 % inside it
     assert _model_root(lambda a: 0.0, 0.0, -1.0, 1.0, -1e-9) == pytest.approx(0.99)
+
+
+@pytest.mark.parametrize("indenter", [Plate(), Wedge()], ids=["plate", "wedge"])
+@pytest.mark.parametrize("kind", ["force", "position"])
+def test_the_line_searchs_contact_part_is_the_residuals_2d(indenter, kind):
+    """``Body._contact_slope`` (a flat plate and the base from the nodes' heights alone, the
+    rounded wedge from its full normals) is the contacts' part of the line search's
+    g(a) = [du, dd] . residual(a): g minus the body's own part, at steps where nodes enter the
+    indenter."""
+    fm = build_mesh(homogeneous_design("silicone_gls40").geometry, (), MeshOptions(0.1))
+    disc = Discretization(fm, [CATALOGUE["silicone_gls40"]])
+    body = Body(disc, indenter)
+    y = disc.X[:, 1]
+    u = np.zeros_like(disc.X)
+    d = body.top_height(u) - 0.05
+    control = Control.force(0.3) if kind == "force" else Control.position(d)
+    rng = np.random.default_rng(7)
+    du = 1e-4 * rng.standard_normal(disc.n_free)  # small beside 0.1 mm elements: no law blows up
+    lift = np.zeros_like(u)
+    lift[:, 1] = 0.15 * y / y.max()  # a vertical stretch into the indenter
+    du += lift.reshape(-1)[disc.free]
+    dd = -0.1 if kind == "force" else 0.0
+    g_contact = body._contact_slope(u, d, du, dd, control)
+    entered = []
+    for a in (0.0, 0.3, 1.0):
+        ua = u.copy()
+        ua.reshape(-1)[disc.free] += a * du
+        r, _, _, coupling, rd, *_ = body._evaluate(ua, control, d + a * dd, 0.01, False)
+        own = disc.evaluate(ua, body.states, 0.01, tangent=False).residual
+        g_total, g_body = du @ r + dd * rd, du @ own
+        entered.append(int(np.sum(coupling > 0)))
+        assert g_contact(a) == pytest.approx(g_total - g_body, rel=1e-9, abs=1e-12 * abs(g_total))
+    assert entered[0] >= 1 and entered[-1] > entered[0]

@@ -16,6 +16,7 @@ normal, ``-kappa_i p / rho (I - n n^T)``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -47,12 +48,16 @@ class Plate:
         t = np.radians(self.inclination_deg)
         return np.array([np.sin(t), np.cos(t)])
 
+    @property
+    def vertical_normal(self) -> float | None:
+        """-1.0: the flat plate's normal n = (0, -1) in (h, v), constant over its face, so its
+        penetration is affine in the nodes' height (``Body._contact_slope`` uses it); None when
+        inclined."""
+        return -1.0 if self.inclination_deg == 0.0 else None
+
     def penetration(self, xy: np.ndarray, position_mm: float):
         if self.inclination_deg == 0.0:
-            p = xy[:, 1] - position_mm
-            n = np.zeros_like(xy)
-            n[:, 1] = -1.0
-            return p, n
+            return xy[:, 1] - position_mm, vertical_normals(len(xy), -1.0)
         e = self.axis
         p = xy @ e - position_mm
         n = np.broadcast_to(-e, xy.shape).copy()
@@ -70,6 +75,7 @@ class Wedge:
     tip_width_mm: float = 0.05
     half_angle_deg: float = 30.0
     name = "wedge"
+    vertical_normal = None  # its normal turns round the tip (see ``Plate.vertical_normal``)
 
     @property
     def radius_mm(self) -> float:
@@ -116,11 +122,21 @@ class Base:
 
     name = "base"
 
+    #: the base's normal n = (0, 1) in (h, v), constant (see ``Plate.vertical_normal``)
+    vertical_normal = 1.0
+
     def penetration(self, xy: np.ndarray, position_mm: float = 0.0):
-        p = -xy[:, 1]
-        n = np.zeros_like(xy)
-        n[:, 1] = 1.0
-        return p, n
+        return -xy[:, 1], vertical_normals(len(xy), 1.0)
+
+
+@lru_cache(maxsize=16)
+def vertical_normals(m: int, v: float) -> np.ndarray:
+    """The normals (0, v) of m nodes in the obstacles' plane (m, 2), read-only: a horizontal
+    obstacle's, made once per surface rather than at every evaluation."""
+    n = np.zeros((m, 2))
+    n[:, 1] = v
+    n.setflags(write=False)
+    return n
 
 
 def surface_weights(xy: np.ndarray) -> np.ndarray:

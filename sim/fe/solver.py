@@ -192,6 +192,15 @@ def _model_root(
     return 0.5 * (lo + hi)
 
 
+def _penalty_factors(p: np.ndarray, curv: np.ndarray | None, k: np.ndarray):
+    """The penalty stiffness's factors per surface node (``Body._penalty_stiffness``): kappa
+    where the node touches or lies on the obstacle (else 0), and c = p / rho where it is inside
+    a rounded one (0 on a flat one)."""
+    ka = np.where(p >= 0, k, 0.0)
+    c = 0.0 if curv is None else np.where(p > 0, p * curv, 0.0)
+    return ka, c
+
+
 def _stalled(norms: list[float], opts: NewtonOptions) -> bool:
     """True when the residual has not fallen by ``stall_reduction`` over ``stall_window``
     iterations, judged from iteration ``stall_from`` on: the step is better cut than pursued."""
@@ -233,14 +242,23 @@ class Body:
         self.force_floor = 64.0 * np.finfo(float).eps * float(np.sum(self.kappa_indenter)) * size
         dim = disc.dim
         self._sdof = tuple(disc.gmap[dim * s + i] for i in range(dim))  # dofs of each component
+        # each component's surface nodes with a free dof, and those dofs: the contact's forces
+        # go there at every evaluation
+        self._sfree = tuple((dofs >= 0, dofs[dofs >= 0]) for dofs in self._sdof)
         pos = disc.pattern_position
-        self._kpos = {
-            (i, j): pos(self._sdof[i], self._sdof[j]) for i in range(dim) for j in range(dim)
-        }
+        # the positions in the tangent's data of each surface node's entry (i, j), where both
+        # dofs are free, and the nodes that have them
+        self._kfree = {}
+        for i in range(dim):
+            for j in range(dim):
+                at = pos(self._sdof[i], self._sdof[j])
+                self._kfree[i, j] = (at >= 0, at[at >= 0])
         # every obstacle is a cylinder normal to the plane of the coordinates ``obstacle_axes``
         # (2D: the section; 3D: y-z, the wedge's edge across the pad): the curvature of a
         # rounded obstacle (the wedge's tip) lies in that plane
         self._axes = tuple(disc.obstacle_axes)
+        self._surface_plane = np.ix_(s, list(self._axes))  # the surface's plane coordinates
+        self._surface_X = disc.X[self._surface_plane]
         self._inplane = np.zeros(dim)
         self._inplane[list(self._axes)] = 1.0
         # the indenter's outward direction e in the body's space (from the body into the
@@ -288,9 +306,10 @@ class Body:
         """The deformed (horizontal, vertical) coordinates of ``nodes`` (default: the surface
         nodes) in the obstacles' plane (``obstacle_axes``), (m, 2): what the obstacles see."""
         u = self.u if u is None else u
-        nodes = self.disc.surface_nodes if nodes is None else nodes
-        axes = list(self._axes)
-        return self.disc.X[np.ix_(nodes, axes)] + u[np.ix_(nodes, axes)]
+        if nodes is None:
+            return self._surface_X + u[self._surface_plane]
+        at = np.ix_(nodes, list(self._axes))
+        return self.disc.X[at] + u[at]
 
     def indenter_penetration(self, nodes: np.ndarray | None = None) -> np.ndarray:
         """The indenter's penetration (mm, > 0 inside) at ``nodes`` (default: the surface
@@ -338,32 +357,31 @@ class Body:
         return float(max(0.0, self.indenter_penetration().max(initial=0.0)))
 
     def _add_contact(
-        self, r: np.ndarray, data: np.ndarray | None, parts
+        self, r: np.ndarray | None, data: np.ndarray | None, parts
     ) -> tuple[float, np.ndarray]:
-        """Add penalty forces to r and stiffness to data; return indenter force and coupling.
+        """Add penalty forces to r and stiffness to data; return indenter force and coupling
+        (``r`` None: the stiffness alone, as a factorisation's tangent asks for it).
 
         The force on node i is f = kappa_i p n; its derivative is
         kappa_i (n n^T - p * curvature * (I - n n^T)), curvature = 1/rho on a rounded surface.
         """
-        sdof = self._sdof
-        dim = len(sdof)
         force = 0.0
         coupling = np.zeros(len(self.kappa_nodes))
         for p, n, curv, is_indenter in parts:
             k = self.kappa_indenter if is_indenter else self.kappa_nodes
-            act = p > 0
             if not np.any(p >= 0):
                 continue
-            f = np.where(act, k * p, 0.0)  # pushes the node along n
             # every surface node has its own dofs and matrix entries: plain indexed updates
-            for i in range(dim):
-                ok = sdof[i] >= 0
-                r[sdof[i][ok]] -= (f * n[:, i])[ok]
             if data is not None:
-                for (i, j), pos in self._kpos.items():
-                    val = self._penalty_stiffness(p, n, curv, k, i, j)
-                    ok = pos >= 0
-                    data[pos[ok]] += val[ok]
+                ka, c = _penalty_factors(p, curv, k)
+                for (i, j), (ok, at) in self._kfree.items():
+                    data[at] += self._penalty_entry(ka, c, n, i, j)[ok]
+            if r is None:
+                continue
+            act = p > 0
+            f = np.where(act, k * p, 0.0)  # pushes the node along n
+            for i, (ok, dofs) in enumerate(self._sfree):
+                r[dofs] -= (f * n[:, i])[ok]
             if is_indenter:
                 # the force on the indenter along its direction e (up > 0)
                 force = float(np.sum(-f * self.along_indenter(n)))
@@ -376,8 +394,10 @@ class Body:
         on the curvature's plane. A node exactly on the obstacle (p = 0: a surface node lying on
         the base in the reference state) is stiff too, so that Newton's step does not push it
         in unopposed (the generalised derivative of the penalty's kink from that side)."""
-        ka = np.where(p >= 0, k, 0.0)
-        c = 0.0 if curv is None else np.where(p > 0, p * curv, 0.0)
+        return self._penalty_entry(*_penalty_factors(p, curv, k), n, i, j)
+
+    def _penalty_entry(self, ka, c, n, i: int, j: int) -> np.ndarray:
+        """``_penalty_stiffness`` from its factors ``_penalty_factors(p, curv, k)``."""
         nn = n[:, i] * n[:, j]
         return ka * (nn - c * (self._inplane[i] * (i == j) - nn))
 
@@ -591,7 +611,7 @@ class Body:
             def data(contact=parts) -> np.ndarray:  # assembled when a factorisation needs it
                 t0 = time.perf_counter()
                 out = ev.tangent()  # assembled for this factorisation only: add to it in place
-                self._add_contact(np.zeros_like(r), out, contact)
+                self._add_contact(None, out, contact)
                 self.timings["tangent assembly"] += time.perf_counter() - t0
                 return out
 
@@ -820,12 +840,36 @@ class Body:
         axes = list(self._axes)
         xy0, dxy = self.plane_coordinates(u), step[:, axes]
         push = control.value if control.kind == "force" else 0.0
+        obstacles = [(self.base, False)]
+        if control.kind != "free" and self.indenter is not None:
+            obstacles.append((self.indenter, True))
+        # A horizontal obstacle (the base, a flat plate: ``vertical_normal``) has the normal
+        # (0, v) everywhere, so along the line its penetration needs the nodes' heights
+        # alone, and n . step is v times the step's vertical component: the bits of the
+        # general expressions below (a sum of v s and exact zeros is v s), without making
+        # the normals at every trial. The rounded wedge is evaluated afresh at every trial.
+        v0, dv = xy0[:, 1], dxy[:, 1]
+        flat = [getattr(obstacle, "vertical_normal", None) for obstacle, _ in obstacles]
+        along_v = self.indenter_axis[1] if self.vertical_indenter else None
 
         def g_contact(alpha: float) -> float:
             out = 0.0
-            parts = self._contact_at(xy0 + alpha * dxy, control, d + alpha * dd)
-            for p, n, _, is_indenter in parts:
+            xy = None
+            position = d + alpha * dd
+            for (obstacle, is_indenter), v in zip(obstacles, flat, strict=True):
                 k = self.kappa_indenter if is_indenter else self.kappa_nodes
+                if v is not None and (not is_indenter or along_v is not None):
+                    height = v0 + alpha * dv
+                    p = -height if not is_indenter else height - position
+                    f = np.where(p > 0, k * p, 0.0)
+                    out -= float(np.sum(f * (v * dv)))
+                    if is_indenter and control.kind == "force":
+                        out += dd * (push - float(np.sum(-f * (v * along_v))))
+                    continue
+                if xy is None:
+                    xy = xy0 + alpha * dxy
+                p, n = obstacle.penetration(xy, position)
+                n = self._full_normal(n)
                 f = np.where(p > 0, k * p, 0.0)
                 out -= float(np.sum(f * np.einsum("ij,ij->i", n, step)))
                 if is_indenter and control.kind == "force":
