@@ -382,7 +382,15 @@ def _add_sweep(p: argparse.ArgumentParser) -> None:
 
 #: the methods of ``fingertip train SWEEP3D --method`` (``surrogate.MULTIFIDELITY_METHODS``,
 #: named here so that the parser does not import the surrogate; a test holds them equal)
-MULTIFIDELITY_METHODS = ("3d", "input", "delta", "delta-contact", "delta-trend", "finetune")
+MULTIFIDELITY_METHODS = (
+    "3d",
+    "input",
+    "delta",
+    "delta-contact",
+    "delta-trend",
+    "delta-slice",
+    "finetune",
+)
 
 
 def _sweep_dimension(folder) -> str:
@@ -583,7 +591,7 @@ def _add_train(p: argparse.ArgumentParser) -> None:
         "--method",
         metavar="NAME",
         help="with a 3D sweep, how the 2D surrogate's predictions are used: "
-        f"{', '.join(MULTIFIDELITY_METHODS)} (default delta with --low-fidelity, 3d without: "
+        f"{', '.join(MULTIFIDELITY_METHODS)} (default delta-slice with --low-fidelity, 3d without: "
         "the 3D designs alone)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -166,11 +166,12 @@ def test_multifidelity_beats_3d_only_training_at_equal_small_numbers_of_3d_desig
         assert all(0.5 <= c <= 1.0 for c in cover), (row["method"], cover)
 
 
-@pytest.mark.parametrize("method", ["delta", "delta-trend"])
+@pytest.mark.parametrize("method", ["delta", "delta-trend", "delta-slice"])
 def test_a_checkpoint_round_trip_gives_the_same_bits_and_records_both_datasets(
     small3d, tmp_path, low, method
 ):
-    """Saved and loaded, a delta surrogate (delta-trend: its trend too) predicts the same bits
+    """Saved and loaded, a delta surrogate (delta-trend and delta-slice: its trend too; the
+    slice model's bases are computed again from the method's name) predicts the same bits
     (on this machine) for 3D points, the 3D-only metrics among them, in their units; the file
     records the method, the 3D sweep (table sha256, designs, space, solver version) and the low
     fidelity (its path in the repository, its file's sha256, its own training table); a point
@@ -180,7 +181,7 @@ def test_a_checkpoint_round_trip_gives_the_same_bits_and_records_both_datasets(
     fit = fit_multifidelity(data, SHIPPED, method, TINY, progress=False)
     path = save_multifidelity(fit.surrogate, tmp_path / "mf.safetensors")
     loaded = load_multifidelity(path)
-    if method == "delta-trend":
+    if method != "delta":
         assert np.array_equal(loaded.trend, fit.surrogate.trend)
         assert np.any(loaded.trend != 0.0) and loaded.header["trend_inputs"] == [
             "geometry.half_length_mm", "geometry.length_exponent", "geometry.half_width_mm"
@@ -259,6 +260,82 @@ def test_the_trend_reads_the_pads_logs_and_recovers_a_map_linear_in_them(small3d
     assert s.delta[area] == "disp_at_1N_from_touch_mm"
     targets[:, area] = np.exp(base[:, area] + H @ b)
     assert not np.any(fit_trend(targets, base, H, s.delta, low, s.metric_names)[area])
+
+
+def test_the_slice_methods_bases_are_the_slice_models_values(small3d, low):
+    """``delta-slice``'s base, before its trend: each displacement reading is ln of the slice
+    model's depth at its force from the 2D prediction's pair, the hysteresis the 2D one times
+    the work ratio, and the contact patch the plate's overlap at the depth from touch
+    (``surrogate._slice``, fed here with ``Surrogate.predict``'s medians and the points' pad);
+    the other delta outputs keep the 2D prediction (the plate force), and so does a design whose
+    2D readings give no power law (d_4 <= d_1: one design's pair from the undeformed top)."""
+    from surrogate._multifidelity import MultiFidelitySurrogate
+    from surrogate._slice import line_load_law, overlap, slice_depth, work_ratio
+
+    data = read_sweep(small3d, dimension="3d")
+    fit = fit_multifidelity(data, SHIPPED, "delta-slice", TINY, progress=False)
+    s = fit.surrogate
+    names = list(s.metric_names)
+    features = s.encoder.encode(data.points).features
+    bare = MultiFidelitySurrogate(
+        "delta-slice", s.model, s.encoder, s.normaliser, s.metric_names, s.delta
+    )
+    plain = MultiFidelitySurrogate(
+        "delta-contact", s.model, s.encoder, s.normaliser, s.metric_names, s.delta
+    )
+    base, plain_base = bare.base(features)[0], plain.base(features)[0]
+    pred = low.predict([{k: v for k, v in p.items() if k in low.space.names} for p in data.points])
+    two = {m: pred.median[:, j] for j, m in enumerate(pred.metric_names)}
+    keys = ("half_width_mm", "height_mm", "exponent", "half_length_mm", "length_exponent")
+    pad = {k: np.array([p[f"geometry.{k}"] for p in data.points]) for k in keys}
+    pairs = {
+        "touch": (two["disp_at_1N_from_touch_mm"], two["disp_at_4N_from_touch_mm"]),
+        "top": (two["disp_at_1N_mm"], two["disp_at_4N_mm"]),
+    }
+    ok = {key: d4 > d1 for key, (d1, d4) in pairs.items()}  # elsewhere: the 2D base
+    assert ok["touch"].all() and 0 < (~ok["top"]).sum() < 3  # the top pair: one design here
+    with np.errstate(all="ignore"):
+        touch, top = (line_load_law(*pairs[key]) for key in ("touch", "top"))
+    shape = (pad["height_mm"], pad["half_length_mm"], pad["length_exponent"])
+    close = {"rtol": 0, "atol": 1e-5}  # ln units: the features are float32
+    for f in (1, 4):
+        depth = slice_depth(float(f), *touch, *shape)
+        got = base[:, names.index(f"disp_at_{f}N_from_touch_mm")]
+        np.testing.assert_allclose(got, np.log(depth), **close)
+        j = names.index(f"disp_at_{f}N_mm")
+        top_ok = ok["top"]
+        with np.errstate(all="ignore"):
+            want = np.log(slice_depth(float(f), *(v[top_ok] for v in (*top, *shape))))
+        np.testing.assert_allclose(base[top_ok, j], want, **close)
+        assert np.array_equal(base[~top_ok, j], plain_base[~top_ok, j])
+        patch = overlap(depth, pad["half_width_mm"], pad["height_mm"], pad["exponent"],
+                        pad["half_length_mm"], pad["length_exponent"])  # fmt: skip
+        for what, unit in (("area", "mm2"), ("width", "mm"), ("length", "mm")):
+            got = base[:, names.index(f"contact_{what}_at_{f}N_{unit}")]
+            np.testing.assert_allclose(got, np.log(patch[what]), **close)
+    h = names.index("hysteresis_Nmm")
+    ratio = work_ratio(two["disp_at_1N_from_touch_mm"], two["disp_at_4N_from_touch_mm"], *shape)
+    np.testing.assert_allclose(np.exp(base[:, h] - plain_base[:, h]), ratio, rtol=1e-5)
+    j = names.index("plate_force_at_1mm_N")
+    assert np.array_equal(base[:, j], plain_base[:, j])
+
+
+def test_a_few_values_a_log_scale_cannot_take_are_left_out_not_the_delta(low):
+    """A delta output on a log scale keeps its base when at most ``DELTA_UNMAPPED_MAX`` of its
+    training values are <= 0 (a failed reading: those values are not learnt, ``unmapped``), and
+    is learnt directly when more are (its scale is wrong)."""
+    from surrogate._multifidelity import DELTA_UNMAPPED_MAX, delta_outputs, unmapped
+
+    names = ["disp_at_1N_mm", "contact_area_at_1N_mm2"]
+    proxies = {"contact_area_at_1N_mm2": "disp_at_1N_from_touch_mm"}
+    y = np.column_stack([np.linspace(0.2, 1.0, 40), np.linspace(5.0, 90.0, 40)])
+    y[3, 1] = 0.0  # one failed reading of 40: 2.5 %
+    delta = delta_outputs(names, low, y, proxies)
+    assert delta == ("disp_at_1N_mm", "disp_at_1N_from_touch_mm")
+    assert np.array_equal(np.flatnonzero(unmapped(y, delta, low)), [3 * 2 + 1])
+    y[: int(DELTA_UNMAPPED_MAX * 40) + 1, 1] = 0.0  # more than the share
+    assert delta_outputs(names, low, y, proxies) == ("disp_at_1N_mm", None)
+    assert not unmapped(y, ("disp_at_1N_mm", None), low).any()
 
 
 def test_a_changed_low_fidelity_file_or_checkpoint_is_refused(small3d, low_copy, tmp_path):
@@ -346,7 +423,8 @@ def one_line(err: str) -> str:
     ("extra", "message"),
     [
         (["--low-fidelity", SHIPPED, "--method", "kriging"],
-         "--method: must be one of 3d, input, delta, delta-contact, delta-trend, finetune, got "
+         "--method: must be one of 3d, input, delta, delta-contact, delta-trend, delta-slice, "
+         "finetune, got "
          "'kriging'"),
         (["--method", "delta"], "--low-fidelity: --method delta needs the 2D surrogate"),
         (["--low-fidelity", SHIPPED, "--method", "3d"],
@@ -371,7 +449,7 @@ def test_cli_low_fidelity_with_a_2d_sweep_is_one_line(tmp_path, capsys):
 
 
 def test_cli_trains_a_3d_sweep_with_the_2d_surrogate(small3d, tmp_path, capsys, monkeypatch):
-    """``fingertip train SWEEP3D --low-fidelity CHECKPOINT``: the default method (delta), a
+    """``fingertip train SWEEP3D --low-fidelity CHECKPOINT``: the default method (delta-slice), a
     run folder whose checkpoint loads with ``load_multifidelity`` and whose report scores the
     3D metrics; without --low-fidelity the same sweep trains 3D-only."""
     import surrogate._multifidelity_run as run
@@ -382,11 +460,11 @@ def test_cli_trains_a_3d_sweep_with_the_2d_surrogate(small3d, tmp_path, capsys, 
             "--max-epochs", "10", "--no-progress"]  # fmt: skip
     code, stdout, err = run_main(argv, capsys)
     assert code == 0, err
-    assert "method: delta" in stdout and "contact_area_at_1N_mm2" in stdout
+    assert "method: delta-slice" in stdout and "contact_area_at_1N_mm2" in stdout
     model = load_multifidelity(out)
-    assert model.method.name == "delta" and model.members == 2
+    assert model.method.name == "delta-slice" and model.members == 2
     report = json.loads((out / "report.json").read_text())
-    assert report["method"] == "delta" and "contact_area_at_4N_mm2" in report["metrics"]
+    assert report["method"] == "delta-slice" and "contact_area_at_4N_mm2" in report["metrics"]
     assert json.loads((out / "meta.json").read_text())["kind"] == "train"
     argv = ["train", small3d, "--out", tmp_path / "3d", "--members", "2", "--max-epochs", "5",
             "--no-progress"]  # fmt: skip
