@@ -433,13 +433,22 @@ class MultiFidelitySurrogate:
             and m in SLICE_METRICS
             and all(r in low.metric_names for r in (*SLICE_METRICS[m][2], self.delta[j]))
         ]
-        if trend is not None:
-            trend = np.asarray(trend, dtype=np.float64)
-            if trend.shape != (len(self.metric_names), 1 + len(self._trend_params)):
-                raise ValueError("the trend's shape does not match the metrics and its inputs")
         self.trend = trend
         # the network's part: a Surrogate evaluates it (batched, frozen, on one thread)
         self._net = Surrogate(model, encoder.encoder, normaliser, self.metric_names)
+
+    @property
+    def trend(self) -> np.ndarray | None:
+        """The trend (n_metrics, 1 + k) of each delta output's base, or None."""
+        return self._trend
+
+    @trend.setter
+    def trend(self, value: np.ndarray | None) -> None:
+        if value is not None:
+            value = np.asarray(value, dtype=np.float64)
+            if value.shape != (len(self.metric_names), 1 + len(self._trend_params)):
+                raise ValueError("the trend's shape does not match the metrics and its inputs")
+        self._trend = value
 
     @property
     def normaliser(self) -> OutputNormaliser:

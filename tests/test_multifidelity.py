@@ -260,6 +260,8 @@ def test_the_trend_reads_the_pads_logs_and_recovers_a_map_linear_in_them(small3d
     assert s.delta[area] == "disp_at_1N_from_touch_mm"
     targets[:, area] = np.exp(base[:, area] + H @ b)
     assert not np.any(fit_trend(targets, base, H, s.delta, low, s.metric_names)[area])
+    with pytest.raises(ValueError, match="trend's shape"):  # set after construction: checked
+        s.trend = trend[:, :-1]
 
 
 def test_the_slice_methods_bases_are_the_slice_models_values(small3d, low):
