@@ -68,3 +68,23 @@ def cauchy(body: Body) -> np.ndarray:
     Sm = np.array([[S[0], S[2]], [S[2], S[1]]])
     J = F[0, 0] * F[1, 1] - F[0, 1] * F[1, 0]
     return np.einsum("iJeq,JKeq,kKeq->ikeq", F, Sm, F) / J
+
+
+def check_contact_slope(body: Body, u, d: float, du, dd: float, control: Control) -> list[int]:
+    """Assert that ``Body._contact_slope`` along the line (u + a du, d + a dd) is the contacts'
+    part of the line search's g(a) = [du, dd] . residual(a) (g minus the body's own internal
+    forces) at a = 0, 0.3 and 1; return the nodes touching the indenter at each."""
+    import pytest
+
+    disc = body.disc
+    g_contact = body._contact_slope(u, d, du, dd, control)
+    entered = []
+    for a in (0.0, 0.3, 1.0):
+        ua = u.copy()
+        ua.reshape(-1)[disc.free] += a * du
+        r, _, _, coupling, rd, *_ = body._evaluate(ua, control, d + a * dd, 0.01, False)
+        own = disc.evaluate(ua, body.states, 0.01, tangent=False).residual
+        g_total, g_body = du @ r + dd * rd, du @ own
+        entered.append(int(np.sum(coupling > 0)))
+        assert g_contact(a) == pytest.approx(g_total - g_body, rel=1e-9, abs=1e-12 * abs(g_total))
+    return entered
