@@ -1,10 +1,11 @@
 """SYNTHETIC 3D sweeps for the multi-fidelity surrogate's tests and the 3D search's.
 
-No 3D dataset is shipped, and a 3D design costs minutes of FE. These sweeps' "2D model" is the
+A 3D design costs minutes of FE, and the kept 3D dataset (``datasets/default3d``) grows with
+every segment. These sweeps' "2D model" is the
 shipped 2D surrogate itself (cheap: microseconds a design), and their "3D model" a known smooth
 map (``synthetic_3d``) of its predictions and of the pad's length and profile: they test methods
 and machinery, not the accuracy on FE results (``studies/multifidelity_study.py`` measures that
-on a real 3D sweep).
+on the kept 3D dataset; ``tests/test_slice.py`` checks the slice model against it).
 """
 
 from __future__ import annotations
