@@ -48,13 +48,6 @@ class Plate:
         t = np.radians(self.inclination_deg)
         return np.array([np.sin(t), np.cos(t)])
 
-    @property
-    def vertical_normal(self) -> float | None:
-        """-1.0: the flat plate's normal n = (0, -1) in (h, v), constant over its face, so its
-        penetration is affine in the nodes' height (``Body._contact_slope`` uses it); None when
-        inclined."""
-        return -1.0 if self.inclination_deg == 0.0 else None
-
     def penetration(self, xy: np.ndarray, position_mm: float):
         if self.inclination_deg == 0.0:
             return xy[:, 1] - position_mm, vertical_normals(len(xy), -1.0)
@@ -75,7 +68,6 @@ class Wedge:
     tip_width_mm: float = 0.05
     half_angle_deg: float = 30.0
     name = "wedge"
-    vertical_normal = None  # its normal turns round the tip (see ``Plate.vertical_normal``)
 
     @property
     def radius_mm(self) -> float:
@@ -121,9 +113,6 @@ class Base:
     """The rigid base y = 0 beside the bonded interface: the bulging surface may fold onto it."""
 
     name = "base"
-
-    #: the base's normal n = (0, 1) in (h, v), constant (see ``Plate.vertical_normal``)
-    vertical_normal = 1.0
 
     def penetration(self, xy: np.ndarray, position_mm: float = 0.0):
         return -xy[:, 1], vertical_normals(len(xy), 1.0)

@@ -840,36 +840,12 @@ class Body:
         axes = list(self._axes)
         xy0, dxy = self.plane_coordinates(u), step[:, axes]
         push = control.value if control.kind == "force" else 0.0
-        obstacles = [(self.base, False)]
-        if control.kind != "free" and self.indenter is not None:
-            obstacles.append((self.indenter, True))
-        # A horizontal obstacle (the base, a flat plate: ``vertical_normal``) has the normal
-        # (0, v) everywhere, so along the line its penetration needs the nodes' heights
-        # alone, and n . step is v times the step's vertical component: the bits of the
-        # general expressions below (a sum of v s and exact zeros is v s), without making
-        # the normals at every trial. The rounded wedge is evaluated afresh at every trial.
-        v0, dv = xy0[:, 1], dxy[:, 1]
-        flat = [getattr(obstacle, "vertical_normal", None) for obstacle, _ in obstacles]
-        along_v = self.indenter_axis[1] if self.vertical_indenter else None
 
         def g_contact(alpha: float) -> float:
             out = 0.0
-            xy = None
-            position = d + alpha * dd
-            for (obstacle, is_indenter), v in zip(obstacles, flat, strict=True):
+            parts = self._contact_at(xy0 + alpha * dxy, control, d + alpha * dd)
+            for p, n, _, is_indenter in parts:
                 k = self.kappa_indenter if is_indenter else self.kappa_nodes
-                if v is not None and (not is_indenter or along_v is not None):
-                    height = v0 + alpha * dv
-                    p = -height if not is_indenter else height - position
-                    f = np.where(p > 0, k * p, 0.0)
-                    out -= float(np.sum(f * (v * dv)))
-                    if is_indenter and control.kind == "force":
-                        out += dd * (push - float(np.sum(-f * (v * along_v))))
-                    continue
-                if xy is None:
-                    xy = xy0 + alpha * dxy
-                p, n = obstacle.penetration(xy, position)
-                n = self._full_normal(n)
                 f = np.where(p > 0, k * p, 0.0)
                 out -= float(np.sum(f * np.einsum("ij,ij->i", n, step)))
                 if is_indenter and control.kind == "force":
