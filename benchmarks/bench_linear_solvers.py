@@ -30,6 +30,7 @@ full matrix), ``pardiso`` (MKL PARDISO through pypardiso, symmetric indefinite, 
 as the FE runs it: ``sim.fe._linear.Pardiso`` with its settings ``PARDISO_IPARM``),
 ``pardiso-defaults``, ``pardiso-md``, ``pardiso-bk`` (the same with PARDISO's default
 settings, with minimum degree ordering, with Bunch-Kaufman pivoting: ``PARDISO_VARIANTS``),
+``pardiso-single`` (the FE's single-precision PARDISO, ``sim.fe._linear.PardisoSingle``),
 ``cholmod`` (CHOLMOD's supernodal Cholesky through
 cholespy, for symmetric positive definite systems only: it cannot factorise an indefinite
 tangent; needs ``pip install cholespy``). A solver that is not installed is reported as such.
@@ -58,6 +59,7 @@ PARDISO_VARIANTS = {
     "pardiso-defaults": {1: 0},  # PARDISO's defaults: METIS, Bunch-Kaufman pivoting
     "pardiso-md": {2: 0},  # minimum degree ordering
     "pardiso-bk": {21: 1},  # Bunch-Kaufman 1 x 1 and 2 x 2 pivoting
+    "pardiso-single": {},  # single precision (sim.fe._linear.PardisoSingle: iparm(28) = 1)
 }
 SOLVERS = ("qdldl", "superlu", *PARDISO_VARIANTS, "cholmod")
 #: the solvers without supernodes: beyond ``--slow-max-dofs`` they take minutes a system
@@ -169,9 +171,10 @@ def measure(solver: str, name: str, path: str, repeats: int) -> dict:
         solve = _best_ms(lambda: lu.solve(b), repeats)
         x = lu.solve(b)
     elif solver in PARDISO_VARIANTS:
-        from sim.fe._linear import Pardiso
+        from sim.fe._linear import SOLVERS as FE_SOLVERS
 
-        ps = Pardiso()  # the FE's own solver: its settings (sim.fe._linear.PARDISO_IPARM)
+        # the FE's own solver: its settings (sim.fe._linear.PARDISO_IPARM)
+        ps = FE_SOLVERS["pardiso-single" if solver == "pardiso-single" else "pardiso"]()
         for k, value in PARDISO_VARIANTS[solver].items():
             ps._ps.iparm[k - 1] = value  # 1-based, as in Intel's manual
         t0 = time.perf_counter()

@@ -275,6 +275,15 @@ def discretize(design: Design, options: SimOptions = SimOptions(), protocol: str
     return Discretization(fmesh, design.materials)
 
 
+#: The 3D protocols whose tangents PARDISO factorises in single precision
+#: (``sim.fe._linear.PardisoSingle``; a step it fails goes over to double: ``Body.advance``).
+#: Not the wedge: its band of 0.05 mm elements under a penalty of 20 000 E0 per mm (the tip's,
+#: ``WedgeOptions.penalty_per_mm``) makes a tangent too ill-conditioned for float32, whose
+#: directions stalled Newton (docs/fe_speed.md, "Single precision"). The 2D systems are
+#: qdldl's, in double.
+SINGLE_PRECISION_PROTOCOLS = ("tapping", "plate")
+
+
 def _run(
     disc: Discretization, protocol: Protocol, options: SimOptions
 ) -> tuple[Body, ProtocolResult | ProtocolFailure]:
@@ -285,6 +294,7 @@ def _run(
     if options.model.inclination_deg != 0.0:  # a plate (the wedge is refused by simulate)
         indenter = replace(indenter, inclination_deg=options.model.inclination_deg)
     body = Body(disc, indenter, newton, getattr(opts, "penalty_per_mm", None))
+    body.single_precision = disc.dim == 3 and protocol.name in SINGLE_PRECISION_PROTOCOLS
     if options.validity.stop_at_violation:
         body.stop_beyond = (protocol.name, options.validity)
     t0 = time.perf_counter()
@@ -312,5 +322,7 @@ def _figures(res: ProtocolResult, body: Body) -> dict[str, Any]:
         "timings_s": dict(body.timings),
         "wall_time_s": res.wall_time_s,
         "n_dofs": body.disc.n_free,  # the wedge's own mesh may differ (mesh3d.edge_h_mm)
+        "linear_solver": body.solver_name,  # the last one (after a fallback)
+        "precision_fallbacks": body.precision_fallbacks,
         **res.info,
     }

@@ -8,7 +8,8 @@ A change to the FE that moves the metrics by less than their discretisation erro
 trained surrogate's data valid: the new ``SOLVER_VERSION`` then lists the old one in
 ``sim.metrics.SAME_METRICS_AS`` (no re-sweep). This study is the evidence: designs ``start`` to
 ``start + n - 1`` of the sweep in ``--table`` (its space, seed and sampler, from its
-``config.json``), re-run with this solver and the default options, against the stored table or,
+``config.json``), re-run with this solver and the default options (a 3D sweep's: its own
+options, ``datasets/default3d/seg_*``), against the stored table or,
 with ``--reference``, against the run another commit saved with ``--save`` (the table's rows
 can come from an earlier solver that ``SAME_METRICS_AS`` carried over, and from another CPU:
 two runs on one machine tell the change alone). Prints, per metric, the largest and the median
@@ -30,22 +31,36 @@ import time
 from pathlib import Path
 
 import sim
-from sim import METRICS, SOLVER_VERSION, SimOptions, simulate
+from sim import SOLVER_VERSION, SimOptions, simulate
 from sim.design import point_to_design
+from sim.metrics import metric_registry
+from sim.options import options_from_dict
 from sim.sweep import open_table, read_config, sample_points, table_path
-from sim.sweep.run import load_space_config
+from sim.sweep.run import load_space_config, with_todays_defaults
 
-COUNTS = ("factorizations", "evaluations")
+#: summed over every design and protocol; ``precision_fallbacks``: steps tried again in double
+#: precision (``sim.fe.Body.advance``), 0 in runs made before it was counted
+COUNTS = ("factorizations", "evaluations", "precision_fallbacks")
+
+
+def sweep_options(folder: Path) -> SimOptions:
+    """The options the designs are re-run with: a 3D sweep's own (its mesh and model, today's
+    defaults where ``DEFAULTS_BEFORE`` says so), else the default options."""
+    options = with_todays_defaults(read_config(folder)).get("options") or {}
+    if options.get("model", {}).get("dimension") == "3d":
+        return options_from_dict(options)
+    return SimOptions()
 
 
 def table_rows(folder: Path, indices: range) -> dict[int, dict]:
     """The table's rows of the designs ``indices`` (by the sample index), numbers parsed."""
     wanted, rows = set(indices), {}
+    metrics = metric_registry(sweep_options(folder).dimension)
     with open_table(table_path(folder)) as f:
         for row in csv.DictReader(f):
             if int(row["index"]) in wanted:
                 rows[int(row["index"])] = {
-                    **{m: as_float(row.get(m)) for m in METRICS if m in row},
+                    **{m: as_float(row.get(m)) for m in metrics if m in row},
                     "valid": row.get("valid", "").lower() == "true" if row.get("valid") else None,
                     "settled": row.get("settled", "").lower() == "true"
                     if row.get("settled")
@@ -67,9 +82,10 @@ def run(folder: Path, indices: range) -> dict:
     config = read_config(folder)
     space = load_space_config(folder)
     points = sample_points(space, indices.stop, config["seed"], config.get("sampler", "sobol"))
+    options = sweep_options(folder)
     designs, counts, t0 = {}, dict.fromkeys(COUNTS, 0), time.perf_counter()
     for i in indices:
-        res = simulate(point_to_design(points[i]), options=SimOptions())
+        res = simulate(point_to_design(points[i]), options=options)
         for fig in res.protocols.values():
             for key in COUNTS:
                 counts[key] += fig.get(key, 0)
@@ -86,8 +102,11 @@ def run(folder: Path, indices: range) -> dict:
     }
 
 
-def compare(reference: dict[int, dict], new: dict[int, dict], floor: float) -> None:
-    changes: dict[str, list[float]] = {m: [] for m in METRICS}
+def compare(
+    reference: dict[int, dict], new: dict[int, dict], floor: float, dimension: str = "2d"
+) -> None:
+    metrics = metric_registry(dimension)
+    changes: dict[str, list[float]] = {m: [] for m in metrics}
     worst: dict[str, str] = {}
     flipped, missing = [], []
     for i, now in new.items():
@@ -95,7 +114,7 @@ def compare(reference: dict[int, dict], new: dict[int, dict], floor: float) -> N
             missing.append(i)
             continue
         ref = reference[i]
-        for m in METRICS:
+        for m in metrics:
             old, value = ref.get(m, math.nan), now.get(m, math.nan)
             if math.isfinite(old) and math.isfinite(value):
                 change = abs(value - old) / max(abs(old), floor)
@@ -106,7 +125,7 @@ def compare(reference: dict[int, dict], new: dict[int, dict], floor: float) -> N
             if ref.get(key) is not None and now.get(key) is not None and ref[key] != now[key]:
                 flipped.append(f"design {i}: {key} {ref[key]} -> {now[key]}")
     print(f"{'metric':34s} {'n':>4s} {'largest':>9s} {'median':>9s}  largest at")
-    for m in METRICS:
+    for m in metrics:
         c = changes[m]
         if c:
             print(f"{m:34s} {len(c):4d} {max(c):9.2e} {statistics.median(c):9.2e}  {worst[m]}")
@@ -141,7 +160,7 @@ def main() -> None:
         f"\nsolver {SOLVER_VERSION} ({result['sim']}) against {label}, designs "
         f"{indices.start}-{indices.stop - 1}, {result['seconds']:.0f} s"
     )
-    compare(reference, result["designs"], args.floor)
+    compare(reference, result["designs"], args.floor, sweep_options(args.table).dimension)
     print("this run: " + ", ".join(f"{k} {v}" for k, v in result["counts"].items()))
     if args.reference:
         print("reference: " + ", ".join(f"{k} {v}" for k, v in saved["counts"].items()))

@@ -88,3 +88,24 @@ def test_the_3d_segments_are_the_default_3d_sweep_and_teach_each_layers_strain(t
     assert {"tapping_skin_max_compressive_log_strain", "tapping_core_max_compressive_log_strain",
             "contact_area_at_1N_mm2"} <= set(data.metric_names)  # fmt: skip
     assert data.whole.sum() > 0  # some designs settled and valid: their metrics are learnt
+
+
+def test_the_same_metrics_study_reruns_a_3d_segment_with_its_own_options() -> None:
+    """``studies/same_metrics.py`` on a kept 3D segment: the designs are re-run with the
+    segment's own options (the 3D model, its mesh, today's defaults) and compared on the 3D
+    metrics its table holds; on a 2D sweep with the default options, as before."""
+    import importlib.util
+
+    path = ROOT / "studies" / "same_metrics.py"
+    spec = importlib.util.spec_from_file_location("same_metrics", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    folder = SEGMENTS_3D[0]
+    options = module.sweep_options(folder)
+    assert options.dimension == "3d"
+    assert options == options_from_dict(with_todays_defaults(read_config(folder))["options"])
+    first = int(folder.name.removeprefix("seg_").split("-")[0])
+    rows = module.table_rows(folder, range(first, first + 4))
+    assert sorted(rows) == list(range(first, first + 4))
+    assert any("contact_area_at_4N_mm2" in row for row in rows.values())
+    assert module.sweep_options(ROOT / "surrogate" / "pretrained" / "default") == SimOptions()

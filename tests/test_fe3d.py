@@ -174,6 +174,72 @@ def test_pardiso_orders_by_nested_dissection(pressed):
     assert 0 < entries["as set"] < entries[0]
 
 
+def test_single_precision_pardiso_factorises_in_float32_for_newtons_answer(pressed):
+    """``PardisoSingle``: the pressed pad's tangent solved to float32's accuracy (worse than
+    double's rounding, so the factor is really single; far better than bytes read in the wrong
+    precision), and a press stepped with it reaches double precision's state to the order of
+    Newton's tolerance: Newton stops on the double residual."""
+    pytest.importorskip("pypardiso")
+    import scipy.sparse as sp
+
+    from sim.fe._linear import PardisoSingle, default_solver
+
+    assert default_solver(10_000, 3, single_precision=True) == "pardiso-single"
+    assert default_solver(10_000, 3) == "pardiso"
+    assert default_solver(2_000, 2, single_precision=True) == "qdldl"
+    disc = pressed.disc
+    ev = disc.evaluate(pressed.u, pressed.states, 0.0, frozen_history=True)
+    upper = disc.upper_matrix(ev.tangent()).tocsc()
+    K = upper + sp.triu(upper, k=1).T
+    b = np.random.default_rng(0).standard_normal(K.shape[0])
+    solver = PardisoSingle()
+    solver.factor(upper)
+    x = solver.solve(b)
+    error = np.linalg.norm(K @ x - b) / np.linalg.norm(b)
+    print(f"single precision: relative residual {error:.1e}")
+    assert x.dtype == np.float64 and 1e-10 < error < 1e-4
+    X = solver.solve_many(np.column_stack([b, -2 * b]))
+    np.testing.assert_allclose(X[:, 1], -2 * x, rtol=1e-6, atol=1e-6 * np.abs(x).max())
+    bodies = []
+    for single in (False, True):
+        body = Body(disc, Plate(), NewtonOptions())
+        body.single_precision = single
+        top = body.top_height()
+        for k, d in enumerate(np.linspace(0.05, 0.3, 6)):
+            assert body.advance(0.1 * (k + 1), Control.position(top - d)).converged
+        assert body.precision_fallbacks == 0
+        bodies.append(body)
+    assert [b.solver_name for b in bodies] == ["pardiso", "pardiso-single"]
+    scale = np.abs(bodies[0].u).max()
+    np.testing.assert_allclose(bodies[1].u, bodies[0].u, rtol=0, atol=1e-6 * scale)
+    np.testing.assert_allclose(bodies[1].force, bodies[0].force, rtol=1e-6)
+
+
+def test_a_step_failed_in_single_precision_is_tried_again_in_double(pressed, monkeypatch):
+    """``Body.advance``: where the single-precision solves mislead Newton (here made useless:
+    a direction of the wrong sign), the step is tried again with double precision, which the
+    body then keeps; the step converges to double precision's answer."""
+    pytest.importorskip("pypardiso")
+    from sim.fe._linear import PardisoSingle
+
+    monkeypatch.setattr(PardisoSingle, "solve", lambda self, b: -_double_solve(self, b))
+    reference = Body(pressed.disc, Plate(), NewtonOptions())
+    body = Body(pressed.disc, Plate(), NewtonOptions())
+    body.single_precision = True
+    for b in (reference, body):
+        assert b.advance(0.1, Control.position(b.top_height() - 0.1)).converged
+    assert body.precision_fallbacks == 1 and body.solver_name == "pardiso"
+    assert reference.precision_fallbacks == 0
+    np.testing.assert_array_equal(body.u, reference.u)  # double precision's own path
+
+
+def _double_solve(solver, b):
+    """The double-precision class's solve on a single-precision solver (its own bytes)."""
+    from sim.fe._linear import Pardiso
+
+    return Pardiso.solve(solver, b)
+
+
 def test_modified_newton_saves_factorisations_for_the_same_answer():
     """``NewtonOptions.reuse_factorization``: the press of ``pressed`` with the factorisation
     kept while the residual falls fast: fewer factorisations, the same state to the order of

@@ -197,7 +197,8 @@ def test_write_result_draws_the_pad(tap, tmp_path):
 #: the quarter's figure info on the ``tap`` fixture, computed before the inclined figure was
 #: added (its numbers must not move; a change of the solver or the mesh moves them by design:
 #: solver 2.12's, whose kept factorisation takes another Newton path than 2.11's, moved them by
-#: at most 2.1e-5, the 4 N state's penetration sum, within Newton's tolerance)
+#: at most 2.1e-5, the 4 N state's penetration sum, within Newton's tolerance; solver 2.13's
+#: single-precision factorisation, by at most 3.7e-8, the same sum)
 QUARTER_INFO = {
     "kappa_N_per_mm3": 715.2,
     "n_elements": 224,
@@ -214,7 +215,10 @@ QUARTER_INFO = {
 
 def test_the_quarters_pad_figure_info_is_unchanged(info):
     """At 0 deg (the quarter) the info is the one before the inclined figure existed: the same
-    numbers on the same coarse tap (to 1e-9: the same bits here), level, the pad whole."""
+    numbers on the same coarse tap, level, the pad whole. To 1e-6, not to the bit: the state
+    is Newton's to its tolerance, and the path of the single-precision factorisation
+    (``sim.fe._linear.PardisoSingle``) may differ between CPUs; a change of the figure's own
+    reading moves these sums by far more."""
     q = QUARTER_INFO
     assert info.kappa_N_per_mm3 == pytest.approx(q["kappa_N_per_mm3"], rel=1e-9)
     assert info.n_elements == q["n_elements"]
@@ -223,14 +227,14 @@ def test_the_quarters_pad_figure_info_is_unchanged(info):
     assert info.first_touch_zy_mm == (0.0, 5.48) and info.first_touch_s_mm == 0.0
     assert info.outline_xz_mm.shape == (361, 2) and info.section_reference_zy_mm.shape == (33, 2)
     for k, st in enumerate(info.states):
-        assert st.state_force_N == pytest.approx(q["state_force_N"][k], rel=1e-9)
-        assert st.plate_position_mm == pytest.approx(q["plate_position_mm"][k], rel=1e-9)
-        assert st.patch_area_mm2 == pytest.approx(q["patch_area_mm2"][k], rel=1e-9)
+        assert st.state_force_N == pytest.approx(q["state_force_N"][k], rel=1e-6)
+        assert st.plate_position_mm == pytest.approx(q["plate_position_mm"][k], rel=1e-6)
+        assert st.patch_area_mm2 == pytest.approx(q["patch_area_mm2"][k], rel=1e-6)
         assert st.footprint_xz_mm.shape == (q["footprint_points"][k], 2)
         assert st.footprint_triangles.shape == (q["footprint_triangles"][k], 3)
-        assert st.pressure_kPa.sum() == pytest.approx(q["pressure_sum_kPa"][k], rel=1e-9)
-        assert st.penetration_mm.sum() == pytest.approx(q["penetration_sum_mm"][k], rel=1e-9)
-        assert st.section_zy_mm.sum() == pytest.approx(q["section_sum_mm"][k], rel=1e-9)
+        assert st.pressure_kPa.sum() == pytest.approx(q["pressure_sum_kPa"][k], rel=1e-6)
+        assert st.penetration_mm.sum() == pytest.approx(q["penetration_sum_mm"][k], rel=1e-6)
+        assert st.section_zy_mm.sum() == pytest.approx(q["section_sum_mm"][k], rel=1e-6)
         # the new fields: a level plate's trace, the patch centred on the apex
         np.testing.assert_array_equal(st.plate_trace_zy_mm[:, 1], st.plate_position_mm)
         assert st.patch_centre_mm == pytest.approx((0.0, 0.0), abs=1e-9)

@@ -11,6 +11,8 @@ with the upper triangle (CSC, the pattern of ``Discretization.upper_matrix``) th
   (``mtype = -2``), through pypardiso (``pip install pypardiso``, which brings MKL): 10-20
   times faster than qdldl on 3D systems of 6 000 dofs and more
   (``python benchmarks/bench_linear_solvers.py``, ``docs/fe_speed.md``).
+* ``pardiso-single``: the same in single precision (``PardisoSingle``), for the 3D tapping
+  and plate (``sim.simulate.SINGLE_PRECISION_PROTOCOLS``); its ``fallback`` is ``pardiso``.
 
 ``default_solver(n)`` picks by the system's size. The FE runs every factorisation on one
 thread (the same design gives the same bits whatever the machine's load), so PARDISO is told
@@ -24,7 +26,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["SOLVERS", "LinearSolver", "default_solver", "make_solver"]
+__all__ = ["SOLVERS", "LinearSolver", "PardisoSingle", "default_solver", "make_solver"]
 
 #: Systems with more free dofs than this go to PARDISO when it is installed. The 2D tangents
 #: (1 700-3 000 dofs) factorise faster in qdldl (1-2 ms against PARDISO's ~5 ms, whose
@@ -64,6 +66,8 @@ class LinearSolver:
     """Factorise once per pattern, then refactorise and solve (see the module docstring)."""
 
     name: ClassVar[str]
+    #: the solver to go over to where this one's solves are too inexact for Newton (None: none)
+    fallback: ClassVar[str | None] = None
 
     def factor(self, upper: Any) -> None:
         raise NotImplementedError
@@ -104,6 +108,8 @@ class Pardiso(LinearSolver):
     """MKL PARDISO through pypardiso's ``PyPardisoSolver`` (phases 11, 22, 33)."""
 
     name = "pardiso"
+    #: the precision of the matrix, the factor and the right-hand sides PARDISO is given
+    dtype: ClassVar[type] = np.float64
 
     def __init__(self) -> None:
         import os
@@ -117,8 +123,10 @@ class Pardiso(LinearSolver):
             os.environ["PYPARDISO_MKL_RT"] = found
         self._ps = PyPardisoSolver(mtype=-2)  # real symmetric indefinite
         self._ps.iparm[:] = PARDISO_IPARM
+        self._ps.iparm[27] = int(self.dtype == np.float32)  # iparm(28): single precision
         _one_thread(self._ps)
         self._csr = None
+        self._values = None  # the CSR values in ``dtype``: what PARDISO reads
 
     def factor(self, upper: Any) -> None:
         # the upper triangle as CSR is what PARDISO reads for a symmetric matrix: the CSC upper
@@ -127,21 +135,23 @@ class Pardiso(LinearSolver):
         csr.sort_indices()
         self._order = _csr_order(upper)  # CSC values -> CSR values
         self._csr = csr
+        self._values = csr.data.astype(self.dtype)
         self._ps._check_A(csr)
         # PARDISO's 1-based index arrays, made once (pypardiso makes them again at every call)
         self._ia = (csr.indptr.astype(np.int32) + 1, csr.indices.astype(np.int32) + 1)
-        self._call(12, np.zeros((csr.shape[0], 1)))
+        self._call(12, np.zeros((csr.shape[0], 1), dtype=self.dtype))
 
     def refactor(self, values: np.ndarray) -> None:
-        self._csr.data[:] = values[self._order]
-        self._call(22, np.zeros((self._csr.shape[0], 1)))
+        np.take(values, self._order, out=self._values)  # cast to ``dtype`` on the way
+        self._call(22, np.zeros((self._csr.shape[0], 1), dtype=self.dtype))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        return self._call(33, np.ascontiguousarray(b, dtype=float).reshape(-1, 1)).ravel()
+        rhs = np.ascontiguousarray(b, dtype=self.dtype).reshape(-1, 1)
+        return self._call(33, rhs).ravel().astype(float, copy=False)
 
     def solve_many(self, B: np.ndarray) -> np.ndarray:
         # PARDISO takes the right-hand sides column by column (Fortran order), all in one call
-        return self._call(33, np.asfortranarray(B, dtype=float))
+        return self._call(33, np.asfortranarray(B, dtype=self.dtype)).astype(float, copy=False)
 
     def _call(self, phase: int, b: np.ndarray) -> np.ndarray:
         """PARDISO's one entry point, as ``PyPardisoSolver._call_pardiso`` calls it, with the
@@ -150,12 +160,13 @@ class Pardiso(LinearSolver):
 
         from pypardiso.pardiso_wrapper import PyPardisoError
 
-        ps, A = self._ps, self._csr
+        ps, n = self._ps, self._csr.shape[0]
         ps.set_phase(phase)
         x = np.zeros_like(b)
         error = ctypes.c_int32(0)
         i32 = ctypes.POINTER(ctypes.c_int32)
-        f64 = ctypes.POINTER(ctypes.c_double)
+        real = ctypes.POINTER(ctypes.c_float if self.dtype == np.float32 else ctypes.c_double)
+        assert b.dtype == self.dtype  # PARDISO reads the arrays' bytes in its own precision
         one = ctypes.c_int32(1)
         ps._mkl_pardiso(
             ps.pt.ctypes.data_as(ctypes.POINTER(ps._pt_type[0])),
@@ -163,16 +174,16 @@ class Pardiso(LinearSolver):
             ctypes.byref(one),  # mnum
             ctypes.byref(ctypes.c_int32(ps.mtype)),
             ctypes.byref(ctypes.c_int32(phase)),
-            ctypes.byref(ctypes.c_int32(A.shape[0])),
-            A.data.ctypes.data_as(f64),
+            ctypes.byref(ctypes.c_int32(n)),
+            self._values.ctypes.data_as(real),
             self._ia[0].ctypes.data_as(i32),
             self._ia[1].ctypes.data_as(i32),
             ps.perm.ctypes.data_as(i32),
             ctypes.byref(ctypes.c_int32(b.shape[1])),  # right-hand sides
             ps.iparm.ctypes.data_as(i32),
             ctypes.byref(ctypes.c_int32(ps.msglvl)),
-            b.ctypes.data_as(f64),
-            x.ctypes.data_as(f64),
+            b.ctypes.data_as(real),
+            x.ctypes.data_as(real),
             ctypes.byref(error),
         )
         if error.value != 0:
@@ -187,6 +198,26 @@ class Pardiso(LinearSolver):
             ps.free_memory(everything=True)
         except Exception:  # modules half torn down at exit: nothing left to free
             pass
+
+
+class PardisoSingle(Pardiso):
+    """PARDISO in single precision (iparm(28) = 1: the matrix, its factor and the solves in
+    float32; the Newton solver hands over and gets back float64).
+
+    Newton needs a direction, not an exact solve: the residual and the tangent stay in double,
+    and the iteration stops on the double residual, so a factor good to about 1e-6 (float32's
+    epsilon 6e-8 times the tangent's conditioning) changes Newton's path, not its answer.
+    Half the factor's bytes: on the pad's tangent (10 622 dofs) a refactorisation took 50.3
+    against 84.2 ms, a solve 1.1 against 3.3 ms, the relative residual 7.9e-6 against 2.3e-14
+    (quiet: ``python benchmarks/bench_linear_solvers.py --systems pad --solvers pardiso
+    pardiso-single --repeats 5``). Where the tangent is too ill-conditioned for float32 (the 3D wedge's
+    band of 0.05 mm elements under a penalty of 20 000 E0 per mm) Newton stalls; the solver
+    then goes over to double precision (``Body.advance``)."""
+
+    name = "pardiso-single"
+    dtype = np.float32
+    #: the solver a body goes over to where this one's directions fail a step
+    fallback: ClassVar[str] = "pardiso"
 
 
 def _csr_order(upper: Any) -> np.ndarray:
@@ -206,7 +237,7 @@ def _one_thread(ps: Any) -> None:
         lib.MKL_Set_Num_Threads(ctypes.c_int(1))  # the C interface: the count by value
 
 
-SOLVERS: dict[str, type[LinearSolver]] = {cls.name: cls for cls in (Qdldl, Pardiso)}
+SOLVERS: dict[str, type[LinearSolver]] = {cls.name: cls for cls in (Qdldl, Pardiso, PardisoSingle)}
 
 
 def pardiso_available() -> bool:
@@ -217,15 +248,16 @@ def pardiso_available() -> bool:
     return True
 
 
-def default_solver(n_free: int, dim: int = 2) -> str:
+def default_solver(n_free: int, dim: int = 2, single_precision: bool = False) -> str:
     """The solver for a system of ``n_free`` dofs of a ``dim``-dimensional mesh: PARDISO (if
     installed) for every 3D system (a Q2 hexahedron couples 81 dofs: the fill-in grows so fast
     that qdldl took 0.37 s a factorisation at 4 400 dofs, PARDISO 0.04 s: the plate press of
     ``homogeneous_design("silicone_gls40")`` on ``COARSE_MESH_3D``, 42 factorisations each,
     beside another job) and
-    for 2D systems beyond ``PARDISO_FROM_DOFS``."""
+    for 2D systems beyond ``PARDISO_FROM_DOFS``; in single precision (``PardisoSingle``) where
+    ``single_precision`` asks for it."""
     if (dim == 3 or n_free > PARDISO_FROM_DOFS) and pardiso_available():
-        return "pardiso"
+        return "pardiso-single" if single_precision else "pardiso"
     return "qdldl"
 
 

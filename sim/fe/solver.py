@@ -287,6 +287,12 @@ class Body:
         self._x2 = None  # (key, solution, solver) of the last bordered column (force control)
         #: the sparse direct solver by name (``sim.fe._linear.SOLVERS``); None: by the size
         self.linear_solver: str | None = None
+        #: with ``linear_solver`` None: PARDISO may factorise in single precision
+        #: (``sim.fe._linear.default_solver``); set per protocol by ``sim.simulate``
+        self.single_precision = False
+        #: steps tried again in double precision after the single precision's directions
+        #: failed them (``advance``)
+        self.precision_fallbacks = 0
         self.timings: dict[str, float] = dict.fromkeys(TIMED, 0.0)
         self._last = None  # (kind, previous value, value, du, dd) of the last committed step
         self._last_control: Control | None = None
@@ -650,7 +656,9 @@ class Body:
         if self._solver is None:
             from ._linear import default_solver, make_solver  # `import sim` stays light
 
-            name = self.linear_solver or default_solver(self.disc.n_free, self.disc.dim)
+            name = self.linear_solver or default_solver(
+                self.disc.n_free, self.disc.dim, self.single_precision
+            )
             self._solver = make_solver(name)
             self._solver.factor(self.disc.upper_matrix(data))
         else:  # same pattern: new values, the symbolic analysis kept
@@ -686,7 +694,41 @@ class Body:
 
         ``guess``: a starting displacement and indenter position for Newton (for example the
         previous tap's increment at the same phase); by default the last increment is
-        extrapolated (``_predict``). A position control keeps its prescribed position."""
+        extrapolated (``_predict``). A position control keeps its prescribed position.
+
+        A step that Newton fails with an inexact linear solver (single-precision PARDISO) is
+        tried again with that solver's ``fallback`` (double precision), which the body then
+        keeps: a step fails there for the tangent's conditioning, which stays."""
+        result = self._advance(t_new, control, frozen_history, guess)
+        fallback = getattr(self._solver, "fallback", None)
+        if result.converged or fallback is None:
+            return result
+        self.linear_solver = fallback
+        self._forget_factorization()
+        self.precision_fallbacks += 1
+        return self._advance(t_new, control, frozen_history, guess)
+
+    @property
+    def solver_name(self) -> str | None:
+        """The linear solver that made the last factorisation (None before the first)."""
+        return getattr(self._solver, "name", None)
+
+    def _forget_factorization(self) -> None:
+        """Drop the kept factorisation and what was derived from it (a new solver follows)."""
+        self._solver = None
+        self._stale = False
+        self._factored_active = self._factored_blocks = None
+        self._corrected = self._x2 = None
+        self._kept_columns.clear()
+
+    def _advance(
+        self,
+        t_new: float,
+        control: Control,
+        frozen_history: bool,
+        guess: tuple[np.ndarray, float] | None,
+    ) -> StepResult:
+        """``advance`` with the body's linear solver."""
         opts = self.options
         dt = t_new - self.t
         u = self.u.copy()
