@@ -278,9 +278,10 @@ def discretize(design: Design, options: SimOptions = SimOptions(), protocol: str
 #: The 3D protocols whose tangents PARDISO factorises in single precision
 #: (``sim.fe._linear.PardisoSingle``; a step it fails goes over to double: ``Body.advance``).
 #: Not the wedge: its band of 0.05 mm elements under a penalty of 20 000 E0 per mm (the tip's,
-#: ``WedgeOptions.penalty_per_mm``) makes a tangent too ill-conditioned for float32, whose
-#: directions stalled Newton (docs/fe_speed.md, "Single precision"). The 2D systems are
-#: qdldl's, in double.
+#: ``WedgeOptions.penalty_per_mm``) makes a tangent too ill-conditioned for float32: a step
+#: failed there and fell back, for more factorisations and no time saved
+#: (``studies/wedge_precision.py``; docs/fe_speed.md, "Single precision"). The 2D systems
+#: are qdldl's, in double.
 SINGLE_PRECISION_PROTOCOLS = ("tapping", "plate")
 
 

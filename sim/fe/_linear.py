@@ -211,8 +211,8 @@ class PardisoSingle(Pardiso):
     against 84.2 ms, a solve 1.1 against 3.3 ms, the relative residual 7.9e-6 against 2.3e-14
     (quiet: ``python benchmarks/bench_linear_solvers.py --systems pad --solvers pardiso
     pardiso-single --repeats 5``). Where the tangent is too ill-conditioned for float32
-    (the 3D wedge's band of 0.05 mm elements under a penalty of 20 000 E0 per mm) Newton
-    stalls; the solver then goes over to double precision (``Body.advance``)."""
+    (the 3D wedge's band of 0.05 mm elements under a penalty of 20 000 E0 per mm) a step
+    fails; the body then goes over to double precision (``Body.advance``)."""
 
     name = "pardiso-single"
     dtype = np.float32
