@@ -3,6 +3,7 @@
     python studies/same_metrics.py [--table surrogate/pretrained/default] [--n 64] [--start 0]
     python studies/same_metrics.py --n 64 --save before.json          # at one commit
     python studies/same_metrics.py --n 64 --reference before.json     # at the next
+    python studies/same_metrics.py --tables OLD NEW --n 6              # two sweeps' tables
 
 A change to the FE that moves the metrics by less than their discretisation error keeps a
 trained surrogate's data valid: the new ``SOLVER_VERSION`` then lists the old one in
@@ -18,6 +19,8 @@ of 1e-4 N mm of a nearly elastic design is numerical noise), the designs whose v
 settling changed, and the factorisations and residual evaluations of both runs (counts, which
 do not depend on the machine's load). Run it with the repository's ``sim`` on the path
 (``PYTHONPATH=.`` in a second checkout: an editable install points at the first).
+``--tables OLD NEW`` re-runs nothing: it compares two sweep folders' tables of the same designs
+(for example the folders two commits' ``benchmarks/bench_sweep.py --keep`` left).
 """
 
 from __future__ import annotations
@@ -144,8 +147,20 @@ def main() -> None:
     ap.add_argument("--floor", type=float, default=1e-3)
     ap.add_argument("--save", type=Path, help="write this run (metrics and counts) as JSON")
     ap.add_argument("--reference", type=Path, help="compare with a run saved by --save")
+    ap.add_argument(
+        "--tables", type=Path, nargs=2, metavar=("OLD", "NEW"), help="compare two sweep tables"
+    )
     args = ap.parse_args()
     indices = range(args.start, args.start + args.n)
+    if args.tables:
+        old, new = args.tables
+        print(
+            f"{new} (solver {read_config(new)['solver_version']}) against {old} (solver "
+            f"{read_config(old)['solver_version']}), designs {indices.start}-{indices.stop - 1}"
+        )
+        rows = table_rows(new, indices)
+        compare(table_rows(old, indices), rows, args.floor, sweep_options(new).dimension)
+        return
     result = run(args.table, indices)
     if args.save:
         args.save.write_text(json.dumps(result, indent=1))

@@ -217,8 +217,8 @@ def test_single_precision_pardiso_factorises_in_float32_for_newtons_answer(press
 
 def test_a_step_failed_in_single_precision_is_tried_again_in_double(pressed, monkeypatch):
     """``Body.advance``: where the single-precision solves mislead Newton (here made useless:
-    a direction of the wrong sign), the step is tried again with double precision, which the
-    body then keeps; the step converges to double precision's answer."""
+    a direction of the wrong sign), the step is tried again with double precision and
+    converges to double precision's answer; the next step is single precision's again."""
     pytest.importorskip("pypardiso")
     from sim.fe._linear import PardisoSingle
 
@@ -226,11 +226,38 @@ def test_a_step_failed_in_single_precision_is_tried_again_in_double(pressed, mon
     reference = Body(pressed.disc, Plate(), NewtonOptions())
     body = Body(pressed.disc, Plate(), NewtonOptions())
     body.single_precision = True
+    top = body.top_height()
     for b in (reference, body):
-        assert b.advance(0.1, Control.position(b.top_height() - 0.1)).converged
+        assert b.advance(0.1, Control.position(top - 0.1)).converged
     assert body.precision_fallbacks == 1 and body.solver_name == "pardiso"
     assert reference.precision_fallbacks == 0
     np.testing.assert_array_equal(body.u, reference.u)  # double precision's own path
+    monkeypatch.undo()  # single precision's directions are good again
+    for b in (reference, body):
+        assert b.advance(0.2, Control.position(top - 0.2)).converged
+    assert body.precision_fallbacks == 1 and body.solver_name == "pardiso-single"
+    assert body.linear_solver is None and reference.solver_name == "pardiso"
+    scale = np.abs(reference.u).max()
+    np.testing.assert_allclose(body.u, reference.u, rtol=0, atol=1e-6 * scale)
+
+
+def test_a_step_that_fails_in_both_precisions_is_cut_in_double(pressed, monkeypatch):
+    """``Body.advance``: a step that fails in double precision too (here: Newton allowed one
+    iteration) leaves the body in double precision for the protocol's cut step, and the first
+    step that converges there hands it back to single precision."""
+    pytest.importorskip("pypardiso")
+    from sim.fe._linear import PardisoSingle
+
+    monkeypatch.setattr(PardisoSingle, "solve", lambda self, b: -_double_solve(self, b))
+    body = Body(pressed.disc, Plate(), NewtonOptions(max_iterations=1))
+    body.single_precision = True
+    top = body.top_height()
+    assert not body.advance(0.1, Control.position(top - 0.1)).converged
+    assert body.precision_fallbacks == 1 and body.linear_solver == "pardiso"
+    body.options = NewtonOptions()
+    assert body.advance(0.05, Control.position(top - 0.05)).converged  # the cut step
+    assert body.precision_fallbacks == 1 and body.solver_name == "pardiso"
+    assert body.linear_solver is None  # the next step is single precision's
 
 
 def _double_solve(solver, b):

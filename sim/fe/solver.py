@@ -293,6 +293,9 @@ class Body:
         #: steps tried again in double precision after the single precision's directions
         #: failed them (``advance``)
         self.precision_fallbacks = 0
+        #: (``linear_solver``,) to go back to after a fallback (``advance``); None: not in one
+        self._own_solver: tuple[str | None] | None = None
+        self._factored_by: str | None = None  # ``solver_name``
         self.timings: dict[str, float] = dict.fromkeys(TIMED, 0.0)
         self._last = None  # (kind, previous value, value, du, dd) of the last committed step
         self._last_control: Control | None = None
@@ -664,6 +667,7 @@ class Body:
         else:  # same pattern: new values, the symbolic analysis kept
             self._solver.refactor(np.take(data, self.disc.upper_data))
         self.factorizations += 1
+        self._factored_by = self._solver.name
         self._kept_columns.clear()
         self.timings["LDL^T factorisation"] += time.perf_counter() - t0
         return self._solver
@@ -697,21 +701,30 @@ class Body:
         extrapolated (``_predict``). A position control keeps its prescribed position.
 
         A step that Newton fails with an inexact linear solver (single-precision PARDISO) is
-        tried again with that solver's ``fallback`` (double precision), which the body then
-        keeps: a step fails there for the tangent's conditioning, which stays."""
+        tried again with that solver's ``fallback`` (double precision). The body keeps the
+        fallback until a step converges with it (the step the protocol cuts after a failed
+        retry, its halves, ...), then goes back to the body's own solver: most such failures
+        are a step too large for any precision (the wedge's first ramp step fails in double
+        too), and one such step made the whole rest of the run double before solver 2.14."""
         result = self._advance(t_new, control, frozen_history, guess)
         fallback = getattr(self._solver, "fallback", None)
-        if result.converged or fallback is None:
-            return result
-        self.linear_solver = fallback
-        self._forget_factorization()
-        self.precision_fallbacks += 1
-        return self._advance(t_new, control, frozen_history, guess)
+        if not result.converged and fallback is not None:
+            if self._own_solver is None:
+                self._own_solver = (self.linear_solver,)
+            self.linear_solver = fallback
+            self._forget_factorization()
+            self.precision_fallbacks += 1
+            result = self._advance(t_new, control, frozen_history, guess)
+        if result.converged and self._own_solver is not None:  # back to the body's own
+            (self.linear_solver,) = self._own_solver
+            self._own_solver = None
+            self._forget_factorization()
+        return result
 
     @property
     def solver_name(self) -> str | None:
         """The linear solver that made the last factorisation (None before the first)."""
-        return getattr(self._solver, "name", None)
+        return self._factored_by
 
     def _forget_factorization(self) -> None:
         """Drop the kept factorisation and what was derived from it (a new solver follows)."""
