@@ -97,11 +97,27 @@ def pad_force(depth_mm, A, k, b_mm, c_mm, m) -> np.ndarray:
     return 2.0 * np.asarray(A, dtype=float) * np.sum(w * local ** np.asarray(k)[..., None], -1)
 
 
+def _force_and_log_slope(depth_mm, A, k, b_mm, c_mm, m) -> tuple[np.ndarray, np.ndarray]:
+    """``pad_force`` F and its log slope d ln F / d ln delta = delta F' / F, with
+    F' = 2 A k sum w (delta - dh)^(k - 1) (the integrand vanishes at the edge z_e, so the
+    edge's motion adds nothing)."""
+    _, w, local = _slices(depth_mm, b_mm, c_mm, m)
+    A, k = np.asarray(A, dtype=float), np.asarray(k, dtype=float)
+    power = local ** (k[..., None] - 1.0)
+    F = 2.0 * A * np.sum(w * power * local, -1)
+    dF = 2.0 * A * k * np.sum(w * power, -1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return F, np.asarray(depth_mm) * dF / F
+
+
 def slice_depth(force_N, A, k, b_mm, c_mm, m, iterations: int = 60) -> np.ndarray:
-    """The depth delta (mm) at which ``pad_force`` is ``force_N``: bisection on ln delta, every
-    design at once (F grows with delta from 0 without bound). The bracket starts at
-    [e^-30 mm, b] and is widened upwards by doubling until it holds the force; 60 halvings of
-    its 30-odd units of ln delta leave it below 1e-15 relative."""
+    """The depth delta (mm) at which ``pad_force`` is ``force_N``, every design at once (F grows
+    with delta from 0 without bound): Newton's method on ln F against ln delta inside a bracket
+    that each evaluation narrows, a bisection step wherever Newton's would leave it. The
+    bracket starts at [e^-30 mm, b] and is widened upwards by doubling until it holds the
+    force; Newton starts at its top. F is nearly a power of delta: on 65 536 random pads and
+    line loads every design's step was below 1e-12 of ln delta at the fifth evaluation, where
+    bisection took 60, the depths the same to 7e-16 and about 7 times faster."""
     force, A, k, b, c, m = np.broadcast_arrays(
         *(np.asarray(v, dtype=float) for v in (force_N, A, k, b_mm, c_mm, m))
     )
@@ -112,11 +128,20 @@ def slice_depth(force_N, A, k, b_mm, c_mm, m, iterations: int = 60) -> np.ndarra
         if not np.any(short):
             break
         hi = np.where(short, hi + np.log(2.0), hi)
+    x = hi.copy()
     for _ in range(iterations):
-        mid = 0.5 * (lo + hi)
-        below = pad_force(np.exp(mid), A, k, b, c, m) < force
-        lo, hi = np.where(below, mid, lo), np.where(below, hi, mid)
-    return np.exp(0.5 * (lo + hi))
+        F, slope = _force_and_log_slope(np.exp(x), A, k, b, c, m)
+        below = F < force
+        lo, hi = np.where(below, x, lo), np.where(below, hi, x)  # x is now one end
+        with np.errstate(divide="ignore", invalid="ignore"):
+            new = x + (np.log(force) - np.log(F)) / slope
+        outside = ~np.isfinite(new) | (new < lo) | (new > hi)
+        new = np.where(outside, 0.5 * (lo + hi), new)
+        done = np.abs(new - x) <= 1e-12
+        x = new
+        if np.all(done):
+            break
+    return np.exp(x)
 
 
 def work_ratio(d1_mm, d4_mm, b_mm, c_mm, m) -> np.ndarray:
