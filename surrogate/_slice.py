@@ -103,10 +103,10 @@ def _force_and_log_slope(depth_mm, A, k, b_mm, c_mm, m) -> tuple[np.ndarray, np.
     edge's motion adds nothing)."""
     _, w, local = _slices(depth_mm, b_mm, c_mm, m)
     A, k = np.asarray(A, dtype=float), np.asarray(k, dtype=float)
-    power = local ** (k[..., None] - 1.0)
-    F = 2.0 * A * np.sum(w * power * local, -1)
-    dF = 2.0 * A * k * np.sum(w * power, -1)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore"):  # k < 1: 0^(k - 1) at the edge
+        power = local ** (k[..., None] - 1.0)
+        F = 2.0 * A * np.sum(w * power * local, -1)
+        dF = 2.0 * A * k * np.sum(w * power, -1)
         return F, np.asarray(depth_mm) * dF / F
 
 
@@ -129,6 +129,9 @@ def slice_depth(force_N, A, k, b_mm, c_mm, m, iterations: int = 60) -> np.ndarra
             break
         hi = np.where(short, hi + np.log(2.0), hi)
     x = hi.copy()
+    # a design with a non-finite input (a line load law of no meaning) has no depth to find:
+    # it does not keep the others iterating
+    hopeless = ~np.isfinite(force * A * k * b * c * m)
     for _ in range(iterations):
         F, slope = _force_and_log_slope(np.exp(x), A, k, b, c, m)
         below = F < force
@@ -137,7 +140,7 @@ def slice_depth(force_N, A, k, b_mm, c_mm, m, iterations: int = 60) -> np.ndarra
             new = x + (np.log(force) - np.log(F)) / slope
         outside = ~np.isfinite(new) | (new < lo) | (new > hi)
         new = np.where(outside, 0.5 * (lo + hi), new)
-        done = np.abs(new - x) <= 1e-12
+        done = (np.abs(new - x) <= 1e-12) | hopeless
         x = new
         if np.all(done):
             break
