@@ -104,7 +104,7 @@ def _force_and_log_slope(depth_mm, A, k, b_mm, c_mm, m) -> tuple[np.ndarray, np.
     _, w, local = _slices(depth_mm, b_mm, c_mm, m)
     A, k = np.asarray(A, dtype=float), np.asarray(k, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):  # k < 1: 0^(k - 1) at the edge
-        power = local ** (k[..., None] - 1.0)
+        power = np.where(local > 0.0, local ** (k[..., None] - 1.0), 0.0)
         F = 2.0 * A * np.sum(w * power * local, -1)
         dF = 2.0 * A * k * np.sum(w * power, -1)
         return F, np.asarray(depth_mm) * dF / F
