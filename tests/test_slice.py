@@ -70,6 +70,18 @@ def test_the_depth_inverts_the_force_and_the_quadrature_matches_a_fine_trapezoid
         )
 
 
+def test_the_depth_is_found_for_a_load_softer_than_linear_and_a_meaningless_law_is_left():
+    """``slice_depth``'s Newton steps: a line load growing slower than linearly (k < 1, its
+    slope infinite at the patch's edge) still gives the depth of the force asked for, and a
+    design whose law is NaN gives NaN-free others."""
+    d1, d4 = np.array([0.2, 0.5, np.nan]), np.array([1.5, 0.9, 1.0])
+    A, k = line_load_law(d1, d4)
+    assert k[0] < 1 < k[1]
+    for force in (1.0, 4.0):
+        depth = slice_depth(force, A, k, 5.0, 10.0, 2.0)
+        np.testing.assert_allclose(pad_force(depth[:2], A[:2], k[:2], 5.0, 10.0, 2.0), force)
+
+
 def test_a_box_shaped_pad_10_mm_long_is_the_2d_model():
     """A pad of length 2c = 10 mm with a flat profile (m large: s = 1 but at its ends) carries
     the 2D line load on 10 mm: its displacements are the 2D readings and its work the 2D
