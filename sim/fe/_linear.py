@@ -210,9 +210,9 @@ class PardisoSingle(Pardiso):
     Half the factor's bytes: on the pad's tangent (10 622 dofs) a refactorisation took 50.3
     against 84.2 ms, a solve 1.1 against 3.3 ms, the relative residual 7.9e-6 against 2.3e-14
     (quiet: ``python benchmarks/bench_linear_solvers.py --systems pad --solvers pardiso
-    pardiso-single --repeats 5``). Where the tangent is too ill-conditioned for float32
-    (the 3D wedge's band of 0.05 mm elements under a penalty of 20 000 E0 per mm) a step
-    fails; the body then goes over to double precision (``Body.advance``)."""
+    pardiso-single --repeats 5``). A step Newton fails with it is tried again in double
+    precision (``fallback``), and the body goes back to this solver at the next step that
+    converges (``Body.advance``)."""
 
     name = "pardiso-single"
     dtype = np.float32
