@@ -93,8 +93,7 @@ def _slices(depth, b, c, m):
 
 def pad_force(depth_mm, A, k, b_mm, c_mm, m) -> np.ndarray:
     """F(delta) (N): the slices' line loads A (delta - dh)^k summed over the pad's length."""
-    _, w, local = _slices(depth_mm, b_mm, c_mm, m)
-    return 2.0 * np.asarray(A, dtype=float) * np.sum(w * local ** np.asarray(k)[..., None], -1)
+    return _force_and_log_slope(depth_mm, A, k, b_mm, c_mm, m)[0]
 
 
 def _force_and_log_slope(depth_mm, A, k, b_mm, c_mm, m) -> tuple[np.ndarray, np.ndarray]:
@@ -117,7 +116,7 @@ def slice_depth(force_N, A, k, b_mm, c_mm, m, iterations: int = 60) -> np.ndarra
     bracket starts at [e^-30 mm, b] and is widened upwards by doubling until it holds the
     force; Newton starts at its top. F is nearly a power of delta: on 65 536 random pads and
     line loads every design's step was below 1e-12 of ln delta at the fifth evaluation, where
-    bisection took 60, the depths the same to 7e-16 and about 7 times faster."""
+    bisection took 60 quadratures, the depths the same to 7e-16."""
     force, A, k, b, c, m = np.broadcast_arrays(
         *(np.asarray(v, dtype=float) for v in (force_N, A, k, b_mm, c_mm, m))
     )
