@@ -325,5 +325,12 @@ def _figures(res: ProtocolResult, body: Body) -> dict[str, Any]:
         "n_dofs": body.disc.n_free,  # the wedge's own mesh may differ (mesh3d.edge_h_mm)
         "linear_solver": body.solver_name,  # the last one (after a fallback)
         "precision_fallbacks": body.precision_fallbacks,
+        # the factorisations kept per tapping step (3D): steps that began with one, and how
+        # many the body kept
+        **(
+            {"step_factor_takes": body.step_factor_takes, "step_factors": body.step_factors_kept}
+            if body.step_factors
+            else {}
+        ),
         **res.info,
     }

@@ -376,8 +376,7 @@ def test_a_direction_for_a_contact_set_solves_that_sets_linear_penalty():
     disc = body.disc
     control = Control.position(body.indenter_position - 0.05)
     r, data, _, _, _, _, parts = body._evaluate(body.u, control, control.value, 0.01, True)
-    body._factor(data())
-    body._factored_blocks = body._contact_blocks(parts)
+    body._factor(data(), parts[1][0] >= 0, body._contact_blocks(parts))
     p = parts[1][0]  # the plate
     now = p >= 0
     gap = np.where(now, np.inf, -p)
@@ -569,3 +568,97 @@ def test_the_contact_edge_study_reads_a_face_bilinearly():
     t = (np.arange(samples) + 0.5) / samples * 2.0 - 1.0
     S, _ = np.meshgrid(t, t, indexing="ij")
     np.testing.assert_array_equal(study.bilinear_inside(p, samples)[0], S.ravel() > 0.25)
+
+
+def test_pardiso_keeps_one_factorisation_per_slot(pressed):
+    """``Pardiso(slots)``: two matrices of the one pattern factorised in two slots (PARDISO's
+    ``maxfct``/``mnum``) each solve their own system to rounding, also after the other slot
+    was factorised again, and a slot's view solves with its slot whatever the solver's
+    current slot is."""
+    pytest.importorskip("pypardiso")
+    import scipy.sparse as sp
+
+    from sim.fe._linear import make_solver
+
+    disc = pressed.disc
+    ev = disc.evaluate(pressed.u, pressed.states, 0.0, frozen_history=True)
+    upper = disc.upper_matrix(ev.tangent()).tocsc()
+    col = np.repeat(np.arange(upper.shape[0]), np.diff(upper.indptr))
+    stiffer = upper.copy()
+    stiffer.data[upper.indices == col] *= 1.5  # another matrix of the same pattern
+    full = [m + sp.triu(m, k=1).T for m in (upper, stiffer)]
+    b = np.random.default_rng(0).standard_normal(upper.shape[0])
+    solver = make_solver("pardiso", slots=3)
+    solver.factor(upper)  # slot 1
+    solver.slot = 3
+    solver.refactor(stiffer.data)
+    views = [solver.view(1), solver.view(3)]
+    for _ in range(2):  # the second time after slot 3 was factorised again
+        for view, K in zip(views, full, strict=True):
+            x = view.solve(b)
+            assert np.linalg.norm(K @ x - b) <= 1e-10 * np.linalg.norm(b)
+        solver.slot = 3
+        solver.refactor(stiffer.data)
+    x1, x3 = (v.solve(b) for v in views)
+    assert np.linalg.norm(x1 - x3) > 1e-3 * np.linalg.norm(x1)  # two factorisations indeed
+    assert make_solver("qdldl", slots=3).view(2).slots == 1  # qdldl keeps one
+
+
+def _step_keyed_body(step_factors_MB: float = 1e6) -> Body:
+    """A viscoelastic pad under modified Newton that keeps a factorisation per step key."""
+    pmesh = build_pad_mesh(PAD, (), COARSE)
+    table = {"model": "neo_hookean", "mu_MPa": 0.05, "nu": 0.49}
+    mat = material_from_table({**table, "prony_g": [0.3], "prony_tau_s": [0.5]})
+    opts = NewtonOptions(reuse_factorization=True, contact_update=True, active_set_solves=4)
+    body = Body(Discretization3D(pmesh, [mat]), Plate(), opts)
+    body.single_precision = True
+    body.step_factors, body.step_factors_MB = 4, step_factors_MB
+    return body
+
+
+def test_a_keyed_step_begins_with_its_keys_factorisation():
+    """``Body.advance(factor_key=...)``: a step's factorisations go to its key's own slot, and
+    a later step of the same key begins with that factorisation (not the last one made); the
+    state is Newton's answer either way (the same press without keys, to Newton's
+    tolerance)."""
+    pytest.importorskip("pypardiso")
+    scale = None
+    bodies = []
+    for keyed in (True, False):
+        body = _step_keyed_body()
+        scale = 1.0 / body.disc.force_scale(10.0)
+        for k, f in enumerate([0.1, 0.2, 0.3]):  # a ramp, no keys
+            assert body.advance(0.05 * (k + 1), Control.force(f * scale)).converged
+        loads = [0.4, 0.5, 0.4, 0.5]  # keys A, B, A, B: a schedule that repeats
+        for k, f in enumerate(loads):
+            key = "AB"[k % 2] if keyed else None
+            body._stale = k < 2  # the first round factorises afresh (in the key's slot)
+            t = 0.05 * (k + 4)
+            assert body.advance(t, Control.force(f * scale), factor_key=key).converged
+            if keyed and k < 2:
+                assert body._step_factors[key].serial == body._serial
+            if keyed and k >= 2:  # the second round: each step began with its key's
+                assert body.step_factor_takes == k - 1
+        bodies.append(body)
+    keyed, plain = bodies
+    assert set(keyed._step_factors) == {"A", "B"} and plain.step_factors_kept == 0
+    assert {s.solver.slot for s in keyed._step_factors.values()} == {2, 3}
+    assert plain.step_factor_takes == 0
+    size = np.abs(plain.u).max()
+    np.testing.assert_allclose(keyed.u, plain.u, rtol=0, atol=1e-5 * size)
+    np.testing.assert_allclose(keyed.force, plain.force, rtol=1e-5)
+
+
+def test_keyed_factorisations_stay_within_their_memory():
+    """``Body.step_factors_MB``: where one slot's factorisation (``slot_memory_MB``) fits
+    once, one key keeps its own and the others share slot 1."""
+    pytest.importorskip("pypardiso")
+    probe = _step_keyed_body()
+    scale = 1.0 / probe.disc.force_scale(10.0)
+    assert probe.advance(0.05, Control.force(0.1 * scale), factor_key="A").converged
+    per_slot = probe._solvers["pardiso-single"].slot_memory_MB()
+    assert per_slot is not None and per_slot > 0
+    body = _step_keyed_body(step_factors_MB=1.5 * per_slot)
+    for k, (f, key) in enumerate(zip([0.1, 0.2, 0.3], "ABC", strict=True)):
+        assert body.advance(0.05 * (k + 1), Control.force(f * scale), factor_key=key).converged
+    assert body.step_factors_kept == 1 and body.factorizations >= 3

@@ -26,7 +26,14 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["SOLVERS", "LinearSolver", "PardisoSingle", "default_solver", "make_solver"]
+__all__ = [
+    "SOLVERS",
+    "LinearSolver",
+    "PardisoSingle",
+    "SlotView",
+    "default_solver",
+    "make_solver",
+]
 
 #: Systems with more free dofs than this go to PARDISO when it is installed. The 2D tangents
 #: (1 700-3 000 dofs) factorise faster in qdldl (1-2 ms against PARDISO's ~5 ms, whose
@@ -63,11 +70,18 @@ PARDISO_IPARM = _pardiso_iparm()
 
 
 class LinearSolver:
-    """Factorise once per pattern, then refactorise and solve (see the module docstring)."""
+    """Factorise once per pattern, then refactorise and solve (see the module docstring).
+
+    A solver with ``slots > 1`` keeps that many numeric factorisations of the one pattern at
+    once (one symbolic analysis): ``refactor`` and ``solve`` act on the factorisation in slot
+    ``slot`` (1 to ``slots``); set ``slot`` to switch between them."""
 
     name: ClassVar[str]
     #: the solver to go over to where this one's solves are too inexact for Newton (None: none)
     fallback: ClassVar[str | None] = None
+    #: factorisations kept at once (``slot`` 1 to ``slots``)
+    slots: int = 1
+    slot: int = 1
 
     def factor(self, upper: Any) -> None:
         raise NotImplementedError
@@ -81,6 +95,33 @@ class LinearSolver:
     def solve_many(self, B: np.ndarray) -> np.ndarray:
         """``solve`` for every column of ``B`` (n, k)."""
         return np.column_stack([self.solve(b) for b in B.T]) if B.shape[1] else B.copy()
+
+    def view(self, slot: int) -> LinearSolver | SlotView:
+        """What solves with the factorisation in ``slot``, whatever ``slot`` is later set to:
+        the solver itself where it keeps one factorisation."""
+        return self if self.slots == 1 else SlotView(self, slot)
+
+    def slot_memory_MB(self) -> float | None:
+        """Memory one more slot's factorisation takes (MB); None: unknown."""
+        return None
+
+
+class SlotView:
+    """Solves with the factorisation in slot ``slot`` of ``solver`` (``LinearSolver.view``)."""
+
+    def __init__(self, solver: LinearSolver, slot: int) -> None:
+        self.solver = solver
+        self.slot = slot
+        self.name = solver.name
+        self.fallback = solver.fallback
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        self.solver.slot = self.slot
+        return self.solver.solve(b)
+
+    def solve_many(self, B: np.ndarray) -> np.ndarray:
+        self.solver.slot = self.slot
+        return self.solver.solve_many(B)
 
 
 class Qdldl(LinearSolver):
@@ -105,13 +146,18 @@ class Qdldl(LinearSolver):
 
 
 class Pardiso(LinearSolver):
-    """MKL PARDISO through pypardiso's ``PyPardisoSolver`` (phases 11, 22, 33)."""
+    """MKL PARDISO through pypardiso's ``PyPardisoSolver`` (phases 12, 22, 33).
+
+    ``slots``: PARDISO's ``maxfct``, the numeric factorisations it keeps of the one pattern
+    (``mnum`` is ``slot``). A slot's memory is taken at its first factorisation (on the pad's
+    tangent in single precision about 20 MB: ``slot_memory_MB``). Each slot keeps its
+    own matrix values too: PARDISO's iterative refinement of a solve reads them."""
 
     name = "pardiso"
     #: the precision of the matrix, the factor and the right-hand sides PARDISO is given
     dtype: ClassVar[type] = np.float64
 
-    def __init__(self) -> None:
+    def __init__(self, slots: int = 1) -> None:
         import os
 
         from pypardiso import PyPardisoSolver, scipy_aliases
@@ -126,7 +172,9 @@ class Pardiso(LinearSolver):
         self._ps.iparm[27] = int(self.dtype == np.float32)  # iparm(28): single precision
         _one_thread(self._ps)
         self._csr = None
-        self._values = None  # the CSR values in ``dtype``: what PARDISO reads
+        self.slots = slots
+        self.slot = 1
+        self._values: dict[int, np.ndarray] = {}  # per slot, the CSR values in ``dtype``
 
     def factor(self, upper: Any) -> None:
         # the upper triangle as CSR is what PARDISO reads for a symmetric matrix: the CSC upper
@@ -135,14 +183,18 @@ class Pardiso(LinearSolver):
         csr.sort_indices()
         self._order = _csr_order(upper)  # CSC values -> CSR values
         self._csr = csr
-        self._values = csr.data.astype(self.dtype)
+        self._values = {self.slot: csr.data.astype(self.dtype)}
         self._ps._check_A(csr)
         # PARDISO's 1-based index arrays, made once (pypardiso makes them again at every call)
         self._ia = (csr.indptr.astype(np.int32) + 1, csr.indices.astype(np.int32) + 1)
         self._call(12, np.zeros((csr.shape[0], 1), dtype=self.dtype))
+        # one factorisation's memory (kB): iparm(17) grows with each slot factorised
+        self._factor_kB = int(self._ps.iparm[16])
 
     def refactor(self, values: np.ndarray) -> None:
-        np.take(values, self._order, out=self._values)  # cast to ``dtype`` on the way
+        if self.slot not in self._values:
+            self._values[self.slot] = np.zeros(len(self._order), dtype=self.dtype)
+        np.take(values, self._order, out=self._values[self.slot])  # cast to ``dtype``
         self._call(22, np.zeros((self._csr.shape[0], 1), dtype=self.dtype))
 
     def solve(self, b: np.ndarray) -> np.ndarray:
@@ -167,15 +219,16 @@ class Pardiso(LinearSolver):
         i32 = ctypes.POINTER(ctypes.c_int32)
         real = ctypes.POINTER(ctypes.c_float if self.dtype == np.float32 else ctypes.c_double)
         assert b.dtype == self.dtype  # PARDISO reads the arrays' bytes in its own precision
-        one = ctypes.c_int32(1)
+        if not 1 <= self.slot <= self.slots:
+            raise ValueError(f"PARDISO slot {self.slot} outside 1..{self.slots}")
         ps._mkl_pardiso(
             ps.pt.ctypes.data_as(ctypes.POINTER(ps._pt_type[0])),
-            ctypes.byref(one),  # maxfct
-            ctypes.byref(one),  # mnum
+            ctypes.byref(ctypes.c_int32(self.slots)),  # maxfct
+            ctypes.byref(ctypes.c_int32(self.slot)),  # mnum
             ctypes.byref(ctypes.c_int32(ps.mtype)),
             ctypes.byref(ctypes.c_int32(phase)),
             ctypes.byref(ctypes.c_int32(n)),
-            self._values.ctypes.data_as(real),
+            self._values[self.slot].ctypes.data_as(real),
             self._ia[0].ctypes.data_as(i32),
             self._ia[1].ctypes.data_as(i32),
             ps.perm.ctypes.data_as(i32),
@@ -189,6 +242,16 @@ class Pardiso(LinearSolver):
         if error.value != 0:
             raise PyPardisoError(error.value)
         return x
+
+    def slot_memory_MB(self) -> float | None:
+        """PARDISO's count of its first numeric factorisation's memory (iparm(17), kB, which
+        then grows with each slot factorised) and the slot's own values: on the pad's tangent
+        in single precision each slot after the first took 20 MB of resident memory,
+        iparm(17) 21 MB (``python studies/tap_factors.py --memory``)."""
+        kb = getattr(self, "_factor_kB", 0)
+        if kb <= 0:
+            return None
+        return kb / 1024.0 + self._csr.nnz * np.dtype(self.dtype).itemsize / 2**20
 
     def __del__(self) -> None:
         ps = getattr(self, "_ps", None)
@@ -261,7 +324,10 @@ def default_solver(n_free: int, dim: int = 2, single_precision: bool = False) ->
     return "qdldl"
 
 
-def make_solver(name: str) -> LinearSolver:
+def make_solver(name: str, slots: int = 1) -> LinearSolver:
+    """The solver ``name``; ``slots`` factorisations kept at once where it can keep several
+    (PARDISO), else one."""
     if name not in SOLVERS:
         raise ValueError(f"unknown linear solver {name!r}; known: {', '.join(SOLVERS)}")
-    return SOLVERS[name]()
+    cls = SOLVERS[name]
+    return cls(slots) if issubclass(cls, Pardiso) else cls()

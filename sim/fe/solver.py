@@ -278,7 +278,11 @@ class Body:
         self.states: list[LayerState] = disc.initial_states()
         self.t = 0.0
         self.indenter_position = np.inf
-        self._solver = None  # a sim.fe._linear.LinearSolver, made at the first factorisation
+        #: the sparse direct solvers by name (``sim.fe._linear.LinearSolver``), each made at
+        #: its first factorisation and kept (its symbolic analysis with it)
+        self._solvers: dict[str, Any] = {}
+        self._solver = None  # what solves with the kept factorisation (a solver or a slot's view)
+        self._serial = 0  # the kept factorisation's number (``factorizations`` when it was made)
         self._stale = False  # the kept factorisation failed a line search: factorise afresh
         self._factored_active: np.ndarray | None = None  # the indenter's contact at that time
         self._factored_blocks: np.ndarray | None = None  # the contact's stiffness at that time
@@ -296,6 +300,15 @@ class Body:
         #: (``linear_solver``,) to go back to after a fallback (``advance``); None: not in one
         self._own_solver: tuple[str | None] | None = None
         self._factored_by: str | None = None  # ``solver_name``
+        #: factorisations kept at once, one per step of a tap (``advance``'s ``factor_key``),
+        #: beside the shared one; 0: none. Set by the tapping protocol (``sim.protocols``)
+        self.step_factors = 0
+        #: the resident memory those may take at most (MB); the count is cut to fit
+        self.step_factors_MB = STEP_FACTORS_MB
+        self._step_factors: dict[Any, _StepFactor] = {}  # by ``factor_key``
+        self._key: Any = None  # the ``factor_key`` of the step being advanced
+        #: steps that began with the factorisation made at their key in an earlier tap
+        self.step_factor_takes = 0
         self.timings: dict[str, float] = dict.fromkeys(TIMED, 0.0)
         self._last = None  # (kind, previous value, value, du, dd) of the last committed step
         self._last_control: Control | None = None
@@ -444,7 +457,7 @@ class Body:
         dofs, D = dofs[keep], D[np.ix_(keep, keep)]
         if len(dofs) > self.options.contact_update_dofs:
             return None
-        key = (self.factorizations, dofs.tobytes(), D.tobytes())
+        key = (self._serial, dofs.tobytes(), D.tobytes())
         if self._corrected is not None and self._corrected[0] == key:
             return self._corrected[1]  # the same change as the last iteration's: kept
         t0 = time.perf_counter()
@@ -580,9 +593,7 @@ class Body:
             tangent = data(held_parts)
             if not np.all(np.isfinite(tangent)):
                 return None
-            solver = self._factor(tangent)
-            self._factored_active = coupling > 0
-            self._factored_blocks = blocks
+            solver = self._factor(tangent, coupling > 0, blocks)
         t0 = time.perf_counter()
         rd2 = control.value - force if control.kind == "force" else 0.0
         out = self._newton_step(solver, r2, rd2, coupling, control)
@@ -593,7 +604,7 @@ class Body:
         """``solver.solve(kcol)``, the force control's second right-hand side: kept while
         the factorisation (and its contact correction) and the plate's coupling are those of
         the last solve, where modified Newton gives the same system again."""
-        key = (self.factorizations, id(solver), kcol.tobytes())
+        key = (self._serial, id(solver), kcol.tobytes())
         if self._x2 is not None and self._x2[0] == key and self._x2[2] is solver:
             return self._x2[1]
         x2 = solver.solve(kcol)
@@ -652,25 +663,84 @@ class Body:
             return same_contact and not np.any(active)
         return same_contact and norms[-1] <= opts.reuse_ratio * norms[-2]
 
-    def _factor(self, data):
-        """Factorise the tangent ``data``: the first time with the symbolic analysis, then
-        numerically only (the pattern never changes); returns the solver (``.solve(b)``)."""
+    def _factor(self, data, active: np.ndarray, blocks: np.ndarray | None):
+        """Factorise the tangent ``data`` made with the indenter's contact ``active`` and the
+        contact's stiffness ``blocks`` (``_contact_blocks``; None without contact updates):
+        the first time with the symbolic analysis, then numerically only (the pattern never
+        changes), in the step's own slot where it has one (``_slot_for``); returns what solves
+        with it (``.solve(b)``)."""
         t0 = time.perf_counter()
-        if self._solver is None:
-            from ._linear import default_solver, make_solver  # `import sim` stays light
+        name = self._solver_name()
+        solver = self._solvers.get(name)
+        slot = self._slot_for(name, solver)
+        if solver is None:
+            from ._linear import make_solver  # `import sim` stays light
 
-            name = self.linear_solver or default_solver(
-                self.disc.n_free, self.disc.dim, self.single_precision
-            )
-            self._solver = make_solver(name)
-            self._solver.factor(self.disc.upper_matrix(data))
+            own = self.step_factors and self._own_solver is None
+            solver = make_solver(name, 1 + self.step_factors if own else 1)
+            solver.slot = slot if slot <= solver.slots else 1
+            slot = solver.slot
+            solver.factor(self.disc.upper_matrix(data))
+            self._solvers[name] = solver
         else:  # same pattern: new values, the symbolic analysis kept
-            self._solver.refactor(np.take(data, self.disc.upper_data))
+            solver.slot = slot
+            solver.refactor(np.take(data, self.disc.upper_data))
         self.factorizations += 1
-        self._factored_by = self._solver.name
-        self._kept_columns.clear()
+        self._serial = self.factorizations
+        self._solver = solver.view(slot)
+        self._factored_by = name
+        self._factored_active, self._factored_blocks = active, blocks
+        self._kept_columns.clear()  # the columns of the factorisation replaced or left
+        self._kept_columns = _KeptColumns()
+        if slot > 1:
+            self._step_factors[self._key] = _StepFactor(
+                self._serial, self._solver, active, blocks, self._kept_columns
+            )
         self.timings["LDL^T factorisation"] += time.perf_counter() - t0
         return self._solver
+
+    def _solver_name(self) -> str:
+        """The linear solver this body factorises with now (``linear_solver`` or by size)."""
+        from ._linear import default_solver  # `import sim` stays light
+
+        if self.linear_solver:
+            return self.linear_solver
+        return default_solver(self.disc.n_free, self.disc.dim, self.single_precision)
+
+    def _slot_for(self, name: str, solver: Any) -> int:
+        """The slot of the factorisation to make now: the step's own (``factor_key``), one of
+        ``step_factors`` while they fit in ``step_factors_MB``, else the shared slot 1. Only
+        the body's own solver keeps step slots (not a precision fallback's)."""
+        if self._key is None or not self.step_factors or self._own_solver is not None:
+            return 1
+        if solver is not None and solver.slots == 1:  # a solver that keeps one (qdldl)
+            return 1
+        kept = self._step_factors.get(self._key)
+        if kept is not None:
+            return kept.solver.slot
+        used = len(self._step_factors)
+        limit = self.step_factors
+        per_slot = solver.slot_memory_MB() if solver is not None else None
+        if per_slot:
+            limit = min(limit, int(self.step_factors_MB // per_slot))
+        return 2 + used if used < limit else 1
+
+    def _take_step_factor(self) -> None:
+        """Begin the step with the factorisation made during its key in an earlier tap, if
+        there is one and the body's solver is its own: near the periodic state a tap repeats
+        the last, and the same step's tangent of the last tap is closer to this step's than
+        the previous step's of this tap (the load moves along the half-sine)."""
+        kept = self._step_factors.get(self._key)
+        if kept is None or kept.serial == self._serial or self._own_solver is not None:
+            return
+        self._kept_columns.clear()  # the factorisation left keeps no columns
+        self._solver, self._serial = kept.solver, kept.serial
+        self._factored_active, self._factored_blocks = kept.active, kept.blocks
+        self._kept_columns = kept.columns
+        self._factored_by = kept.solver.name
+        self._stale = False
+        self._corrected = self._x2 = None
+        self.step_factor_takes += 1
 
     def top_height(self, u: np.ndarray | None = None) -> float:
         """Highest point of the current outer surface (mm) along the indenter's direction e:
@@ -693,6 +763,7 @@ class Body:
         control: Control,
         frozen_history: bool = False,
         guess: tuple[np.ndarray, float] | None = None,
+        factor_key: Any = None,
     ) -> StepResult:
         """Solve the step to ``t_new``; commit the state only if Newton converges.
 
@@ -700,12 +771,19 @@ class Body:
         previous tap's increment at the same phase); by default the last increment is
         extrapolated (``_predict``). A position control keeps its prescribed position.
 
+        ``factor_key``: the step of a schedule that repeats (a tap's loading step, with
+        ``step_factors``): the step begins with the factorisation made during the same key
+        before (``_take_step_factor``), and one it makes is kept in the key's own slot.
+
         A step that Newton fails with an inexact linear solver (single-precision PARDISO) is
         tried again with that solver's ``fallback`` (double precision). The body keeps the
         fallback until a step converges with it (the step the protocol cuts after a failed
         retry, its halves, ...), then goes back to the body's own solver: most such failures
         are a step too large for any precision (the wedge's first ramp step fails in double
         too), and one such step made the whole rest of the run double before solver 2.14."""
+        self._key = factor_key
+        if factor_key is not None:
+            self._take_step_factor()
         result = self._advance(t_new, control, frozen_history, guess)
         fallback = getattr(self._solver, "fallback", None)
         if not result.converged and fallback is not None:
@@ -722,12 +800,18 @@ class Body:
         return result
 
     @property
+    def step_factors_kept(self) -> int:
+        """Factorisations kept for tapping steps now (``step_factors``, ``_slot_for``)."""
+        return len(self._step_factors)
+
+    @property
     def solver_name(self) -> str | None:
         """The linear solver that made the last factorisation (None before the first)."""
         return self._factored_by
 
     def _forget_factorization(self) -> None:
-        """Drop the kept factorisation and what was derived from it (a new solver follows)."""
+        """Drop the kept factorisation and what was derived from it (another solver follows;
+        each solver keeps its analysis, and the body's own its steps' factorisations)."""
         self._solver = None
         self._stale = False
         self._factored_active = self._factored_blocks = None
@@ -793,10 +877,8 @@ class Body:
                 if not np.all(np.isfinite(tangent)):  # the material tangent, computed lazily
                     self.newton_iterations += it
                     return StepResult(False, it, "non-finite tangent")
-                solver = self._factor(tangent)
-                self._factored_active = active
-                if opts.contact_update:
-                    self._factored_blocks = self._contact_blocks(parts)
+                blocks = self._contact_blocks(parts) if opts.contact_update else None
+                solver = self._factor(tangent, active, blocks)
             t0 = time.perf_counter()
             du, dd = self._newton_step(solver, r, rd, coupling, control)
             self.timings["triangular solves"] += time.perf_counter() - t0
@@ -955,6 +1037,23 @@ class Body:
         self.states = [LayerState(s.S0.copy(), s.H.copy()) for s in states]
         self._last = None
         self._last_control = None
+
+
+#: Resident memory the factorisations kept per tapping step may take in one body (MB;
+#: ``Body.step_factors_MB``): two sweep workers then hold 4 GB of them on this 24 GB machine.
+STEP_FACTORS_MB = 2048.0
+
+
+@dataclass(frozen=True)
+class _StepFactor:
+    """A factorisation kept for one tapping step (``Body._factor``): its number, what solves
+    with it, the contact it was made with and its solved columns (``_KeptColumns``)."""
+
+    serial: int
+    solver: Any
+    active: np.ndarray
+    blocks: np.ndarray | None
+    columns: _KeptColumns
 
 
 class _KeptColumns:

@@ -170,6 +170,12 @@ class StepGrowth:
 #: pad with it, so it keeps the default (docs/fe_speed.md, "The 3D wedge's sub-steps").
 WEDGE_STEP_GROWTH = {2: StepGrowth(), 3: StepGrowth(within_iterations=4, easy_steps=2)}
 
+#: Whether a tapping body with modified Newton (the 3D model) keeps one factorisation per
+#: loading step across taps (``Body.step_factors``; solver 2.15): each loading step begins
+#: with the factorisation the same step made in an earlier tap (docs/fe_speed.md, "One
+#: factorisation per tapping step"). False gives solver 2.14's path (``studies/tap_factors.py``).
+KEEP_STEP_FACTORS = True
+
 
 def _march(
     body: Body,
@@ -208,7 +214,8 @@ def _march(
                 t_next = t_target
             whole = replay is not None and t_next == t_target and body.t == t_begin and not cuts
             guess = replay.guess(j, body) if whole else None
-            res = body.advance(t_next, control(t_next), guess=guess)
+            key = replay.factor_key(j) if replay is not None else None
+            res = body.advance(t_next, control(t_next), guess=guess, factor_key=key)
             if res.converged:
                 steps += 1
                 cuts = 0
@@ -237,11 +244,14 @@ class _Replay:
     displacement increment of schedule step ``j`` in the previous tap predicts this tap's far
     better than extrapolating this tap's last step (which knows nothing of first touch or of
     the free recovery after lift-off). One ``_Replay`` serves one phase (loaded or rest) of
-    every tap; :meth:`start` is called at the phase's start."""
+    every tap; :meth:`start` is called at the phase's start. A ``keyed`` one also names each
+    schedule step for the body's factorisations kept per step (``factor_key``,
+    ``Body.step_factors``)."""
 
-    def __init__(self) -> None:
+    def __init__(self, keyed: bool = False) -> None:
         self.prev: dict[int, tuple[np.ndarray, float, float]] = {}
         self.cur: dict[int, tuple[np.ndarray, float, float]] = {}
+        self.keyed = keyed
 
     def start(self, body: Body, schedule: object = None) -> None:
         """A new tap's phase begins; ``schedule`` tells taps with other step times apart."""
@@ -253,6 +263,10 @@ class _Replay:
     def store(self, j: int, body: Body) -> None:
         """The committed state at the end of schedule step ``j`` (``-1``: the phase's start)."""
         self.cur[j] = (body.u, body.indenter_position, body.top_height())
+
+    def factor_key(self, j: int) -> tuple[object, int] | None:
+        """The key of schedule step ``j`` of this phase's schedule (None if not ``keyed``)."""
+        return (getattr(self, "_schedule", None), j) if self.keyed else None
 
     def guess(self, j: int, body: Body) -> tuple[np.ndarray, float] | None:
         before, after = self.prev.get(j - 1), self.prev.get(j)
@@ -584,7 +598,10 @@ class _Taps:
         #: per tap and phase (loaded, rest): steps, factorisations and residual evaluations,
         #: counts that do not depend on the machine's load (studies/fe_time_study.py)
         self.cost: list[dict[str, int]] = []
-        self.replay_load, self.replay_rest = _Replay(), _Replay()
+        self.replay_load, self.replay_rest = _Replay(keyed=True), _Replay()
+        # modified Newton (the 3D model) keeps a factorisation per loading step across taps
+        if body.options.reuse_factorization and KEEP_STEP_FACTORS:
+            body.step_factors = max(opts.steps_loaded, opts.steps_settle)
         self.recorder = _Recorder(body, self.top0, lambda f: f / scale)
 
     @contextmanager
