@@ -8,7 +8,8 @@ Runs each design's tapping twice at once, in two processes, with the factorisati
 loading step (``Body.step_factors``: each loading step begins with the factorisation the same
 step made in an earlier tap, and one it makes goes to its own PARDISO slot) and without (2.14's
 path: each step begins with the last factorisation of this tap), so that both runs share
-whatever else the machine is doing. Prints for each: whether it completed, the taps, the steps
+whatever else the machine is doing. Prints for each: whether it completed, the taps, whether
+it settled (an unsettled design's metrics move with any change of Newton's path), the steps
 that began with a kept factorisation, the factorisations kept, the factorisations, the Newton
 iterations, the residual evaluations, the seconds, the process's peak resident memory, and
 the largest relative change of a tapping metric.
@@ -106,7 +107,8 @@ def main() -> None:
                 fig = run["figures"]
                 totals[mode] += run["seconds"]
                 print(
-                    f"design {d}, {mode}: ok {run['ok']}, taps {fig.get('taps')}, takes "
+                    f"design {d}, {mode}: ok {run['ok']}, taps {fig.get('taps')}, settled "
+                    f"{fig.get('settled')}, takes "
                     f"{fig.get('step_factor_takes', 0)}, kept {fig.get('step_factors', 0)}, "
                     f"factorisations {fig.get('factorizations')}, Newton iterations "
                     f"{fig.get('newton_iterations')}, evaluations {fig.get('evaluations')}, "
