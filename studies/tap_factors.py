@@ -23,17 +23,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import resource
-import time
-from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 
-from same_metrics import sweep_options
+from paired import in_pairs, largest_change, simulate_design
 
-from sim.design import point_to_design
-from sim.sweep import read_config, sample_points
-from sim.sweep.run import load_space_config
-
-FOLDER = Path(__file__).resolve().parents[1] / "datasets" / "default3d" / "seg_0-31"
 MODES = ("kept", "last")
 
 
@@ -41,20 +33,7 @@ def run_tapping(design_index: int, mode: str) -> dict:
     """One design's tapping with (``kept``) or without (``last``) the per-step factorisations."""
     loading = importlib.import_module("sim.protocols.loading")
     loading.KEEP_STEP_FACTORS = mode == "kept"
-    simulate_module = importlib.import_module("sim.simulate")
-    config, space = read_config(FOLDER), load_space_config(FOLDER)
-    points = sample_points(space, design_index + 1, config["seed"], config["sampler"])
-    t0 = time.perf_counter()
-    res = simulate_module.simulate(
-        point_to_design(points[design_index]), ("tapping",), sweep_options(FOLDER)
-    )
-    return {
-        "ok": res.ok,
-        "figures": res.protocols.get("tapping", {}),
-        "metrics": res.metrics,
-        "seconds": time.perf_counter() - t0,
-        "max_rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-    }
+    return simulate_design(design_index, "tapping")
 
 
 def slot_memory(slots: int = 8) -> None:
@@ -100,31 +79,20 @@ def main() -> None:
         slot_memory()
         return
     totals = dict.fromkeys(MODES, 0.0)
-    with ProcessPoolExecutor(len(MODES), max_tasks_per_child=1) as pool:
-        for d in args.designs:
-            runs = dict(zip(MODES, pool.map(run_tapping, [d] * 2, MODES), strict=True))
-            for mode, run in runs.items():
-                fig = run["figures"]
-                totals[mode] += run["seconds"]
-                print(
-                    f"design {d}, {mode}: ok {run['ok']}, taps {fig.get('taps')}, settled "
-                    f"{fig.get('settled')}, takes "
-                    f"{fig.get('step_factor_takes', 0)}, kept {fig.get('step_factors', 0)}, "
-                    f"factorisations {fig.get('factorizations')}, Newton iterations "
-                    f"{fig.get('newton_iterations')}, evaluations {fig.get('evaluations')}, "
-                    f"{run['seconds']:.1f} s, {run['max_rss_MB']:.0f} MB",
-                    flush=True,
-                )
-            kept, last = runs["kept"]["metrics"], runs["last"]["metrics"]
-            change = max(
-                (
-                    abs(kept[m] - v) / max(abs(v), 1e-12)
-                    for m, v in last.items()
-                    if isinstance(v, float) and isinstance(kept.get(m), float)
-                ),
-                default=float("nan"),
+    for d, runs in in_pairs(run_tapping, args.designs, MODES):
+        for mode, run in runs.items():
+            fig = run["figures"]
+            totals[mode] += run["seconds"]
+            print(
+                f"design {d}, {mode}: ok {run['ok']}, taps {fig.get('taps')}, settled "
+                f"{fig.get('settled')}, takes {fig.get('step_factor_takes', 0)}, kept "
+                f"{fig.get('step_factors', 0)}, factorisations {fig.get('factorizations')}, "
+                f"Newton iterations {fig.get('newton_iterations')}, evaluations "
+                f"{fig.get('evaluations')}, {run['seconds']:.1f} s, {run['max_rss_MB']:.0f} MB",
+                flush=True,
             )
-            print(f"design {d}: largest relative change of a tapping metric {change:.1e}")
+        change = largest_change(runs["kept"]["metrics"], runs["last"]["metrics"])
+        print(f"design {d}: largest relative change of a tapping metric {change:.1e}")
     print("seconds in all: " + ", ".join(f"{m} {s:.1f}" for m, s in totals.items()))
 
 

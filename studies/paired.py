@@ -1,0 +1,64 @@
+"""Runs of one protocol on default-space 3D designs in two variants at once, in two processes,
+so that both share whatever else the machine is doing (``wedge_precision.py``,
+``tap_factors.py``)."""
+
+from __future__ import annotations
+
+import importlib
+import math
+import resource
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from same_metrics import sweep_options
+
+from sim.design import point_to_design
+from sim.sweep import read_config, sample_points
+from sim.sweep.run import load_space_config
+
+FOLDER = Path(__file__).resolve().parents[1] / "datasets" / "default3d" / "seg_0-31"
+
+
+def simulate_design(design_index: int, protocol: str) -> dict:
+    """Design ``design_index`` of the default 3D space (its dataset's sample and options) run
+    through ``protocol`` with ``sim`` as it is now: its figures, metrics, seconds and the
+    process's peak resident memory."""
+    simulate_module = importlib.import_module("sim.simulate")
+    config, space = read_config(FOLDER), load_space_config(FOLDER)
+    points = sample_points(space, design_index + 1, config["seed"], config["sampler"])
+    t0 = time.perf_counter()
+    res = simulate_module.simulate(
+        point_to_design(points[design_index]), (protocol,), sweep_options(FOLDER)
+    )
+    return {
+        "ok": res.ok,
+        "figures": res.protocols.get(protocol, {}),
+        "metrics": res.metrics,
+        "seconds": time.perf_counter() - t0,
+        "max_rss_MB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
+    }
+
+
+def in_pairs(
+    run: Callable[[int, str], dict], designs: list[int], variants: tuple[str, str]
+) -> Iterator[tuple[int, dict[str, dict]]]:
+    """``run(design, variant)`` for both variants of each design at once (a fresh process for
+    each run: a variant may set module constants); yields each design and its two runs."""
+    with ProcessPoolExecutor(2, max_tasks_per_child=1) as pool:
+        for d in designs:
+            runs = pool.map(run, [d, d], variants)
+            yield d, dict(zip(variants, runs, strict=True))
+
+
+def largest_change(new: dict, old: dict) -> float:
+    """The largest relative change of a metric both have a number for (nan: none)."""
+    return max(
+        (
+            abs(new[m] - v) / max(abs(v), 1e-12)
+            for m, v in old.items()
+            if isinstance(v, float) and isinstance(new.get(m), float) and math.isfinite(v)
+        ),
+        default=float("nan"),
+    )
