@@ -24,7 +24,7 @@ class _Stub:
         self.largest, self.iterations = largest, iterations
         self.log: list[tuple[float, float, bool]] = []
 
-    def advance(self, t_new: float, control: Control, guess=None) -> StepResult:
+    def advance(self, t_new: float, control: Control, guess=None, factor_key=None) -> StepResult:
         ok = t_new - self.t <= self.largest + 1e-12
         self.log.append((self.t, t_new, ok))
         if ok:
