@@ -63,9 +63,9 @@ DEFAULTS_BEFORE: dict[tuple[str, str], tuple[str, float]] = {
 # 2.15: 3D tapping only: the body keeps one factorisation per loading step across taps, in
 #      PARDISO's slots (Body.step_factors, sim.protocols.loading.KEEP_STEP_FACTORS), and each
 #      loading step begins with the one its step made in an earlier tap (was: the last one
-#      of this tap). Six default-space designs' tapping against 2.14's path: 18 % less time,
-#      the metrics within 1e-4 (studies/tap_factors.py; docs/fe_speed.md, "One factorisation
-#      per tapping step"). 2D: the same bits.
+#      of this tap). Six default-space designs' tapping against 2.14's path: 19 % less time,
+#      the settled designs' metrics within 1e-4 (studies/tap_factors.py; docs/fe_speed.md,
+#      "One factorisation per tapping step"). 2D: the same bits.
 # 2.14: 3D only: the wedge's tangents are factorised in single precision too, and a step that
 #      fails in single precision and is tried again in double hands the body back to single at
 #      the next converged step (Body.advance; was: double for the rest of the protocol). The

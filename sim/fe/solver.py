@@ -672,18 +672,16 @@ class Body:
         t0 = time.perf_counter()
         name = self._solver_name()
         solver = self._solvers.get(name)
-        slot = self._slot_for(name, solver)
-        if solver is None:
+        first = solver is None
+        if first:
             from ._linear import make_solver  # `import sim` stays light
 
-            own = self.step_factors and self._own_solver is None
-            solver = make_solver(name, 1 + self.step_factors if own else 1)
-            solver.slot = slot if slot <= solver.slots else 1
-            slot = solver.slot
+            own = self.step_factors and self._own_solver is None  # not a fallback's
+            solver = self._solvers[name] = make_solver(name, 1 + self.step_factors if own else 1)
+        slot = solver.slot = self._slot_for(solver)
+        if first:
             solver.factor(self.disc.upper_matrix(data))
-            self._solvers[name] = solver
         else:  # same pattern: new values, the symbolic analysis kept
-            solver.slot = slot
             solver.refactor(np.take(data, self.disc.upper_data))
         self.factorizations += 1
         self._serial = self.factorizations
@@ -707,20 +705,18 @@ class Body:
             return self.linear_solver
         return default_solver(self.disc.n_free, self.disc.dim, self.single_precision)
 
-    def _slot_for(self, name: str, solver: Any) -> int:
-        """The slot of the factorisation to make now: the step's own (``factor_key``), one of
-        ``step_factors`` while they fit in ``step_factors_MB``, else the shared slot 1. Only
-        the body's own solver keeps step slots (not a precision fallback's)."""
-        if self._key is None or not self.step_factors or self._own_solver is not None:
-            return 1
-        if solver is not None and solver.slots == 1:  # a solver that keeps one (qdldl)
+    def _slot_for(self, solver: Any) -> int:
+        """The slot of ``solver`` for the factorisation to make now: the step's own
+        (``factor_key``), one of ``step_factors`` while they fit in ``step_factors_MB``, else
+        the shared slot 1. Only the body's own solver has step slots (not a precision
+        fallback's, nor qdldl)."""
+        if self._key is None or solver.slots == 1 or self._own_solver is not None:
             return 1
         kept = self._step_factors.get(self._key)
         if kept is not None:
             return kept.solver.slot
-        used = len(self._step_factors)
-        limit = self.step_factors
-        per_slot = solver.slot_memory_MB() if solver is not None else None
+        used, limit = len(self._step_factors), solver.slots - 1
+        per_slot = solver.slot_memory_MB()  # None before the first factorisation
         if per_slot:
             limit = min(limit, int(self.step_factors_MB // per_slot))
         return 2 + used if used < limit else 1
