@@ -3,6 +3,7 @@ back after easy steps, by the rule ``StepGrowth`` the wedge chooses per model di
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from types import SimpleNamespace
 
 import numpy as np
@@ -18,7 +19,7 @@ class _Stub:
     """A body whose step converges in ``iterations`` when it spans at most ``largest`` s and
     fails otherwise; it logs every attempt as (start, end, converged)."""
 
-    def __init__(self, largest: float, iterations: int = 3) -> None:
+    def __init__(self, largest: float, iterations: int | Callable[[float], int] = 3) -> None:
         self.t = 0.0
         self.disc = SimpleNamespace(dim=3)
         self.largest, self.iterations = largest, iterations
@@ -28,12 +29,13 @@ class _Stub:
         ok = t_new - self.t <= self.largest + 1e-12
         self.log.append((self.t, t_new, ok))
         if ok:
-            self.t = t_new
-            return StepResult(True, self.iterations)
+            size, self.t = t_new - self.t, t_new
+            its = self.iterations(size) if callable(self.iterations) else self.iterations
+            return StepResult(True, its)
         return StepResult(False, 8, "stalled")
 
 
-def _run(growth: StepGrowth, largest: float, iterations: int = 3) -> _Stub:
+def _run(growth: StepGrowth, largest: float, iterations: int | Callable[[float], int] = 3) -> _Stub:
     body = _Stub(largest, iterations)
     times = np.linspace(0.1, 1.0, 10)
     _march(body, times, lambda t: Control.position(-t), "wedge", growth=growth)  # type: ignore[arg-type]
@@ -71,6 +73,37 @@ def test_a_step_not_easy_does_not_count_toward_growth():
     assert sum(not ok for *_, ok in body.log) == 1
     default = _run(StepGrowth(), largest=0.05, iterations=5)
     assert sum(not ok for *_, ok in default.log) == 10
+
+
+def _slower_when_larger(size: float) -> int:
+    """Newton's iterations of a converged step: 12 at 0.1 s, 8 at 0.05 s, 6 at 0.025 s."""
+    return {0.1: 12, 0.05: 8, 0.025: 6}[round(size, 6)]
+
+
+def test_a_slow_step_halves_the_next_and_no_attempt_fails():
+    # steps of 0.1 converge in 12 iterations, of 0.05 in 8, and fail above 0.1: halving after
+    # more than 8 iterations gives 0.1 then 0.05 for good (8 is not more than 8, and not easy)
+    body = _run(StepGrowth(4, 2, shrink_above=8), largest=0.1, iterations=_slower_when_larger)
+    sizes = [round(b - a, 6) for a, b, _ in body.log]
+    assert sizes[:3] == [0.1, 0.05, 0.05] and set(sizes[1:]) == {0.05}
+    assert all(ok for *_, ok in body.log)
+    # 7 iterations halve once more at shrink_above = 6, down to 0.025 for good
+    finer = _run(StepGrowth(4, 2, shrink_above=6), largest=0.1, iterations=_slower_when_larger)
+    assert [round(b - a, 6) for a, b, _ in finer.log][:3] == [0.1, 0.05, 0.025]
+    # without the rule every step stays at the schedule's 0.1
+    plain = _run(StepGrowth(4, 2), largest=0.1, iterations=_slower_when_larger)
+    assert {round(b - a, 6) for a, b, _ in plain.log} == {0.1}
+
+
+def test_a_halved_step_grows_back_after_easy_steps():
+    # a slow first step halves the second; two easy steps in a row double it again
+    body = _run(
+        StepGrowth(4, 2, shrink_above=8),
+        largest=0.1,
+        iterations=lambda size: 12 if size > 0.075 else 3,
+    )
+    sizes = [round(b - a, 6) for a, b, _ in body.log[:5]]
+    assert sizes == [0.1, 0.05, 0.05, 0.1, 0.05]
 
 
 def test_the_2d_wedge_keeps_the_rule_its_records_were_made_with():

@@ -153,10 +153,13 @@ class StepGrowth:
     """When a protocol's sub-step grows back after a cut (``_march``): it doubles, at most to
     the schedule's own spacing, once ``easy_steps`` steps in a row (counted from the last cut or
     the last step that was not easy) have each converged within ``within_iterations`` Newton
-    iterations. The default: after any step of at most 5 iterations."""
+    iterations. The default: after any step of at most 5 iterations. A step that converged
+    only after more than ``shrink_above`` iterations halves the next one (None: never), as a
+    step that failed does, but without the failed attempt's cost."""
 
     within_iterations: int = 5
     easy_steps: int = 1
+    shrink_above: int | None = None
 
 
 #: The wedge's step growth by the model's dimension (``run_wedge``; the other protocols grow as
@@ -168,7 +171,15 @@ class StepGrowth:
 #: rule took 31 % fewer (49 to 117 % of the old count each), the metrics within 1.3e-5; the
 #: tapping, whose whole steps start from the previous tap (``_Replay``), took 82 % more on one
 #: pad with it, so it keeps the default (docs/fe_speed.md, "The 3D wedge's sub-steps").
-WEDGE_STEP_GROWTH = {2: StepGrowth(), 3: StepGrowth(within_iterations=4, easy_steps=2)}
+#: Since solver 2.16 a 3D wedge step that took more than 8 iterations halves the next: the
+#: first steps of the ramp, where the edge first presses into the band, took 12-14 and the
+#: full step after them failed and was cut twice, a third of the wedge's time in failed
+#: attempts; the band's working sub-steps of 0.025 mm take 4-8, which 8 leaves alone (6 halved
+#: some of them and cost more: docs/fe_speed.md, "A slow step halves the next").
+WEDGE_STEP_GROWTH = {
+    2: StepGrowth(),
+    3: StepGrowth(within_iterations=4, easy_steps=2, shrink_above=8),
+}
 
 #: Whether a tapping body with modified Newton (the 3D model) keeps one factorisation per
 #: loading step across taps (``Body.step_factors``; solver 2.15): each loading step begins
@@ -226,6 +237,8 @@ def _march(
                 easy = easy + 1 if res.iterations <= growth.within_iterations else 0
                 if easy >= growth.easy_steps:
                     scale = min(1.0, 2.0 * scale)
+                elif growth.shrink_above is not None and res.iterations > growth.shrink_above:
+                    scale = max(0.5 * scale, 2.0**-max_cuts)
                 if span <= 0:
                     break
                 continue

@@ -1,0 +1,69 @@
+"""Whether the 3D wedge gains from halving its sub-step after a slow step: default-space
+designs' wedges with ``WEDGE_STEP_GROWTH[3].shrink_above`` as it is and without it (None).
+
+    python studies/wedge_steps.py [--designs 0 1 2 3 4 5]
+
+Runs each design's wedge twice at once, in two processes, so that both runs share whatever
+else the machine is doing, and prints for each the step attempts that failed and were cut, the
+factorisations in all and in those failed attempts, the Newton iterations, the seconds, and the
+largest relative change of a wedge metric."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import importlib
+
+from paired import in_pairs, largest_change, simulate_design
+
+VARIANTS = ("halve", "without")
+
+
+def run_wedge(design_index: int, variant: str) -> dict:
+    """One design's wedge with the 3D rule as it is (``halve``) or without the halving; its
+    figures, metrics and seconds, and its failed step attempts with their factorisations."""
+    loading = importlib.import_module("sim.protocols.loading")
+    body_class = importlib.import_module("sim.fe.solver").Body
+    if variant == "without":
+        rule = loading.WEDGE_STEP_GROWTH[3]
+        loading.WEDGE_STEP_GROWTH[3] = dataclasses.replace(rule, shrink_above=None)
+    failed = {"attempts": 0, "factorizations": 0}
+    advance = body_class.advance
+
+    def counted(self, *args, **kwargs):
+        before = self.factorizations
+        res = advance(self, *args, **kwargs)
+        if not res.converged:
+            failed["attempts"] += 1
+            failed["factorizations"] += self.factorizations - before
+        return res
+
+    body_class.advance = counted
+    return {**simulate_design(design_index, "wedge"), "failed": failed}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--designs", type=int, nargs="+", default=[0, 1, 2, 3, 4, 5])
+    args = ap.parse_args()
+    totals = {v: {"seconds": 0.0, "factorizations": 0} for v in VARIANTS}
+    for d, runs in in_pairs(run_wedge, args.designs, VARIANTS):
+        for variant, run in runs.items():
+            fig, failed = run["figures"], run["failed"]
+            totals[variant]["seconds"] += run["seconds"]
+            totals[variant]["factorizations"] += fig.get("factorizations") or 0
+            print(
+                f"design {d}, {variant}: ok {run['ok']}, failed attempts {failed['attempts']} "
+                f"({failed['factorizations']} factorisations), factorisations "
+                f"{fig.get('factorizations')}, Newton iterations {fig.get('newton_iterations')}, "
+                f"steps {fig.get('steps')}, {run['seconds']:.1f} s",
+                flush=True,
+            )
+        change = largest_change(runs["halve"]["metrics"], runs["without"]["metrics"])
+        print(f"design {d}: largest relative change of a wedge metric {change:.1e}", flush=True)
+    for variant, t in totals.items():
+        print(f"{variant}: {t['factorizations']} factorisations, {t['seconds']:.1f} s in all")
+
+
+if __name__ == "__main__":
+    main()
