@@ -80,14 +80,14 @@ def _slower_when_larger(size: float) -> int:
     return {0.1: 12, 0.05: 8, 0.025: 6}[round(size, 6)]
 
 
-def test_a_slow_step_halves_the_next_and_no_attempt_fails():
-    # steps of 0.1 converge in 12 iterations, of 0.05 in 8, and fail above 0.1: halving after
-    # more than 8 iterations gives 0.1 then 0.05 for good (8 is not more than 8, and not easy)
+def test_a_slow_step_halves_the_next_until_the_steps_are_not_slow():
+    # steps of 0.1 converge in 12 iterations, of 0.05 in 8: halving after more than 8
+    # iterations gives 0.1 then 0.05 for good (8 is not more than 8, and not easy)
     body = _run(StepGrowth(4, 2, shrink_above=8), largest=0.1, iterations=_slower_when_larger)
     sizes = [round(b - a, 6) for a, b, _ in body.log]
     assert sizes[:3] == [0.1, 0.05, 0.05] and set(sizes[1:]) == {0.05}
     assert all(ok for *_, ok in body.log)
-    # 7 iterations halve once more at shrink_above = 6, down to 0.025 for good
+    # at shrink_above = 6 the 8 iterations of 0.05 halve once more, down to 0.025 for good
     finer = _run(StepGrowth(4, 2, shrink_above=6), largest=0.1, iterations=_slower_when_larger)
     assert [round(b - a, 6) for a, b, _ in finer.log][:3] == [0.1, 0.05, 0.025]
     # without the rule every step stays at the schedule's 0.1
