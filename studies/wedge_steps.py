@@ -1,12 +1,13 @@
 """Whether the 3D wedge gains from halving its sub-step after a slow step: default-space
 designs' wedges with ``WEDGE_STEP_GROWTH[3].shrink_above`` as it is and without it (None).
 
-    python studies/wedge_steps.py [--designs 0 1 2 3 4 5]
+    python studies/wedge_steps.py [--designs 0 1 2 3 4 5] [--against 6]
 
 Runs each design's wedge twice at once, in two processes, so that both runs share whatever
 else the machine is doing, and prints for each the step attempts that failed and were cut, the
 factorisations in all and in those failed attempts, the Newton iterations, the seconds, and the
-largest relative change of a wedge metric."""
+largest relative change of a wedge metric. ``--against N`` runs the second variant with
+``shrink_above = N`` instead of without the halving."""
 
 from __future__ import annotations
 
@@ -20,13 +21,15 @@ VARIANTS = ("halve", "without")
 
 
 def run_wedge(design_index: int, variant: str) -> dict:
-    """One design's wedge with the 3D rule as it is (``halve``) or without the halving; its
-    figures, metrics and seconds, and its failed step attempts with their factorisations."""
+    """One design's wedge with the 3D rule as it is (``halve``), without the halving
+    (``without``) or with ``shrink_above`` = N (``"N"``); its figures, metrics and seconds,
+    and its failed step attempts with their factorisations."""
     loading = importlib.import_module("sim.protocols.loading")
     body_class = importlib.import_module("sim.fe.solver").Body
-    if variant == "without":
+    if variant != "halve":
         rule = loading.WEDGE_STEP_GROWTH[3]
-        loading.WEDGE_STEP_GROWTH[3] = dataclasses.replace(rule, shrink_above=None)
+        shrink_above = None if variant == "without" else int(variant)
+        loading.WEDGE_STEP_GROWTH[3] = dataclasses.replace(rule, shrink_above=shrink_above)
     failed = {"attempts": 0, "factorizations": 0}
     advance = body_class.advance
 
@@ -45,9 +48,11 @@ def run_wedge(design_index: int, variant: str) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--designs", type=int, nargs="+", default=[0, 1, 2, 3, 4, 5])
+    ap.add_argument("--against", type=int, help="shrink_above of the second variant")
     args = ap.parse_args()
-    totals = {v: {"seconds": 0.0, "factorizations": 0} for v in VARIANTS}
-    for d, runs in in_pairs(run_wedge, args.designs, VARIANTS):
+    variants = VARIANTS if args.against is None else ("halve", str(args.against))
+    totals = {v: {"seconds": 0.0, "factorizations": 0} for v in variants}
+    for d, runs in in_pairs(run_wedge, args.designs, variants):
         for variant, run in runs.items():
             fig, failed = run["figures"], run["failed"]
             totals[variant]["seconds"] += run["seconds"]
@@ -59,7 +64,7 @@ def main() -> None:
                 f"steps {fig.get('steps')}, {run['seconds']:.1f} s",
                 flush=True,
             )
-        change = largest_change(runs["halve"]["metrics"], runs["without"]["metrics"])
+        change = largest_change(runs["halve"]["metrics"], runs[variants[1]]["metrics"])
         print(f"design {d}: largest relative change of a wedge metric {change:.1e}", flush=True)
     for variant, t in totals.items():
         print(f"{variant}: {t['factorizations']} factorisations, {t['seconds']:.1f} s in all")

@@ -175,7 +175,8 @@ class StepGrowth:
 #: first steps of the ramp, where the edge first presses into the band, took 12-14 and the
 #: full step after them failed and was cut twice, a third of the wedge's time in failed
 #: attempts; the band's working sub-steps of 0.025 mm take 4-8, which 8 leaves alone (6 halved
-#: some of them and cost more: docs/fe_speed.md, "A slow step halves the next").
+#: some of them and cost more, studies/wedge_steps.py --against 6: docs/fe_speed.md, "A slow
+#: step halves the next").
 WEDGE_STEP_GROWTH = {
     2: StepGrowth(),
     3: StepGrowth(within_iterations=4, easy_steps=2, shrink_above=8),
