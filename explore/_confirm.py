@@ -23,7 +23,7 @@ from sim.metrics import metric_registry
 from sim.options import SimOptions
 from sim.pool import process_pool
 from sim.provenance import write_json
-from sim.sweep import evaluate_point, record_key
+from sim.sweep import PointPart, evaluate_point, point_record, record_key, simulate_part
 
 from ._objective import closeness, wedge_reference_N
 from ._types import Candidate, Confirmation
@@ -63,7 +63,15 @@ def run_fe(
     """Simulate each (record path, point) whose record does not exist yet; returns every
     record by path. Records are written as they finish (a kill loses only running designs).
     ``materials``: the user catalogue materials the points may name, as tables, handed to every
-    worker process explicitly (``sim.sweep.run.evaluate_point``)."""
+    worker process explicitly (``sim.sweep.run.evaluate_point``).
+
+    On several workers each design's protocols run as jobs of their own
+    (``sim.sweep.simulate_part``, joined by ``point_record`` into the record the design would
+    have run as one): a search confirms a few designs, often fewer than the cores, and one
+    design's tapping can take as long as the rest of its FE. The tappings go first, then the
+    wedges, then the plates (the longest jobs first, as a rule: ``PART_ORDER``), so that no
+    core waits while a long job runs alone at the end. The records are those of one job per
+    design: the protocols share nothing (``sim.simulate.merge_results``)."""
     from tqdm import tqdm
 
     out: dict[Path, dict] = {}
@@ -76,23 +84,34 @@ def run_fe(
     options_dict = options.as_dict()
     bar = tqdm(total=len(todo), desc=desc, unit="design", disable=not progress or not todo)
     try:
-        if workers <= 1 or len(todo) <= 1:
+        if workers <= 1 or not todo:
             for path, point in todo:
                 out[path] = _keep(path, evaluate_point(point, options_dict, materials))
                 bar.update(1)
         else:
-            with process_pool(min(workers, len(todo))) as pool:
+            tasks = [(path, point, p) for p in PART_ORDER for path, point in todo]
+            parts: dict[Path, list[PointPart]] = {path: [] for path, _ in todo}
+            points = dict(todo)
+            with process_pool(min(workers, len(tasks))) as pool:
                 futures = {
-                    pool.submit(evaluate_point, point, options_dict, materials): path
-                    for path, point in todo
+                    pool.submit(simulate_part, point, options_dict, materials, (p,)): path
+                    for path, point, p in tasks
                 }
                 for fut in as_completed(futures):
                     path = futures[fut]
-                    out[path] = _keep(path, fut.result())
-                    bar.update(1)
+                    parts[path].append(fut.result())
+                    if len(parts[path]) == len(PART_ORDER):
+                        out[path] = _keep(path, point_record(points[path], parts[path]))
+                        bar.update(1)
     finally:
         bar.close()
     return out
+
+
+#: the protocols of a design as jobs of their own, in the order they start: the longest first
+#: as a rule (a creeping pad's tapping runs for minutes in 3D, the banded wedge for one or two,
+#: the plate's press for seconds; in 2D the same order, seconds each)
+PART_ORDER = ("tapping", "wedge", "plate")
 
 
 def _keep(path: Path, record: dict) -> dict:

@@ -6,6 +6,7 @@ re-exported here for the imports that name ``sim.simulate``."""
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
@@ -50,6 +51,7 @@ __all__ = [
     "SimResult",
     "diagnostic_names",
     "discretize",
+    "merge_results",
     "same_metrics",
     "simulate",
 ]
@@ -249,6 +251,44 @@ def _simulate(
         fields=fields,
         discretization=disc if keep_fields else None,
         field_discretizations=field_discretizations,
+    )
+
+
+def merge_results(parts: Sequence[SimResult]) -> SimResult:
+    """One design's results of disjoint sets of protocols (``simulate(design, (p,))`` in
+    separate processes) as the one result of ``simulate`` running them all: each protocol runs
+    on a fresh body of its own, so nothing passes from one to the next, and the merged metrics,
+    curves, per-protocol figures and failures are those of the sequential run, in the protocols'
+    order (``PROTOCOLS``). ``wall_time_s`` is the parts' sum: the seconds the design's FE took,
+    wherever it ran. Figures only: no part may keep its fields."""
+    if not parts:
+        raise ValueError("merge_results needs at least one result")
+    first = parts[0]
+    seen: list[str] = []
+    for part in parts:
+        if part.design != first.design or part.validity_options != first.validity_options:
+            raise ValueError("merge_results joins results of one design and one set of options")
+        if part.fields or part.discretization is not None:
+            raise ValueError("merge_results joins results without fields (keep_fields=False)")
+        overlap = set(part.protocols) & set(seen)
+        if overlap:
+            raise ValueError(f"protocol {sorted(overlap)[0]!r} is in two of the results")
+        seen.extend(part.protocols)
+    order = {name: i for i, name in enumerate(PROTOCOLS)}
+    ordered = sorted(parts, key=lambda r: min(order.get(p, len(order)) for p in r.protocols))
+    merged = {k: v for part in ordered for k, v in part.metrics.items()}
+    # in the registry's order, as simulate's (the 3D registry: the 2D one and the patch after)
+    rank = {name: i for i, name in enumerate(metric_registry("3d"))}
+    names = sorted(merged, key=lambda name: rank.get(name, len(rank)))
+    return SimResult(
+        design=first.design,
+        metrics={name: merged[name] for name in names},
+        curves={k: v for part in ordered for k, v in part.curves.items()},
+        protocols={k: v for part in ordered for k, v in part.protocols.items()},
+        failures=tuple(f for part in ordered for f in part.failures),
+        n_dofs=first.n_dofs,
+        wall_time_s=sum(part.wall_time_s for part in parts),
+        validity_options=first.validity_options,
     )
 
 

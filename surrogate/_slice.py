@@ -207,7 +207,17 @@ def slice_values(
     """The slice model's value of each of ``metrics`` (those of ``SLICE_METRICS``) from the 2D
     model's values ``two`` (its displacement pairs; the 2D hysteresis for the hysteresis) and
     the pad ``pad`` (``PAD``'s keys), each (n,); NaN for a design whose 2D pair gives no power
-    law (d_4 <= d_1, or d_1 <= 0)."""
+    law (d_4 <= d_1, or d_1 <= 0) or one beyond floating point (d_4 within a hair of d_1: the
+    exponent k = ln 4 / ln(d_4 / d_1) in the thousands, d_1^k overflowing; a search meets such
+    pairs where the 2D surrogate extrapolates)."""
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        out = _slice_values(two, pad, metrics)
+    return {m: np.where(np.isfinite(v), v, np.nan) for m, v in out.items()}
+
+
+def _slice_values(
+    two: Mapping[str, np.ndarray], pad: Mapping[str, np.ndarray], metrics: Iterable[str]
+) -> dict[str, np.ndarray]:
     out: dict[str, np.ndarray] = {}
     shape = (pad["height_mm"], pad["half_length_mm"], pad["length_exponent"])
     depths: dict[tuple, np.ndarray] = {}
@@ -215,6 +225,8 @@ def slice_values(
         what, force, pair = SLICE_METRICS[m]
         d1, d4 = (np.asarray(two[r], dtype=float) for r in pair)
         ok = (d4 > d1) & (d1 > 0)
+        A, _ = line_load_law(np.where(ok, d1, 1.0), np.where(ok, d4, 2.0))
+        ok &= np.isfinite(A) & (A > 0.0)  # d_1^k beyond floating point
         d1, d4 = np.where(ok, d1, 1.0), np.where(ok, d4, 2.0)
         if what == "work":
             value = np.asarray(two[m], dtype=float) * work_ratio(d1, d4, *shape)

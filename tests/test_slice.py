@@ -82,6 +82,29 @@ def test_the_depth_is_found_for_a_load_softer_than_linear_and_a_meaningless_law_
         np.testing.assert_allclose(pad_force(depth[:2], A[:2], k[:2], 5.0, 10.0, 2.0), force)
 
 
+def test_a_pair_beyond_floating_point_is_nan_without_warnings():
+    """A 2D pair within a hair of each other (k in the thousands, d_1^k overflowing: what an
+    extrapolating 2D surrogate gives inside a search) has no slice value, and says so by NaN,
+    not by numpy's overflow warnings on the user's screen; the other designs keep theirs."""
+    import warnings
+
+    from surrogate._slice import SLICE_METRICS, slice_values
+
+    d1 = np.array([3.0, 0.6])
+    two = {}
+    for m, (_, _, pair) in SLICE_METRICS.items():
+        two[pair[0]], two[pair[1]] = d1, np.array([3.0 * (1 + 1e-6), 1.0])
+        two.setdefault(m, np.array([0.5, 0.5]))
+    pad = {"half_width_mm": np.full(2, 6.0), "height_mm": np.full(2, 5.0),
+           "exponent": np.full(2, 2.0), "half_length_mm": np.full(2, 10.0),
+           "length_exponent": np.full(2, 2.0)}  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        values = slice_values(two, pad, SLICE_METRICS)
+    for m, v in values.items():
+        assert np.isnan(v[0]) and np.isfinite(v[1]), m
+
+
 def test_a_box_shaped_pad_10_mm_long_is_the_2d_model():
     """A pad of length 2c = 10 mm with a flat profile (m large: s = 1 but at its ends) carries
     the 2D line load on 10 mm: its displacements are the 2D readings and its work the 2D

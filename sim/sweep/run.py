@@ -31,7 +31,7 @@ from ..metrics import DEFAULTS_BEFORE, SOLVER_VERSION, same_metrics
 from ..options import SimOptions, apply_overrides, options_from_dict
 from ..pool import process_pool
 from ..provenance import check_folder_kind, json_safe, provenance
-from ..simulate import simulate
+from ..simulate import merge_results, simulate
 from .folder import (
     DAMAGED_GZIP,
     SweepStore,
@@ -42,6 +42,7 @@ from .folder import (
 )
 
 __all__ = [
+    "PointPart",
     "SweepStore",
     "SweepSummary",
     "catalogue_hashes",
@@ -50,9 +51,11 @@ __all__ = [
     "json_safe",
     "merge_sweeps",
     "options_from_dict",
+    "point_record",
     "record_key",
     "run_sweep",
     "sample_points",
+    "simulate_part",
     "sweep_config",
 ]
 
@@ -125,20 +128,60 @@ def evaluate_point(
     (``sim.materials.material_tables``): passed explicitly, so that a worker process sees
     them whatever it inherited from its parent.
     """
+    return point_record(point, [simulate_part(point, options_dict, materials)])
+
+
+@dataclass(frozen=True)
+class PointPart:
+    """Some protocols of one design, simulated (``simulate_part``): the result, or why the
+    design could not be simulated (``error``: a record's reason), and the seconds it took."""
+
+    result: Any  # sim.simulate.SimResult, None with an error
+    error: str
+    wall_time_s: float
+    cpu_time_s: float
+
+
+def simulate_part(
+    point: dict[str, Any],
+    options_dict: dict[str, Any],
+    materials: dict[str, dict[str, Any]] | None = None,
+    protocols: Sequence[str] | None = None,
+) -> PointPart:
+    """``protocols`` (default all) of one design point, as ``evaluate_point`` runs them; never
+    raises. Parts of disjoint protocols, run in separate processes, give with ``point_record``
+    the record of the whole design (``explore``'s FE confirmation of a few designs on more
+    cores than designs)."""
     options = options_from_dict(options_dict)
     t0, cpu0 = time.perf_counter(), time.process_time()
-    record: dict[str, Any] = {"params": json_safe(point), "solver_version": SOLVER_VERSION}
+    result, error = None, ""
     try:
         catalogue = catalogue_from_tables(materials) if materials else None
         design = point_to_design(point, catalogue)
-        res = simulate(design, options=options)
+        if protocols is None:
+            result = simulate(design, options=options)
+        else:
+            result = simulate(design, tuple(protocols), options=options)
     except (DesignError, SimulationError, ArithmeticError, ValueError, RuntimeError) as exc:
-        record.update(status="failed", reason=f"{type(exc).__name__}: {exc}", metrics={})
+        error = f"{type(exc).__name__}: {exc}"
     except Exception as exc:  # a bug must not stop a sweep of thousands: record it, loudly
-        record.update(
-            status="failed", reason=f"internal error {type(exc).__name__}: {exc}", metrics={}
-        )
+        error = f"internal error {type(exc).__name__}: {exc}"
+    # the worker process's CPU seconds: unlike the wall time, not inflated by other jobs
+    # sharing the core or by a paused process (a sweep's records are then a speed figure)
+    return PointPart(result, error, time.perf_counter() - t0, time.process_time() - cpu0)
+
+
+def point_record(point: dict[str, Any], parts: Sequence[PointPart]) -> dict[str, Any]:
+    """The record of a design from the parts of its protocols (``simulate_part``; one part for
+    all of them in a sweep): the merged result (``sim.simulate.merge_results``), or the first
+    part's error; the seconds are the parts' sums."""
+    record: dict[str, Any] = {"params": json_safe(point), "solver_version": SOLVER_VERSION}
+    errors = [part.error for part in parts if part.error]
+    if errors:
+        record.update(status="failed", reason=errors[0], metrics={})
     else:
+        res = merge_results([part.result for part in parts]) if len(parts) > 1 else None
+        res = res or parts[0].result
         record.update(
             status="ok" if res.ok else "failed",
             reason="; ".join(
@@ -149,10 +192,8 @@ def evaluate_point(
             curves=res.curves,
             n_dofs=res.n_dofs,
         )
-    record["wall_time_s"] = time.perf_counter() - t0
-    # the worker process's CPU seconds: unlike the wall time, not inflated by other jobs
-    # sharing the core or by a paused process (a sweep's records are then a speed figure)
-    record["cpu_time_s"] = time.process_time() - cpu0
+    record["wall_time_s"] = sum(part.wall_time_s for part in parts)
+    record["cpu_time_s"] = sum(part.cpu_time_s for part in parts)
     return record
 
 
