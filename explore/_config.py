@@ -40,6 +40,10 @@ PRETRAINED = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained" / 
 DEFAULT_CHECKPOINT = PRETRAINED / "model.safetensors"
 
 
+#: what the search judges credibility on (``OptimizeConfig.credible_at``)
+CREDIBLE_AT = ("median", "bound")
+
+
 @dataclass(frozen=True)
 class OptimizeConfig:
     """Everything a search run depends on (stored in the run folder's config.json).
@@ -65,7 +69,9 @@ class OptimizeConfig:
     ``trials`` counts the sampler's trials after them; ``model``: the model of the answers
     (None: the surrogate's; a multi-fidelity surrogate searches the 3D pad and confirms in 3D,
     ``Setup.model``), "3d" with a 2D surrogate simulates every 2D answer with the 3D pad too
-    (``explore._check3d``, answers_3d.json).
+    (``explore._check3d``, answers_3d.json); ``credible_at``: what the search judges a
+    design's credibility on, "median" (None: the default) or "bound", the side of each trust
+    prediction's 90 % interval towards its limit (``explore._search._judged``).
     """
 
     surrogate: str = str(DEFAULT_CHECKPOINT)
@@ -118,6 +124,8 @@ class OptimizeConfig:
     # (explore._check3d), so such a run may be resumed with either; "2d" with a
     # multi-fidelity surrogate is refused (it predicts the 3D model only)
     model: str | None = None
+    # None: "median" (a folder made before the option holds none, and resumes with it)
+    credible_at: str | None = None
 
     def check(self) -> None:
         def at_least(name: str, value: int, low: int) -> None:
@@ -139,6 +147,11 @@ class OptimizeConfig:
         check_seed(self.seed, "--seed", uses=self.rounds)
         if self.model not in (None, "2d", "3d"):
             raise DesignError("--model", f"must be 2d or 3d, got {self.model!r}")
+        if self.credible_at not in (None, *CREDIBLE_AT):
+            raise DesignError(
+                "--credible-at",
+                f"must be {' or '.join(CREDIBLE_AT)}, got {self.credible_at!r}",
+            )
         if self.mode not in ("single", "multi"):
             raise DesignError("--mode", f"must be single or multi, got {self.mode!r}")
         for name in ("tolerance", "max_disagreement"):

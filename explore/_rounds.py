@@ -216,6 +216,7 @@ def _search_round(
         seed=config.seed + r,
         max_disagreement=config.max_disagreement,
         allow_untrusted=config.allow_untrusted,
+        trust_bound=config.credible_at == "bound",
         options=run.setup.options,
         screen=config.screen,
     )

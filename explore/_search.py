@@ -58,6 +58,28 @@ _JUDGED = (*TRUST_OUTPUTS, *LAYER_STRAIN_OUTPUTS, "sag_mm")
 _YES_NO = ("reached_base", "folded")
 
 
+def _judged(pred, cols: dict[str, int], bound: bool) -> dict[str, np.ndarray]:
+    """The predictions credibility is judged on: the yes/no outputs by their mean (a
+    probability), the rest by their median or, with ``bound``, by the side of their 90 %
+    interval towards the limit: the upper end of a strain, a tapping residual or error and the
+    sag (limits from above), the lower end of a volume ratio J (a limit from below). A median
+    just within a limit is as likely beyond it: a search that presses on the limits (the
+    answers sit on them) then sends about half its candidates to FE that comes back beyond
+    (docs/search.md, "Credible at the interval's bound")."""
+    out = {}
+    for m in _JUDGED:
+        if m not in cols:
+            continue
+        if m in _YES_NO:
+            values = pred.mean
+        elif not bound or m == "failed":
+            values = pred.median
+        else:
+            values = pred.lower_90 if m.endswith("_min_J") else pred.upper_90
+        out[m] = values[:, cols[m]]
+    return out
+
+
 @dataclass(frozen=True)
 class SearchSettings:
     """How one study searches. ``mode``: "single" (closeness score) or "multi" (Pareto front of
@@ -72,6 +94,10 @@ class SearchSettings:
     #: score designs the surrogate predicts not credible (beyond the validity limits,
     #: unsettled, sag over the targets' limit) like the others; they stay flagged
     allow_untrusted: bool = False
+    #: judge credibility on the side of each prediction's 90 % interval towards its limit
+    #: (``_judged``), not on the median: a design is then credible only where the surrogate is
+    #: about 95 % sure of it
+    trust_bound: bool = False
     #: the simulation options whose validity limits and tapping tolerances judge credibility
     options: Any = None
     #: designs of a scrambled Sobol sample the surrogate scores before the sampler starts
@@ -255,7 +281,13 @@ def suggest_point(trial, space: DesignSpace) -> dict[str, Any]:
 
 # ----------------------------------------------------------------------------- scoring
 def _scores(
-    pred, targets: Targets, options=None, allow_untrusted: bool = False, points=None, space=None
+    pred,
+    targets: Targets,
+    options=None,
+    allow_untrusted: bool = False,
+    points=None,
+    space=None,
+    trust_bound: bool = False,
 ):
     """(score, objectives, why-not-credible) of a surrogate ``Prediction``, vectorised: the
     closeness of the median prediction, plus the credibility penalty unless
@@ -263,7 +295,8 @@ def _scores(
     and tapping tolerances of ``options``, a ``SimOptions``, default the defaults; the largest
     strain of each layer of the predicted design ``points`` held to its material's limit, named
     in ``space``'s catalogue: ``explore._objective.point_layer_limits``; the design's largest
-    strain to the largest of them where the surrogate does not predict the layers' own)."""
+    strain to the largest of them where the surrogate does not predict the layers' own; with
+    ``trust_bound`` on the interval's side towards each limit: ``_judged``)."""
     from sim.options import SimOptions
 
     from ._objective import point_layer_limits, wedge_reference_N
@@ -278,7 +311,7 @@ def _scores(
     metrics["wedge_peak_force_N"] = point[:, cols["wedge_peak_force_N"]]
     c = closeness(metrics, targets, wedge_reference_N=wedge_reference_N(options.dimension))
     obj = objectives(c)
-    judged = {m: (pred.mean if m in _YES_NO else point)[:, cols[m]] for m in _JUDGED if m in cols}
+    judged = _judged(pred, cols, trust_bound)
     penalty, why = infeasibility(
         judged, targets, options.validity, options.tapping, layer_limits=layer_limits
     )
@@ -298,6 +331,7 @@ def predict_rows(
     max_disagreement: float = 0.10,
     options=None,
     allow_untrusted: bool = False,
+    trust_bound: bool = False,
 ) -> list[TrialRow]:
     """Score design points with the surrogate: prediction, closeness and trust-guard flags.
 
@@ -310,7 +344,9 @@ def predict_rows(
     cols = {m: names.index(m) for m in names}
     point = pred.median  # the robust point prediction (see surrogate.Prediction)
     space = getattr(surrogate, "space", None)
-    scores, obj, why = _scores(pred, targets, options, allow_untrusted, list(points), space)
+    scores, obj, why = _scores(
+        pred, targets, options, allow_untrusted, list(points), space, trust_bound
+    )
     scored = [targets.metric(m) for m in SCORED]
     with np.errstate(divide="ignore", invalid="ignore"):
         spread = np.stack(
@@ -443,6 +479,7 @@ def run_study(
             surrogate, points, targets, round_=round_, trials=[t.number for t in batch],
             search=search, max_disagreement=settings.max_disagreement,
             options=settings.options, allow_untrusted=settings.allow_untrusted,
+            trust_bound=settings.trust_bound,
         )  # fmt: skip
         new = 0
         for t, row in zip(batch, rows, strict=True):
@@ -463,7 +500,8 @@ def run_study(
             progress(new)
     return rows_of(study, surrogate, space, targets, round_=round_, search=search,
                    max_disagreement=settings.max_disagreement, options=settings.options,
-                   allow_untrusted=settings.allow_untrusted)  # fmt: skip
+                   allow_untrusted=settings.allow_untrusted,
+                   trust_bound=settings.trust_bound)  # fmt: skip
 
 
 def screen(
@@ -485,7 +523,8 @@ def screen(
     for start in range(0, n, chunk):
         points = space.points(unit[start : start + chunk])
         score, _, _ = _scores(surrogate.predict(points), targets, settings.options,
-                              settings.allow_untrusted, points, space)  # fmt: skip
+                              settings.allow_untrusted, points, space,
+                              settings.trust_bound)  # fmt: skip
         score = np.where(np.isfinite(score), score, np.inf)
         best = np.argsort(score, kind="stable")[: settings.screen_keep]
         keep_scores += score[best].tolist()
@@ -545,7 +584,7 @@ def _seed_trials(
     rows = predict_rows(
         surrogate, points, targets, round_=round_, search=search,
         max_disagreement=settings.max_disagreement, options=settings.options,
-        allow_untrusted=settings.allow_untrusted,
+        allow_untrusted=settings.allow_untrusted, trust_bound=settings.trust_bound,
     )  # fmt: skip
     trials = []
     for row in rows:
@@ -659,6 +698,7 @@ def rows_of(
     max_disagreement: float = 0.10,
     options=None,
     allow_untrusted: bool = False,
+    trust_bound: bool = False,
 ) -> list[TrialRow]:
     """The complete trials of ``study`` as ``TrialRow``s, re-scored by ``surrogate``."""
     import optuna
@@ -670,7 +710,7 @@ def rows_of(
     return predict_rows(
         surrogate, points, targets, round_=round_, trials=[t.number for t in trials],
         search=search, max_disagreement=max_disagreement, options=options,
-        allow_untrusted=allow_untrusted,
+        allow_untrusted=allow_untrusted, trust_bound=trust_bound,
     )  # fmt: skip
 
 

@@ -694,6 +694,7 @@ def _optimize_config(args: argparse.Namespace):
         "buildable_fe": args.buildable_fe,
         "family_trials": args.family_trials,
         "allow_untrusted": True if args.allow_untrusted else None,
+        "credible_at": None if args.credible_at in (None, "median") else args.credible_at,
         "screen": args.screen,
         "model": args.model,
     }
@@ -862,6 +863,14 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
         action="store_true",
         help="let designs that are not credible (beyond the validity limits, unsettled, or "
         "sagging over the targets' limit) compete for the answers, flagged as such",
+    )
+    p.add_argument(
+        "--credible-at",
+        metavar="{median,bound}",
+        help="what a design's credibility is judged on in the search: the surrogate's median "
+        "prediction of each strain, volume ratio, settling figure and sag (default), or the "
+        "side of its 90 %% interval towards the limit (bound: credible where the surrogate is "
+        "about 95 %% sure; fewer candidates come back from FE beyond a limit)",
     )
     p.add_argument(
         "--model",

@@ -76,6 +76,46 @@ def test_trust_flags_apply_the_solvers_thresholds():
     assert trust_flags(wedge, validity, tapping)["valid"].all()
 
 
+def test_on_the_bound_a_design_is_credible_only_where_its_interval_keeps_within_the_limits():
+    """``--credible-at bound`` (``explore._search._judged``): a strain whose median is within
+    its limit and whose 90 % interval passes it is credible on the median, not on the bound; a
+    volume ratio J is judged on its interval's lower end; a yes/no output by its mean either
+    way. Design 0 keeps within every limit on either rule, design 1 passes the strain limit
+    at the interval's top, design 2 the J limit at its bottom."""
+    from types import SimpleNamespace
+
+    from explore._search import _judged
+
+    validity, tapping = ValidityOptions(), TappingOptions()
+    lim, j = PAPER_LOG_STRAIN, validity.min_J
+    names = ["tapping_max_compressive_log_strain", "wedge_min_J", "folded"]
+    median = np.array([[0.5 * lim, j + 0.3, 0.0], [0.95 * lim, j + 0.3, 0.0],
+                       [0.5 * lim, 1.05 * j, 0.0]])  # fmt: skip
+    spread = np.array([[0.1 * lim, 0.1, 0.0], [0.1 * lim, 0.1, 0.0], [0.1 * lim, 0.1, 0.0]])
+    pred = SimpleNamespace(metric_names=names, median=median, mean=median,
+                           lower_90=median - spread, upper_90=median + spread)  # fmt: skip
+    cols = {m: i for i, m in enumerate(names)}
+    on_median, _ = infeasibility(_judged(pred, cols, False), TARGETS, validity, tapping)
+    on_bound, why = infeasibility(_judged(pred, cols, True), TARGETS, validity, tapping)
+    np.testing.assert_array_equal(on_median == 0, [True, True, True])
+    np.testing.assert_array_equal(on_bound == 0, [True, False, False])
+    assert "strain" in why[1] and "J" in why[2]
+    # a probability is no interval: a folding predicted at 0.3 stays credible on the bound
+    pred.mean = pred.median = median + np.array([0.0, 0.0, 0.3])
+    pred.upper_90 = pred.median + 0.6
+    assert _judged(pred, cols, True)["folded"][0] == pytest.approx(0.3)
+
+
+def test_credible_at_takes_median_or_bound_and_names_itself_otherwise():
+    from explore._config import OptimizeConfig
+    from sim.errors import DesignError
+
+    OptimizeConfig(credible_at="bound").check()
+    OptimizeConfig(credible_at=None).check()
+    with pytest.raises(DesignError, match=r"--credible-at.*median or bound, got 'upper'"):
+        OptimizeConfig(credible_at="upper").check()
+
+
 def test_trust_flags_hold_each_design_to_its_own_strain_limit():
     """The same predicted strain is credible in a design whose materials were tested further
     and not in one tested less far; an override holds every design to one number, and says
