@@ -180,8 +180,8 @@ def point_record(point: dict[str, Any], parts: Sequence[PointPart]) -> dict[str,
     if errors:
         record.update(status="failed", reason=errors[0], metrics={})
     else:
-        res = merge_results([part.result for part in parts]) if len(parts) > 1 else None
-        res = res or parts[0].result
+        results = [part.result for part in parts]
+        res = merge_results(results) if len(results) > 1 else results[0]
         record.update(
             status="ok" if res.ok else "failed",
             reason="; ".join(
