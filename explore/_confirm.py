@@ -109,8 +109,10 @@ def run_fe(
 
 
 #: the protocols of a design as jobs of their own, in the order they start: the longest first
-#: as a rule (a creeping pad's tapping runs for minutes in 3D, the banded wedge for one or two,
-#: the plate's press for seconds; in 2D the same order, seconds each)
+#: as a rule. In 3D a creeping pad's tapping runs for minutes (default-space design 0: 168 s,
+#: docs/fe_speed.md, "One factorisation per tapping step"), the banded wedge for about one
+#: (the first six designs' wedges: 300.5 s, "A slow step halves the next"), the plate's press
+#: for seconds (docs/model_3d.md, "Cost"); in 2D the same order, seconds each
 PART_ORDER = ("tapping", "wedge", "plate")
 
 

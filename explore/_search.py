@@ -59,8 +59,9 @@ _YES_NO = ("reached_base", "folded")
 
 
 def _judged(pred, cols: dict[str, int], bound: bool) -> dict[str, np.ndarray]:
-    """The predictions credibility is judged on: the yes/no outputs by their mean (a
-    probability), the rest by their median or, with ``bound``, by the side of their 90 %
+    """The predictions credibility is judged on: base contact and folding by their mean (a
+    probability), the FE failure by its median (as the search always judged it, on either
+    rule), the rest by their median or, with ``bound``, by the side of their 90 %
     interval towards the limit: the upper end of a strain, a tapping residual or error and the
     sag (limits from above), the lower end of a volume ratio J (a limit from below). A median
     just within a limit is as likely beyond it, and the answers sit on the limits: a 3D search

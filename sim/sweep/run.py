@@ -27,7 +27,7 @@ import numpy as np
 from ..design import DesignSpace, point_to_design, space_from_dict
 from ..errors import DesignError, SimulationError, check_seed
 from ..materials import Material, UserCatalogue, catalogue_from_tables, material_tables
-from ..metrics import DEFAULTS_BEFORE, SOLVER_VERSION, same_metrics
+from ..metrics import DEFAULTS_BEFORE, PROTOCOLS, SOLVER_VERSION, same_metrics
 from ..options import SimOptions, apply_overrides, options_from_dict
 from ..pool import process_pool
 from ..provenance import check_folder_kind, json_safe, provenance
@@ -146,7 +146,7 @@ def simulate_part(
     point: dict[str, Any],
     options_dict: dict[str, Any],
     materials: dict[str, dict[str, Any]] | None = None,
-    protocols: Sequence[str] | None = None,
+    protocols: Sequence[str] = PROTOCOLS,
 ) -> PointPart:
     """``protocols`` (default all) of one design point, as ``evaluate_point`` runs them; never
     raises. Parts of disjoint protocols, run in separate processes, give with ``point_record``
@@ -158,10 +158,7 @@ def simulate_part(
     try:
         catalogue = catalogue_from_tables(materials) if materials else None
         design = point_to_design(point, catalogue)
-        if protocols is None:
-            result = simulate(design, options=options)
-        else:
-            result = simulate(design, tuple(protocols), options=options)
+        result = simulate(design, tuple(protocols), options=options)
     except (DesignError, SimulationError, ArithmeticError, ValueError, RuntimeError) as exc:
         error = f"{type(exc).__name__}: {exc}"
     except Exception as exc:  # a bug must not stop a sweep of thousands: record it, loudly
