@@ -19,18 +19,15 @@ a search run with ``bound`` chooses others (further from the limits).
 from __future__ import annotations
 
 import argparse
-import json
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
 from explore._objective import infeasibility, point_layer_limits
+from explore._plots import load_run, run_options, run_targets
 from explore._run_folder import read_confirmations
 from explore._search import _judged
 from explore._summary import credible
-from sim.design import load_targets
-from sim.options import options_from_dict
 
 
 class _Prediction:
@@ -50,15 +47,10 @@ class _Prediction:
 def judge(run: Path) -> list[tuple[str, bool, bool, bool, str]]:
     """(candidate, credible on the median, on the bound, by FE, the bound's reason) of each
     confirmation of ``run``."""
-    config = json.loads((run / "config.json").read_text())
-    options = options_from_dict(config["sim_options"])
-    targets = load_targets(None)  # the human finger, as the run's config.json holds it...
-    targets = replace(
-        targets,
-        values=dict(config.get("targets") or targets.values),  # ...or the run's own
-        reading=config.get("displacement_reading", targets.reading),
-        max_sag_mm=config.get("max_sag_mm", targets.max_sag_mm),
-    )
+    data = load_run(run)  # the run folder's config.json: its targets and FE options
+    targets, options = run_targets(data), run_options(data)
+    if targets is None:
+        raise SystemExit(f"{run}: its config.json holds no targets")
     confirmations = read_confirmations(run)
     pred = _Prediction([c.candidate.predicted for c in confirmations])
     cols = {m: i for i, m in enumerate(pred.metric_names)}
