@@ -24,6 +24,9 @@ from pathlib import Path
 from sim.sweep import TABLE, TABLE_GZ, table_path, table_sha256, write_table_gz
 from surrogate import is_multifidelity, load_checkpoint, load_multifidelity
 from surrogate._spread import SPREAD_MD
+from surrogate._train import TrainConfig
+
+TRAIN_DEFAULTS = TrainConfig()
 
 PRETRAINED = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained"
 #: where each kind of checkpoint is shipped: the 2D surrogate, the multi-fidelity one
@@ -109,6 +112,9 @@ def main() -> None:
             f"fingertip train {sweep} --low-fidelity surrogate/pretrained/default "
             f"--method {header['method']} --out {run} --seed {header['training']['seed']}"
         )
+    members = header["architecture"]["members"]
+    if members != TRAIN_DEFAULTS.members:  # the command names what the default does not give
+        train += f" --members {members}"
     lines = [
         title,
         "",
