@@ -203,13 +203,16 @@ def _segments_note(cfg: dict) -> list[str]:
         if len(versions) > 1
         else ""
     )
+    kept = (
+        " The 3D segments stay in `datasets/default3d/`."
+        if cfg.get("options", {}).get("model", {}).get("dimension") == "3d"
+        else " A segment kept as `surrogate/pretrained/default` is the table shipped before this"
+        " one; the `datasets/` copies are removed once shipped: both stay in the git history."
+    )
     return [
         "The sweep was made in segments of the same Sobol sample (designs `start` to `n - 1`"
         " each), whose tables were kept where each command's comment says, and merged"
-        " (`sim.sweep.run.merge_sweeps`). A segment kept as `surrogate/pretrained/default` is the"
-        " table shipped before this one; the `datasets/` copies of 2D segments are removed once"
-        " shipped (they stay in the git history), the 3D ones (`datasets/default3d/`) are kept."
-        + joined,
+        " (`sim.sweep.run.merge_sweeps`)." + kept + joined,
         "",
     ]
 
