@@ -175,8 +175,7 @@ def _sweep_commands(sweep: str, cfg: dict) -> list[str]:
     segments (``config.json``'s ``segments``), one per segment and the merge."""
     seed = cfg["seed"]
     segments = cfg.get("segments")
-    model = cfg.get("options", {}).get("model", {}).get("dimension", "2d")
-    three_d = "--model 3d " if model == "3d" else ""
+    three_d = "--model 3d " if _is_3d(cfg) else ""
     if not segments:
         return [f"fingertip sweep {three_d}--n {cfg['n']} --out {sweep} --workers 2 --seed {seed}"]
     lines = []
@@ -192,6 +191,11 @@ def _sweep_commands(sweep: str, cfg: dict) -> list[str]:
     return lines
 
 
+def _is_3d(cfg: dict) -> bool:
+    """Whether a sweep's ``config.json`` is one of the 3D model."""
+    return cfg.get("options", {}).get("model", {}).get("dimension") == "3d"
+
+
 def _segments_note(cfg: dict) -> list[str]:
     if not cfg.get("segments"):
         return []
@@ -205,7 +209,7 @@ def _segments_note(cfg: dict) -> list[str]:
     )
     kept = (
         " The 3D segments stay in `datasets/default3d/`."
-        if cfg.get("options", {}).get("model", {}).get("dimension") == "3d"
+        if _is_3d(cfg)
         else " A segment kept as `surrogate/pretrained/default` is the table shipped before this"
         " one; the `datasets/` copies are removed once shipped: both stay in the git history."
     )

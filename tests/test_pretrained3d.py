@@ -5,19 +5,17 @@ solver, its report's numbers are reproduced on its held-out designs, and a searc
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pytest
+from shipped_report import assert_report_reproduced
 
 from sim import SOLVER_VERSION
 from sim.design import DEFAULT_SPACE_3D_PATH, load_space
 from sim.metrics import SAME_METRICS_AS
-from sim.protocols import PROBABILITY_OUTPUTS
 from sim.sweep import table_sha256
-from surrogate import load_multifidelity, read_sweep
-from surrogate._evaluate import parity_data, score
+from surrogate import load_multifidelity
 
 REPO = Path(__file__).resolve().parents[1]
 SHIPPED = REPO / "surrogate" / "pretrained" / "default3d"
@@ -49,25 +47,7 @@ def test_shipped_multifidelity_checkpoint_matches_its_data_the_solver_and_the_2d
 
 def test_shipped_multifidelity_report_is_reproduced_on_the_held_out_designs(model):
     """The numbers in report.json are what the checkpoint does on its test split."""
-    data = read_sweep(SHIPPED, dimension="3d")
-    report = json.loads((SHIPPED / "report.json").read_text())
-    rows = {int(i): r for r, i in enumerate(data.index)}
-    test = [rows[i] for i in model.header["training_data"]["split_table_index"]["test"]]
-    assert len(test) == report["n_test"]
-    scored = data.scored_targets()
-    checked = 0
-    for p in parity_data(model, [data.points[i] for i in test], scored[test]):
-        s, m = score(p), p.metric
-        want = report["metrics"][m]
-        if want["r2"] is None:
-            continue
-        assert s.coverage_90 == pytest.approx(want["coverage_90"], abs=1e-12)
-        if m in PROBABILITY_OUTPUTS:
-            assert s.r2 >= want["r2"] - 1e-12
-            continue
-        assert s.r2 == pytest.approx(want["r2"], rel=1e-6)
-        assert s.median_rel_error == pytest.approx(want["median_rel_error"], rel=1e-6)
-        checked += 1
+    checked = assert_report_reproduced(model, SHIPPED, dimension="3d")
     assert checked >= 19  # the 3D model's FE metrics: displacements, hysteresis, contact patch
 
 
