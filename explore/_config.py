@@ -28,16 +28,41 @@ from ._storage import check_storage, default_storage
 
 __all__ = [
     "DEFAULT_CHECKPOINT",
+    "DEFAULT_CHECKPOINT_3D",
     "OptimizeConfig",
     "Setup",
     "check_inputs",
     "check_storage",
     "config_record",
+    "credible_at",
+    "default_checkpoint",
     "setup",
 ]
 
 PRETRAINED = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained" / "default"
 DEFAULT_CHECKPOINT = PRETRAINED / "model.safetensors"
+#: the shipped multi-fidelity checkpoint: 3D pads, with the 2D one as its low fidelity
+DEFAULT_CHECKPOINT_3D = PRETRAINED.parent / "default3d" / "model.safetensors"
+
+
+def default_checkpoint(model: str | None) -> Path:
+    """The checkpoint a search starts from when no ``--surrogate`` is given, by the model of
+    its answers: the shipped 2D one for ``--model 2d`` (the paper's plane-strain section),
+    else the shipped multi-fidelity one, which searches the 3D pad and confirms in 3D. (A 2D
+    checkpoint given with ``--model 3d`` keeps the 2D search and simulates its answers in 3D
+    too: ``explore._check3d``.)"""
+    return DEFAULT_CHECKPOINT if model == "2d" else DEFAULT_CHECKPOINT_3D
+
+
+def credible_at(given: str | None, model: str) -> str:
+    """What the search judges a design's credibility on (``--credible-at``; ``given`` None:
+    the model's default): "bound" for the 3D search, "median" for the 2D one. In 3D the answers
+    sit on the validity limits and a confirmation costs minutes: on the shipped multi-fidelity
+    surrogate, ``fingertip run --credible-at median`` sent 21 designs to 3D FE and 5 came back
+    credible (best FE score 0.300), ``--credible-at bound`` 7 of 13 in its first two rounds
+    (best 0.216; docs/search.md, "Credible at the interval's bound"). In 2D the bound did not
+    pay (the same section)."""
+    return given or ("bound" if model == "3d" else "median")
 
 
 #: what the search judges credibility on (``OptimizeConfig.credible_at``)
@@ -69,12 +94,15 @@ class OptimizeConfig:
     ``trials`` counts the sampler's trials after them; ``model``: the model of the answers
     (None: the surrogate's; a multi-fidelity surrogate searches the 3D pad and confirms in 3D,
     ``Setup.model``), "3d" with a 2D surrogate simulates every 2D answer with the 3D pad too
-    (``explore._check3d``, answers_3d.json); ``credible_at``: what the search judges a
-    design's credibility on, "median" (None: the default) or "bound", the side of each trust
-    prediction's 90 % interval towards its limit (``explore._search._judged``).
+    (``explore._check3d``, answers_3d.json); without ``surrogate`` it also names the shipped
+    checkpoint the search starts from (:func:`default_checkpoint`); ``credible_at``: what the
+    search judges a design's credibility on, "median" or "bound", the side of each trust
+    prediction's 90 % interval towards its limit (``explore._search._judged``; None: the
+    model's default, :func:`credible_at`).
     """
 
-    surrogate: str = str(DEFAULT_CHECKPOINT)
+    # None: the shipped checkpoint of ``model`` (``default_checkpoint``), resolved on creation
+    surrogate: str | None = None
     space: str | None = None
     targets: str | None = None
     # after the screen's 64 seeds: 128 TPE trials found a better design than 1000 TPE trials
@@ -119,13 +147,18 @@ class OptimizeConfig:
     # (benchmarks/bench_predict.py), so a round of four studies stays within 30 s (issue 15)
     screen: int = 65536
     # the model the answers are judged in; None: the surrogate's (a multi-fidelity surrogate
-    # searches the 3D model, a 2D one the 2D model). "3d" with a 2D surrogate: the search and
-    # its confirmations stay 2D and every answer is also simulated with the 3D pad
-    # (explore._check3d), so such a run may be resumed with either; "2d" with a
-    # multi-fidelity surrogate is refused (it predicts the 3D model only)
+    # searches the 3D model, a 2D one the 2D model). Without --surrogate it names the shipped
+    # checkpoint (default_checkpoint): "2d" the 2D one, else the multi-fidelity one.
+    # "3d" with a 2D surrogate: the search and its confirmations stay 2D and every answer is
+    # also simulated with the 3D pad (explore._check3d), so such a run may be resumed with
+    # either; "2d" with a multi-fidelity surrogate is refused (it predicts the 3D model only)
     model: str | None = None
-    # None: "median" (a folder made before the option holds none, and resumes with it)
+    # None: the model's default (credible_at(): bound in 3D, median in 2D)
     credible_at: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.surrogate is None:
+            object.__setattr__(self, "surrogate", str(default_checkpoint(self.model)))
 
     def check(self) -> None:
         def at_least(name: str, value: int, low: int) -> None:
@@ -204,6 +237,8 @@ def _check_resume(out: Path, record: dict) -> None:
     old = read_config(out)
     if old is None:
         return
+    # a folder made when the rule was always the median unless asked otherwise records none
+    old, record = ({**d, "credible_at": d.get("credible_at") or "median"} for d in (old, record))
     keys = sorted((set(old) | set(record)) - set(_FREE) - set(_OLD_LOG))
     diff = [k for k in keys if old.get(k) != record.get(k)]
     if diff:
@@ -346,6 +381,7 @@ def setup(config: OptimizeConfig, out: Path) -> Setup:
     if config.allow_untrusted:  # answers beyond the limits: confirm them to the end
         options = options.without_validity_stop()
     record = config_record(config, out, targets, options, user)
+    record["credible_at"] = credible_at(config.credible_at, model)  # the rule the search uses
     _check_resume(out, record)
     if config.storage is not None:
         check_storage(config.storage)

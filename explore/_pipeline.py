@@ -28,6 +28,7 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
+from sim.errors import DesignError
 from sim.metrics import SOLVER_VERSION, same_metrics
 from sim.provenance import check_folder_kind, provenance
 
@@ -241,6 +242,13 @@ def run(
     from sim.sweep import run_sweep
     from surrogate import CHECKPOINT_NAME, train_surrogate
 
+    if config.model == "3d":  # the 3D dataset is days of one core: datasets/README.md
+        raise DesignError(
+            "--model",
+            "3d cannot start --from-scratch: the sweep and training made from scratch are the "
+            "2D model's; the 3D search starts from the shipped multi-fidelity surrogate (leave "
+            "--from-scratch out) or one trained on a 3D sweep (datasets/README.md)",
+        )
     sweep, trained = scratch_folders(out)
     # every input is checked before hours of sweep and training, not after
     check_inputs(config, out)

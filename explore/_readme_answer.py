@@ -5,10 +5,11 @@ The block between ``<!-- answer:start -->`` and ``<!-- answer:end -->`` in READM
 output of :func:`render` on the run folder's ``summary.json`` and ``confirmations.json``: the
 command, the run's time and phases, how many designs FE confirmed and how many were credible,
 and one table row per answer (best credible, best gel, best foam core, best buildable) with
-both displacement readings, the sag, the hysteresis and the errors against the targets; for a
-run made with ``--model 3d``, a second table of the same answers as 3D fingertips
-(answers_3d.json). The prose around the block (what the numbers mean) stays hand-written:
-re-read it when the block changes.
+both displacement readings, the sag, the hysteresis (and for a 3D search, the contact area)
+and the errors against the targets; for a 2D search checked in 3D (``--model 3d`` with a 2D
+``--surrogate``), a second table of the same answers as 3D fingertips (answers_3d.json). The
+prose around the block (what the numbers mean) stays hand-written: re-read it when the block
+changes.
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from sim.options import options_from_dict
 from sim.protocols import shown_hysteresis
 
 from ._check3d import not_credible
+from ._config import credible_at, default_checkpoint
 from ._run_folder import (
     read_answers_3d,
     read_config,
@@ -29,7 +31,7 @@ from ._run_folder import (
     screened_designs,
 )
 
-__all__ = ["END", "LABELS", "START", "describe", "render", "replace_block"]
+__all__ = ["END", "LABELS", "START", "command", "describe", "render", "replace_block"]
 
 START, END = "<!-- answer:start -->", "<!-- answer:end -->"
 LABELS = {
@@ -68,6 +70,11 @@ def describe(design: dict) -> str:
         if g
         else ""
     )
+    if g.get("half_length_mm") is not None:  # a 3D pad: its length along the finger
+        outline += (
+            f"; pad half-length {g['half_length_mm']:.1f} mm, length exponent "
+            f"{g['length_exponent']:.2f}"
+        )
     return ("one layer: " if len(layers) == 1 else "") + " over ".join(words) + outline
 
 
@@ -102,18 +109,38 @@ def _none_credible(summary: dict) -> str:
     )
 
 
+def command(folder: Path, config: dict, checked_in_3d: bool) -> str:
+    """The ``fingertip run`` command of the run folder, from its configuration, with the options
+    that differ from the defaults: ``--model 2d`` for a 2D search, ``--model 3d`` for a 2D search
+    checked in 3D, ``--surrogate`` when the search started from another checkpoint than the
+    default of that ``--model`` (``explore._config.default_checkpoint``), ``--credible-at`` when
+    it is not the model's default (``explore._config.credible_at``)."""
+    searched = options_from_dict(config.get("sim_options") or {}).dimension
+    flag = "3d" if checked_in_3d else ("2d" if searched == "2d" else None)
+    words = ["fingertip run"] + ([f"--model {flag}"] if flag else [])
+    surrogate = config.get("surrogate")
+    if surrogate and Path(surrogate).resolve() != default_checkpoint(flag).resolve():
+        words.append(f"--surrogate {surrogate}")
+    given = config.get("credible_at") or "median"  # none recorded: the median (older folders)
+    if given != credible_at(None, searched):
+        words.append(f"--credible-at {given}")
+    return " ".join([*words, f"--out {folder.as_posix()}"])
+
+
 def render(folder: str | Path) -> str:
     """The README block for the run folder ``folder``."""
     folder = Path(folder)
     summary = read_summary(folder)
-    options = options_from_dict((read_config(folder) or {}).get("sim_options") or {})
+    config = read_config(folder) or {}
+    options = options_from_dict(config.get("sim_options") or {})
+    searched_3d = options.dimension == "3d"
     confirmations = json.loads((folder / "confirmations.json").read_text())
     credible = sum(1 for c in confirmations if c.get("trusted"))
     t = summary.get("timings") or {}
     three = read_answers_3d(folder)
-    model = " --model 3d" if three else ""
+    area_head, area_rule = (" contact area 1 N / 4 N (mm²) |", "---|") if searched_3d else ("", "")
     lines = [
-        f"`fingertip run{model} --out {folder.as_posix()}`: {len(summary['rounds'])} rounds, "
+        f"`{command(folder, config, bool(three))}`: {len(summary['rounds'])} rounds, "
         f"{summary['wall_time_s']:.0f} s (search {t.get('search_s', 0):.0f} s, FE "
         f"{t.get('fe_s', 0):.0f} s, retraining {t.get('retrain_s', 0):.0f} s); "
         f"{len(confirmations)} designs confirmed with full FE, {credible} of them trusted."
@@ -121,14 +148,15 @@ def render(folder: str | Path) -> str:
         + _none_credible(summary),
         "",
         "| answer | design | 1 N / 4 N from touch (mm) | from the top (mm) | sag (mm) | "
-        "hysteresis (N mm) | errors |",
-        "|---|---|---|---|---|---|---|",
+        f"hysteresis (N mm) |{area_head} errors |",
+        f"|---|---|---|---|---|---|{area_rule}---|",
     ]
     rows = _shared_rows(summary["answers"])
     for kind, label in LABELS.items():
         a = summary["answers"].get(kind)
         if a is None:
-            lines.append(f"| {label} | none credible confirmed by FE | | | | | |")
+            empty = " |" * (5 + searched_3d)
+            lines.append(f"| {label} | none credible confirmed by FE |{empty}")
             continue
         if kind not in rows:  # the same design as an answer above: in its row
             continue
@@ -138,11 +166,17 @@ def render(folder: str | Path) -> str:
         errors = ", ".join(_percent(e) for e in a["errors_vs_targets"].values())
         # 0 below what the FE's tolerances resolve: never a negative loop area
         hysteresis = shown_hysteresis(a["fe_metrics"], a["design"], options)
+        fe = a["fe_metrics"]
+        area = (
+            f" {fe['contact_area_at_1N_mm2']:.0f} / {fe['contact_area_at_4N_mm2']:.0f} |"
+            if searched_3d
+            else ""
+        )
         lines.append(
             f"| {label} | {describe(a['design'])} | {touch['disp_at_1N_mm']:.2f} / "
             f"{touch['disp_at_4N_mm']:.2f} | {top['disp_at_1N_mm']:.2f} / "
             f"{top['disp_at_4N_mm']:.2f} | {r['sag_mm']:.2f} | "
-            f"{hysteresis:.3g} | {errors} |"
+            f"{hysteresis:.3g} |{area} {errors} |"
         )
     if three:
         lines += _rows_3d(three)

@@ -25,7 +25,7 @@ import numpy as np
 from sim.design import Targets
 
 from ._buildable import fe_screen, predictable_materials, screen_jobs
-from ._config import OptimizeConfig, Setup
+from ._config import OptimizeConfig, Setup, credible_at
 from ._confirm import REFERENCES, confirm, reference_point, run_fe
 from ._objective import TAPPING
 from ._retrain import retrain, retrain_epochs
@@ -216,7 +216,7 @@ def _search_round(
         seed=config.seed + r,
         max_disagreement=config.max_disagreement,
         allow_untrusted=config.allow_untrusted,
-        trust_bound=config.credible_at == "bound",
+        trust_bound=credible_at(config.credible_at, run.setup.model) == "bound",
         options=run.setup.options,
         screen=config.screen,
     )

@@ -694,7 +694,7 @@ def _optimize_config(args: argparse.Namespace):
         "buildable_fe": args.buildable_fe,
         "family_trials": args.family_trials,
         "allow_untrusted": True if args.allow_untrusted else None,
-        "credible_at": None if args.credible_at in (None, "median") else args.credible_at,
+        "credible_at": args.credible_at,
         "screen": args.screen,
         "model": args.model,
     }
@@ -801,7 +801,12 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
     from explore._config import OptimizeConfig
 
     d = OptimizeConfig()
-    p.add_argument("--surrogate", type=Path, help="checkpoint (default: the shipped one)")
+    p.add_argument(
+        "--surrogate",
+        type=Path,
+        help="checkpoint (default: the shipped multi-fidelity surrogate/pretrained/default3d, "
+        "which searches the 3D pad; with --model 2d the shipped 2D surrogate/pretrained/default)",
+    )
     p.add_argument("--space", type=Path, help="design-space TOML inside the surrogate's space")
     p.add_argument("--targets", type=Path, help="targets TOML (default: the human fingertip)")
     p.add_argument("--trials", type=int, help=f"surrogate trials per round (default {d.trials})")
@@ -868,17 +873,19 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
         "--credible-at",
         metavar="{median,bound}",
         help="what a design's credibility is judged on in the search: the surrogate's median "
-        "prediction of each strain, volume ratio, settling figure and sag (default), or the "
-        "side of its 90 %% interval towards the limit (bound: credible where the surrogate is "
-        "about 95 %% sure; fewer candidates come back from FE beyond a limit)",
+        "prediction of each strain, volume ratio, settling figure and sag (default in 2D), or "
+        "the side of its 90 %% interval towards the limit (bound: credible where the surrogate "
+        "is about 95 %% sure; fewer candidates come back from FE beyond a limit; default in 3D)",
     )
     p.add_argument(
         "--model",
         metavar="{2d,3d}",
-        help="the model of the answers (default: the surrogate's). A multi-fidelity surrogate "
-        "(fingertip train SWEEP3D --low-fidelity ...) searches the 3D pad and confirms every "
-        "answer with the 3D FE; with a 2D surrogate, 3d also simulates every 2D answer with the "
-        "3D pad (its default length and profile: answers_3d.json and the report)",
+        help="the model of the answers (default: the surrogate's; without --surrogate, 3d). A "
+        "multi-fidelity surrogate (the shipped one, or fingertip train SWEEP3D --low-fidelity "
+        "...) searches the 3D pad and confirms every answer with the 3D FE; 2d searches the "
+        "paper's plane-strain section with the shipped 2D surrogate; with a 2D --surrogate, 3d "
+        "keeps the 2D search and also simulates every 2D answer with the 3D pad (its default "
+        "length and profile: answers_3d.json and the report)",
     )
     _add_catalogue_option(p)
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
@@ -887,11 +894,11 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
 #: the inputs of a search (``optimize`` and ``run``), for their --help
 _SEARCH_INPUTS = (
     "Inputs: --surrogate a checkpoint (a .safetensors file or a training run folder; default "
-    "the shipped one), --space a design-space TOML, --targets a targets TOML (default the human "
-    "fingertip, sim/data/human_targets.toml), --dataset the surrogate's sweep folder (a dataset, "
-    "for retraining), --catalogue a user catalogue, --storage an Optuna journal file or database "
-    "URL; --out the search run folder (new, or one to resume), which ends with summary.json, "
-    "report.md and answers/<answer>.toml (design files)."
+    "the shipped one of --model), --space a design-space TOML, --targets a targets TOML "
+    "(default the human fingertip, sim/data/human_targets.toml), --dataset the surrogate's "
+    "sweep folder (a dataset, for retraining), --catalogue a user catalogue, --storage an "
+    "Optuna journal file or database URL; --out the search run folder (new, or one to "
+    "resume), which ends with summary.json, report.md and answers/<answer>.toml (design files)."
 )
 
 
@@ -937,8 +944,9 @@ def _add_run(p: argparse.ArgumentParser) -> None:
     from pathlib import Path
 
     p.description = (
-        "The main job: the shipped surrogate (or, with --from-scratch, a sweep and a training "
-        "first) -> search -> FE confirmation -> report and answer files. " + _SEARCH_INPUTS
+        "The main job: the shipped multi-fidelity surrogate (3D; --model 2d: the shipped 2D "
+        "one; or, with --from-scratch, a 2D sweep and a training first) -> search -> FE "
+        "confirmation -> report and answer files. " + _SEARCH_INPUTS
     )
     _add_search_options(p)
     p.add_argument(
@@ -947,8 +955,9 @@ def _add_run(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--from-scratch",
         action="store_true",
-        help="sweep the default space and train a surrogate first (about 9 hours on 2 cores: "
-        "8.6 h of sweep at 2.8 s a design, README)",
+        help="sweep the default space with the 2D model and train a 2D surrogate first, then "
+        "search the 2D model with it (about 9 hours on 2 cores: 8.6 h of sweep at 2.8 s a "
+        "design, README; the 3D dataset: datasets/README.md)",
     )
     p.add_argument(
         "--n",

@@ -745,6 +745,39 @@ def test_run_from_scratch_checks_its_inputs_before_the_sweep(
     assert sorted(p.name for p in tmp_path.iterdir()) == ["t.toml"]  # no sweep, no run folder
 
 
+def test_run_from_scratch_with_the_3d_model_is_refused_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The sweep and training of ``--from-scratch`` are the 2D model's; a 3D search starts from
+    a multi-fidelity surrogate, so ``--from-scratch --model 3d`` is one line, nothing made."""
+    code = main(["run", "--from-scratch", "--n", "2", "--model", "3d", "--out",
+                 str(tmp_path / "main")])  # fmt: skip
+    assert code == 2
+    assert_one_line_error(capsys.readouterr().err, "--model")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    ("argv", "shipped"),
+    [([], "default3d"), (["--model", "2d"], "default"), (["--model", "3d"], "default3d")],
+)
+def test_without_surrogate_a_search_starts_from_the_shipped_checkpoint_of_its_model(
+    argv: list[str], shipped: str
+) -> None:
+    """``explore._config.default_checkpoint``: the search starts from the shipped
+    multi-fidelity surrogate (3D), with ``--model 2d`` from the shipped 2D one; a given
+    --surrogate is kept."""
+    from explore._config import OptimizeConfig
+    from explore.cli import _optimize_config, build_parser
+
+    config = _optimize_config(build_parser().parse_args(["run", *argv]))
+    want = REPO / "surrogate" / "pretrained" / shipped / "model.safetensors"
+    assert Path(config.surrogate).resolve() == want.resolve() and want.is_file()
+    given = build_parser().parse_args(["run", *argv, "--surrogate", "elsewhere.safetensors"])
+    assert _optimize_config(given).surrogate == "elsewhere.safetensors"
+    assert OptimizeConfig(model=config.model).surrogate == config.surrogate
+
+
 # --- one --workers default, documented seeds ----------------------------------------------------
 def test_one_workers_default_and_every_seed_documented() -> None:
     from explore._config import OptimizeConfig

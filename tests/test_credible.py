@@ -116,6 +116,45 @@ def test_credible_at_takes_median_or_bound_and_names_itself_otherwise():
         OptimizeConfig(credible_at="upper").check()
 
 
+@pytest.mark.parametrize(
+    ("argv", "model", "judged_on"),
+    [
+        ([], "3d", "bound"),  # the 3D search: its answers sit on the limits, FE costs minutes
+        ([], "2d", "median"),
+        (["--credible-at", "median"], "3d", "median"),
+        (["--credible-at", "bound"], "2d", "bound"),
+    ],
+)
+def test_credible_at_defaults_to_the_bound_in_3d_and_the_median_in_2d(argv, model, judged_on):
+    """``explore._config.credible_at``: what a search judges credibility on when
+    ``--credible-at`` is not given depends on its model; a given one is kept as given (and
+    recorded: a 3D run asked for the median is not turned into a bound one)."""
+    from explore._config import credible_at
+    from explore.cli import _optimize_config, build_parser
+
+    config = _optimize_config(build_parser().parse_args(["run", *argv]))
+    assert config.credible_at == (argv[1] if argv else None)
+    assert credible_at(config.credible_at, model) == judged_on
+
+
+def test_config_json_records_the_rule_and_an_older_folder_resumes_on_the_median(tmp_path):
+    """config.json records the rule the search used (``explore._config.setup``); a folder made
+    when None meant the median resumes with the median, and is refused with the bound."""
+    from explore._config import OptimizeConfig, setup
+    from explore._run_folder import write_config
+    from sim.errors import DesignError
+    from sim.provenance import provenance
+
+    out = tmp_path / "run"
+    two = OptimizeConfig(model="2d")
+    record = setup(two, out).record
+    assert record["credible_at"] == "median"
+    write_config(out, {**record, "credible_at": None}, provenance(record, 0, kind="optimize"))
+    assert setup(two, out).record["credible_at"] == "median"  # resumes
+    with pytest.raises(DesignError, match=r"another configuration \(credible_at\)"):
+        setup(OptimizeConfig(model="2d", credible_at="bound"), out)
+
+
 def test_trust_flags_hold_each_design_to_its_own_strain_limit():
     """The same predicted strain is credible in a design whose materials were tested further
     and not in one tested less far; an override holds every design to one number, and says

@@ -506,7 +506,7 @@ tau_s = { low = 0.04, high = 0.1, log = true }
 
 
 def test_the_issue_31_run_without_a_credible_design_finishes(tmp_path):
-    """Issue 31, item 1, its command on the shipped surrogate (~15 s), in a space where every
+    """Issue 31, item 1, its command on the shipped 2D surrogate (~15 s), in a space where every
     design goes beyond the validity limits (``_TOO_SOFT_SPACE``), so the one confirmed design
     does. The run finishes (exit 0) with summary.json (its round's ``best_fe_score`` null) and
     a report saying no credible design was found (before, it crashed writing summary.json, at
@@ -515,7 +515,7 @@ def test_the_issue_31_run_without_a_credible_design_finishes(tmp_path):
     space = tmp_path / "soft.toml"
     space.write_text(_TOO_SOFT_SPACE)
     args = [
-        "optimize", "--out", str(out), "--space", str(space), "--trials", "16",
+        "optimize", "--model", "2d", "--out", str(out), "--space", str(space), "--trials", "16",
         "--family-trials", "0", "--buildable-trials", "0", "--screen", "256", "--confirm", "1",
         "--uncertain", "0", "--rounds", "1", "--buildable-fe", "0", "--no-progress",
     ]  # fmt: skip
@@ -666,7 +666,9 @@ def test_the_readme_answer_block_has_its_markers():
 
     text = (REPO / "README.md").read_text()
     block = text.split("<!-- answer:start -->\n", 1)[1].split("<!-- answer:end -->", 1)[0]
-    assert "| best credible" in block and "fingertip run --model 3d --out" in block
+    # the main job on its defaults: the 3D search, whose answers show their contact area
+    assert "| best credible" in block and "`fingertip run --out runs/main`" in block
+    assert "contact area 1 N / 4 N (mm²)" in block
     assert replace_block(text, block) == text  # the block round-trips
 
 

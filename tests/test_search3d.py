@@ -190,6 +190,23 @@ def test_the_report_and_answer_files_speak_of_the_3d_model(searched):
     assert "length_exponent" in answer
 
 
+def test_the_readme_block_of_a_3d_search_shows_the_pad_and_its_contact_area(searched, mf):
+    """``explore._readme_answer.render`` of a 3D search: the command names its checkpoint (not
+    the shipped one), each answer's row its pad length and its contact area at 1 N and 4 N."""
+    from explore._readme_answer import render
+
+    out, summary = searched
+    block = render(out)
+    assert block.startswith(f"`fingertip run --surrogate {mf[0]} --out ")
+    assert "| contact area 1 N / 4 N (mm²) | errors |" in block
+    best = summary.answers["best"]
+    row = next(line for line in block.splitlines() if line.startswith("| best credible"))
+    fe = best["fe_metrics"]
+    area = f"| {fe['contact_area_at_1N_mm2']:.0f} / {fe['contact_area_at_4N_mm2']:.0f} |"
+    assert "pad half-length 8.0 mm, length exponent" in row and area in row
+    assert "as 3D fingertips" not in block  # the answers are 3D already: no second table
+
+
 def load_space_text(text: str):
     import tempfile
     from pathlib import Path
