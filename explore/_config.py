@@ -59,9 +59,9 @@ def credible_at(given: str | None, model: str) -> str:
     the model's default): "bound" for the 3D search, "median" for the 2D one. In 3D the answers
     sit on the validity limits and a confirmation costs minutes: on the shipped multi-fidelity
     surrogate, ``fingertip run --credible-at median`` sent 21 designs to 3D FE and 5 came back
-    credible (best FE score 0.300), ``--credible-at bound`` 7 of 13 in its first two rounds
-    (best 0.216; docs/search.md, "Credible at the interval's bound"). In 2D the bound did not
-    pay (the same section)."""
+    trusted (best credible FE score 0.300), ``--credible-at bound`` 20 and 13 (best 0.216;
+    docs/search.md, "Credible at the interval's bound"). In 2D the bound did not pay (the same
+    section)."""
     return given or ("bound" if model == "3d" else "median")
 
 

@@ -4,7 +4,8 @@ README.md): a trained surrogate and its training data copied into the shipped fo
     python studies/ship_pretrained.py runs/default_surrogate runs/default_sweep
     python studies/ship_pretrained.py runs/default3d_mf runs/sweep3d   # a multi-fidelity one
 
-The shipped folder is what ``fingertip run`` starts from: ``model.safetensors`` (the
+The shipped folder is what ``fingertip run`` starts from (``default3d``; ``default`` with
+``--model 2d``): ``model.safetensors`` (the
 checkpoint), ``table.csv.gz`` + ``config.json`` (the training sweep without its curves,
 gzipped: the checkpoint's header records the sha256 of the uncompressed table, and active
 learning retrains on it),
