@@ -36,6 +36,7 @@ __all__ = [
     "config_record",
     "credible_at",
     "default_checkpoint",
+    "search_trials",
     "setup",
 ]
 
@@ -63,6 +64,21 @@ def credible_at(given: str | None, model: str) -> str:
     docs/search.md, "Credible at the interval's bound"). In 2D the bound did not pay (the same
     section)."""
     return given or ("bound" if model == "3d" else "median")
+
+
+#: the continuous study's trials per round when ``--trials`` is not given, by model: 128 TPE
+#: trials after the screen's seeds found a better design than 1000 alone in 2D
+#: (benchmarks/bench_search.py); in 3D 1024 find better predicted designs than 128 (the
+#: continuous study's best credible score 0.146 / 0.156 against 0.210 / 0.221, seeds 0 / 1,
+#: 17 s more: ``python studies/search_budget.py --model 3d``), and a main job with them found a
+#: better design by FE in its first round (docs/search.md, "The current answer in detail"):
+#: the search costs seconds where a 3D confirmation costs minutes
+TRIALS = {"2d": 128, "3d": 1024}
+
+
+def search_trials(given: int | None, model: str) -> int:
+    """The continuous study's trials per round: ``--trials``, else the model's ``TRIALS``."""
+    return TRIALS[model] if given is None else given
 
 
 #: what the search judges credibility on (``OptimizeConfig.credible_at``)
@@ -105,10 +121,9 @@ class OptimizeConfig:
     surrogate: str | None = None
     space: str | None = None
     targets: str | None = None
-    # after the screen's 64 seeds: 128 TPE trials found a better design than 1000 TPE trials
-    # alone, in a tenth of the time (benchmarks/bench_search.py, README "Search"); families
-    # and the buildable search, smaller spaces, take half
-    trials: int = 128
+    # None: the model's (TRIALS, search_trials: 128 in 2D, 1024 in 3D); families and the
+    # buildable search, smaller spaces, take 64
+    trials: int | None = None
     buildable_trials: int = 64
     confirm: int = 3
     uncertain: int = 1
@@ -165,7 +180,8 @@ class OptimizeConfig:
             if value < low:
                 raise DesignError(f"--{name.replace('_', '-')}", f"must be >= {low}, got {value}")
 
-        at_least("trials", self.trials, 1)
+        if self.trials is not None:
+            at_least("trials", self.trials, 1)
         at_least("buildable_trials", self.buildable_trials, 0)
         at_least("confirm", self.confirm, 1)
         at_least("uncertain", self.uncertain, 0)
@@ -382,6 +398,7 @@ def setup(config: OptimizeConfig, out: Path) -> Setup:
         options = options.without_validity_stop()
     record = config_record(config, out, targets, options, user)
     record["credible_at"] = credible_at(config.credible_at, model)  # the rule the search uses
+    record["trials"] = search_trials(config.trials, model)  # and its budget
     _check_resume(out, record)
     if config.storage is not None:
         check_storage(config.storage)

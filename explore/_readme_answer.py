@@ -21,7 +21,7 @@ from sim.options import options_from_dict
 from sim.protocols import shown_hysteresis
 
 from ._check3d import not_credible
-from ._config import credible_at, default_checkpoint
+from ._config import credible_at, default_checkpoint, search_trials
 from ._run_folder import (
     read_answers_3d,
     read_config,
@@ -114,7 +114,8 @@ def command(folder: Path, config: dict, checked_in_3d: bool) -> str:
     that differ from the defaults: ``--model 2d`` for a 2D search, ``--model 3d`` for a 2D search
     checked in 3D, ``--surrogate`` when the search started from another checkpoint than the
     default of that ``--model`` (``explore._config.default_checkpoint``), ``--credible-at`` when
-    it is not the model's default (``explore._config.credible_at``)."""
+    it is not the model's default (``explore._config.credible_at``), ``--trials`` likewise
+    (``explore._config.search_trials``)."""
     searched = options_from_dict(config.get("sim_options") or {}).dimension
     flag = "3d" if checked_in_3d else ("2d" if searched == "2d" else None)
     words = ["fingertip run"] + ([f"--model {flag}"] if flag else [])
@@ -124,6 +125,9 @@ def command(folder: Path, config: dict, checked_in_3d: bool) -> str:
     given = config.get("credible_at") or "median"  # none recorded: the median (older folders)
     if given != credible_at(None, searched):
         words.append(f"--credible-at {given}")
+    trials = config.get("trials")
+    if trials is not None and trials != search_trials(None, searched):
+        words.append(f"--trials {trials}")
     return " ".join([*words, f"--out {folder.as_posix()}"])
 
 

@@ -798,7 +798,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 def _add_search_options(p, *, defaults_note: str = "") -> None:
     from pathlib import Path
 
-    from explore._config import OptimizeConfig
+    from explore._config import TRIALS, OptimizeConfig
 
     d = OptimizeConfig()
     p.add_argument(
@@ -809,7 +809,13 @@ def _add_search_options(p, *, defaults_note: str = "") -> None:
     )
     p.add_argument("--space", type=Path, help="design-space TOML inside the surrogate's space")
     p.add_argument("--targets", type=Path, help="targets TOML (default: the human fingertip)")
-    p.add_argument("--trials", type=int, help=f"surrogate trials per round (default {d.trials})")
+    p.add_argument(
+        "--trials",
+        type=int,
+        help="surrogate trials per round (default "
+        + ", ".join(f"{n} in {m.upper()}" for m, n in TRIALS.items())
+        + ")",
+    )
     p.add_argument(
         "--buildable-trials",
         type=int,

@@ -137,6 +137,20 @@ def test_credible_at_defaults_to_the_bound_in_3d_and_the_median_in_2d(argv, mode
     assert credible_at(config.credible_at, model) == judged_on
 
 
+@pytest.mark.parametrize(
+    ("given", "model", "trials"), [(None, "2d", 128), (None, "3d", 1024), (7, "3d", 7)]
+)
+def test_the_continuous_studys_trials_default_to_the_models(given, model, trials):
+    """``explore._config.search_trials``: 128 in 2D, 1024 in 3D (a search costs seconds where a
+    3D confirmation costs minutes: ``studies/search_budget.py``); a given ``--trials`` is kept."""
+    from explore._config import search_trials
+    from explore.cli import _optimize_config, build_parser
+
+    argv = ["run"] + ([] if given is None else ["--trials", str(given)])
+    config = _optimize_config(build_parser().parse_args(argv))
+    assert config.trials == given and search_trials(config.trials, model) == trials
+
+
 def test_config_json_records_the_rule_and_an_older_folder_resumes_on_the_median(tmp_path):
     """config.json records the rule the search used (``explore._config.setup``); a folder made
     when None meant the median resumes with the median, and is refused with the bound."""
@@ -148,7 +162,7 @@ def test_config_json_records_the_rule_and_an_older_folder_resumes_on_the_median(
     out = tmp_path / "run"
     two = OptimizeConfig(model="2d")
     record = setup(two, out).record
-    assert record["credible_at"] == "median"
+    assert record["credible_at"] == "median" and record["trials"] == 128  # and its budget
     write_config(out, {**record, "credible_at": None}, provenance(record, 0, kind="optimize"))
     assert setup(two, out).record["credible_at"] == "median"  # resumes
     with pytest.raises(DesignError, match=r"another configuration \(credible_at\)"):

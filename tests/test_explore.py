@@ -666,8 +666,11 @@ def test_the_readme_answer_block_has_its_markers():
 
     text = (REPO / "README.md").read_text()
     block = text.split("<!-- answer:start -->\n", 1)[1].split("<!-- answer:end -->", 1)[0]
-    # the main job on its defaults: the 3D search, whose answers show their contact area
-    assert "| best credible" in block and "`fingertip run --out runs/main`" in block
+    # the main job: the 3D search (no --model, no --surrogate), its answers' contact area shown
+    command = block.split("`")[1]
+    assert command.startswith("fingertip run ") and command.endswith("--out runs/main")
+    assert "--model" not in command and "--surrogate" not in command
+    assert "| best credible" in block
     assert "contact area 1 N / 4 N (mm²)" in block
     assert replace_block(text, block) == text  # the block round-trips
 

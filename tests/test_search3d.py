@@ -197,7 +197,7 @@ def test_the_readme_block_of_a_3d_search_shows_the_pad_and_its_contact_area(sear
 
     out, summary = searched
     block = render(out)
-    assert block.startswith(f"`fingertip run --surrogate {mf[0]} --out ")
+    assert block.startswith(f"`fingertip run --surrogate {mf[0]} --trials 8 --out ")
     assert "| contact area 1 N / 4 N (mm²) | errors |" in block
     best = summary.answers["best"]
     row = next(line for line in block.splitlines() if line.startswith("| best credible"))
