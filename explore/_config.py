@@ -41,6 +41,8 @@ __all__ = [
 ]
 
 PRETRAINED = Path(__file__).resolve().parents[1] / "surrogate" / "pretrained" / "default"
+#: the shipped 2D checkpoint (``--model 2d``'s, and the 3D one's low fidelity); which one a
+#: search starts from without ``--surrogate`` is :func:`default_checkpoint`'s rule
 DEFAULT_CHECKPOINT = PRETRAINED / "model.safetensors"
 #: the shipped multi-fidelity checkpoint: 3D pads, with the 2D one as its low fidelity
 DEFAULT_CHECKPOINT_3D = PRETRAINED.parent / "default3d" / "model.safetensors"
