@@ -60,7 +60,7 @@ META_KEY = "fingertip_multifidelity"
 REPO = Path(__file__).resolve().parents[1]
 
 
-def _recorded_path(path: Path) -> str:
+def recorded_path(path: Path) -> str:
     """``path`` relative to the repository when inside it (as a POSIX path), else absolute."""
     path = Path(path).resolve()
     try:
@@ -84,7 +84,7 @@ def _low_identity(surrogate: MultiFidelitySurrogate) -> dict[str, Any]:
         )
     data = low.header.get("training_data", {})
     return {
-        "path": _recorded_path(Path(source)),
+        "path": recorded_path(Path(source)),
         "sha256": sha256_file(source),
         "format": low.header.get("format"),
         "schema_version": low.header.get("schema_version"),

@@ -33,7 +33,7 @@ from ._multifidelity import (
     split_rows,
     validation_size,
 )
-from ._multifidelity_checkpoint import save_multifidelity
+from ._multifidelity_checkpoint import recorded_path, save_multifidelity
 from ._run import default_out, train_config
 from ._train import TrainConfig
 
@@ -146,7 +146,7 @@ def train_multifidelity(
         "method": method,
         "low_fidelity": None
         if low_file is None
-        else {"path": str(low_file.resolve()), "sha256": sha256_file(low_file)},
+        else {"path": recorded_path(low_file), "sha256": sha256_file(low_file)},
         "train": surrogate.header["training"],
         "torch_threads": surrogate.header["training"]["torch_threads"],
     }
@@ -366,7 +366,7 @@ def multifidelity_curve(
         "folds": folds,
         "low_fidelity": None
         if low_file is None
-        else {"path": str(low_file), "sha256": sha256_file(low_file)},
+        else {"path": recorded_path(low_file), "sha256": sha256_file(low_file)},
         "methods": list(methods),
         "sizes": sizes,
         "seed": seed,

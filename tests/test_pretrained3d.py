@@ -5,6 +5,7 @@ solver, its report's numbers are reproduced on its held-out designs, and a searc
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,8 @@ def test_shipped_multifidelity_checkpoint_matches_its_data_the_solver_and_the_2d
     assert not Path(low["path"]).is_absolute()
     assert (REPO / low["path"]).resolve() == SHIPPED_2D.resolve()
     assert model.low_file.resolve() == SHIPPED_2D.resolve()
+    report = json.loads((SHIPPED / "report.json").read_text())  # no path of the training machine
+    assert report["low_fidelity"] == {"path": low["path"], "sha256": low["sha256"]}
     assert (SHIPPED / "model.safetensors").stat().st_size < 2_000_000  # a small file
     assert not (SHIPPED / "table.csv").exists()
     readme = (SHIPPED / "README.md").read_text()
