@@ -6,7 +6,8 @@
 
 Runs the same ``n`` designs of the (default) design space twice, with 1 and with 2 local worker
 processes (``--workers``: only these), in fresh temporary folders, and prints wall times,
-designs per hour, the speed-up and the mean FE time per design. ``--model 3d``: the 3D pad on
+designs per hour, the speed-up and the mean FE time per design, with each protocol's share
+(the records' ``cost_by_protocol``: where a design's FE time goes). ``--model 3d``: the 3D pad on
 the default 3D space (``sim/data/default_space_3d.toml``), as ``fingertip sweep --model 3d``
 runs it. ``--keep FOLDER`` (one ``--workers`` value only): run in FOLDER and keep it, so that
 the benchmark's designs start a sweep that ``fingertip sweep --start 0 --n N`` (same seed and
@@ -28,8 +29,21 @@ import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from sim.design import DEFAULT_SPACE_3D_PATH, load_space  # noqa: E402
+from sim.metrics import PROTOCOLS  # noqa: E402
 from sim.options import ModelOptions, SimOptions  # noqa: E402
-from sim.sweep import run_sweep  # noqa: E402
+from sim.sweep import SweepStore, run_sweep  # noqa: E402
+
+
+def _by_protocol(folder: Path) -> str:
+    """Each protocol's mean seconds over the designs that completed it (a protocol stopped at
+    a validity limit counts with the seconds it ran)."""
+    costs = [r.get("cost_by_protocol", {}) for r in SweepStore(folder).load().values()]
+    words = []
+    for name in PROTOCOLS:
+        secs = [c[name]["wall_time_s"] for c in costs if name in c]
+        if secs:
+            words.append(f"{name} {sum(secs) / len(secs):.2f} s over {len(secs)}")
+    return ", ".join(words) or "no protocol figures"
 
 
 def main() -> None:
@@ -61,6 +75,7 @@ def main() -> None:
                 f"{workers} worker(s): {args.n} designs ({s.ok} ok, {s.failed} failed) in "
                 f"{s.wall_time_s:.1f} s = {3600 * args.n / s.wall_time_s:.0f} designs/hour; "
                 f"FE time per design: mean {sum(fe) / len(fe):.2f} s, max {max(fe):.2f} s"
+                f" ({_by_protocol(folder)})"
             )
     if len(walls) == 2:
         print(f"speed-up 1 -> 2 workers: {walls[1] / walls[2]:.2f}x (target >= 1.8)")

@@ -22,7 +22,8 @@ OPTIONS_3D = dataclasses.replace(OPTIONS, model=ModelOptions("3d"), mesh3d=COARS
 
 
 def _without_times(record: dict) -> dict:
-    return {k: v for k, v in record.items() if k not in ("wall_time_s", "cpu_time_s")}
+    times = ("wall_time_s", "cpu_time_s", "cost_by_protocol")
+    return {k: v for k, v in record.items() if k not in times}
 
 
 @pytest.fixture(scope="module")
@@ -44,6 +45,15 @@ def test_protocols_run_apart_give_the_record_of_the_design_run_as_one(point, opt
     assert list(joined["curves"]) == list(whole["curves"])
     assert list(joined["diagnostics"]) == list(whole["diagnostics"])
     assert joined["cpu_time_s"] == pytest.approx(sum(p.cpu_time_s for p in parts))
+    # what each protocol cost, kept apart from the results: its parts' figures, within the
+    # seconds of the part that ran it; the same counts as the design run as one
+    cost, whole_cost = joined["cost_by_protocol"], whole["cost_by_protocol"]
+    assert list(cost) == list(whole_cost) == list(PROTOCOLS)
+    for name, part in zip(reversed(PROTOCOLS), parts, strict=True):
+        assert 0.0 < cost[name]["wall_time_s"] <= part.wall_time_s
+        assert cost[name]["factorizations"] >= 1 and cost[name]["newton_iterations"] >= 1
+        counts = ("steps", "newton_iterations", "factorizations", "evaluations", "n_dofs")
+        assert {k: cost[name][k] for k in counts} == {k: whole_cost[name][k] for k in counts}
 
 
 def test_a_part_that_cannot_be_built_fails_the_record_with_its_reason(point):

@@ -10,7 +10,9 @@
   (``sim.sweep.run.record_key``): ``key``, ``params`` (the point, inactive = null), ``status``
   ("ok" | "failed"), ``reason``, ``metrics``, ``diagnostics``, ``curves``, ``n_dofs``,
   ``solver_version``, ``wall_time_s``, ``cpu_time_s`` (the worker's CPU seconds; not in
-  records made before it was added);
+  records made before it was added), ``cost_by_protocol`` (each completed protocol's seconds,
+  steps, Newton iterations, factorisations, evaluations and dofs:
+  ``sim.sweep.run.protocol_costs``; not in records made before it was added);
 - ``table.csv`` (:meth:`SweepStore.consolidate`, columns :func:`table_header`): parameters +
   metrics + diagnostics (each layer's largest strain by role among them: ``sim.metrics.
   role_strains``) (+ status and reason) of every design, rebuilt from the records at the

@@ -52,6 +52,7 @@ __all__ = [
     "merge_sweeps",
     "options_from_dict",
     "point_record",
+    "protocol_costs",
     "record_key",
     "run_sweep",
     "sample_points",
@@ -188,10 +189,22 @@ def point_record(point: dict[str, Any], parts: Sequence[PointPart]) -> dict[str,
             diagnostics=json_safe(res.diagnostics()),
             curves=res.curves,
             n_dofs=res.n_dofs,
+            cost_by_protocol=protocol_costs(res.protocols),
         )
     record["wall_time_s"] = sum(part.wall_time_s for part in parts)
     record["cpu_time_s"] = sum(part.cpu_time_s for part in parts)
     return record
+
+
+#: a completed protocol's solver figures a record keeps (``SimResult.protocols``)
+COST_KEYS = ("wall_time_s", "steps", "newton_iterations", "factorizations", "evaluations", "n_dofs")
+
+
+def protocol_costs(protocols: dict[str, dict[str, Any]]) -> dict[str, dict[str, float]]:
+    """What each completed protocol cost (``COST_KEYS``), by protocol: where a design's FE
+    time went. Timing, not a result: it varies with the machine's load and is left out
+    wherever records are compared."""
+    return {name: {k: fig[k] for k in COST_KEYS if k in fig} for name, fig in protocols.items()}
 
 
 def sweep_config(
