@@ -244,6 +244,47 @@ def test_a_2d_sweep_as_the_multifidelity_dataset_is_refused(mf, tmp_path):
         optimize(_config(mf, dataset=str(two_d)), tmp_path / "r", progress=False)
 
 
+#: a user's catalogue (``fingertip run --catalogue FILE``): one stiff gel, so that the coarse
+#: pad stays within its tested strain and every protocol gives its metrics
+USER_GEL = """
+[labgel]
+source = "a test's own"
+model = "neo_hookean"
+mu_MPa = 0.1
+nu = 0.49
+[labgel.provenance]
+tested_mode = "uniaxial_compression"
+max_compressive_log_strain = 0.6
+"""
+
+
+def test_a_user_catalogue_material_is_confirmed_in_3d_by_worker_processes(tmp_path):
+    """``fingertip run --catalogue FILE`` in 3D: a design of the user's material reaches the
+    3D FE in worker processes (its table handed to them: ``run_fe(materials=...)``), each
+    protocol in a process of its own, and comes back with the 3D metrics (the contact patch)."""
+    from explore._confirm import record_path, run_fe
+    from sim.materials import load_user_catalogues, material_tables
+
+    file = tmp_path / "gel.toml"
+    file.write_text(USER_GEL)
+    _, merged = load_user_catalogues([file])
+    point = {"geometry.half_width_mm": 5.0, "geometry.height_mm": 4.5, "geometry.exponent": 2.0,
+             "geometry.half_length_mm": 8.0, "geometry.length_exponent": 2.0,
+             "layers.count": 1, "core.material": "labgel"}  # fmt: skip
+    path = record_path(tmp_path, point, OPTIONS, merged)
+    tables = material_tables({"labgel": merged["labgel"]})
+    record = run_fe([(path, point)], OPTIONS, workers=2, progress=False, materials=tables)[path]
+    assert record["status"] == "ok", record["reason"]
+    assert record["diagnostics"]["valid"] and record["diagnostics"]["tested_material_by_layer"] == [
+        "labgel"
+    ]
+    metrics = record["metrics"]
+    assert set(METRICS_3D) <= set(metrics)
+    assert metrics["contact_area_at_4N_mm2"] > metrics["contact_area_at_1N_mm2"] > 0.0
+    assert metrics["hysteresis_Nmm"] == pytest.approx(0.0, abs=1e-3)  # an elastic gel
+    assert set(record["cost_by_protocol"]) == {"tapping", "plate", "wedge"}
+
+
 def test_a_subspace_without_a_parameter_none_of_its_designs_use_is_completed():
     from explore._search import check_subspace, complete_subspace
     from sim.design import DEFAULT_SPACE_3D_PATH, load_space
