@@ -25,7 +25,7 @@ import numpy as np
 from sim.design import Targets
 
 from ._buildable import fe_screen, predictable_materials, screen_jobs
-from ._config import OptimizeConfig, Setup, credible_at, search_trials
+from ._config import OptimizeConfig, Setup
 from ._confirm import REFERENCES, confirm, reference_point, run_fe
 from ._objective import TAPPING
 from ._retrain import retrain, retrain_epochs
@@ -193,7 +193,8 @@ def _rounds(run: Search, surrogate, helper):
 
 def _searches(config: OptimizeConfig, s: Setup) -> list[tuple[str, Any, int]]:
     """A round's searches: (name, space, trials), the continuous one first."""
-    searches = [("continuous", s.space, search_trials(config.trials, s.model))]
+    # the budget and the rule of credibility setup resolved and config.json records
+    searches = [("continuous", s.space, s.record["trials"])]
     for fam in FAMILY_SEARCHES if config.family_trials else ():
         sub = family_space(s.space, fam)
         if sub is not None:
@@ -211,12 +212,12 @@ def _search_round(
     the surrogate of ``surrogate_file``."""
     config = run.config
     settings = SearchSettings(
-        trials=search_trials(config.trials, run.setup.model),
+        trials=run.setup.record["trials"],
         mode=config.mode,
         seed=config.seed + r,
         max_disagreement=config.max_disagreement,
         allow_untrusted=config.allow_untrusted,
-        trust_bound=credible_at(config.credible_at, run.setup.model) == "bound",
+        trust_bound=run.setup.record["credible_at"] == "bound",
         options=run.setup.options,
         screen=config.screen,
     )
