@@ -364,7 +364,8 @@ def _figures(res: ProtocolResult, body: Body) -> dict[str, Any]:
         "wall_time_s": res.wall_time_s,
         "n_dofs": body.disc.n_free,  # the wedge's own mesh may differ (mesh3d.edge_h_mm)
         "linear_solver": body.solver_name,  # the last one (after a fallback)
-        "precision_fallbacks": body.precision_fallbacks,
+        "precision_fallbacks": body.precision_fallbacks,  # failed steps retried in double
+        "fresh_retries": body.fresh_retries,  # ... in the same precision, afresh
         # the factorisations kept per tapping step (3D): steps that began with one, and how
         # many the body kept
         **(

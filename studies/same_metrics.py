@@ -41,9 +41,10 @@ from sim.options import options_from_dict
 from sim.sweep import open_table, read_config, sample_points, table_path
 from sim.sweep.run import load_space_config, with_todays_defaults
 
-#: summed over every design and protocol; ``precision_fallbacks``: steps tried again in double
-#: precision (``sim.fe.Body.advance``), 0 in runs made before it was counted
-COUNTS = ("factorizations", "evaluations", "precision_fallbacks")
+#: summed over every design and protocol; ``precision_fallbacks`` and ``fresh_retries``: failed
+#: steps tried again in double precision and in the same precision from a fresh factorisation
+#: (``sim.fe.Body.advance``), 0 in runs made before they were counted
+COUNTS = ("factorizations", "evaluations", "precision_fallbacks", "fresh_retries")
 
 
 def sweep_options(folder: Path) -> SimOptions:

@@ -260,6 +260,64 @@ def test_a_step_that_fails_in_both_precisions_is_cut_in_double(pressed, monkeypa
     assert body.linear_solver is None  # the next step is single precision's
 
 
+def test_a_failed_step_with_good_single_precision_is_retried_afresh_in_single(pressed, monkeypatch):
+    """``Body.advance``: a step that Newton abandons (here: declared stalled after its first
+    iteration) while its single-precision factorisation solves the tangent to float32's
+    accuracy is tried again in single precision from a fresh factorisation, and reaches
+    double precision's state; an attempt that began with a fresh factorisation is not
+    repeated (the retry would be the same bits); a factorisation that solves its tangent
+    worse than ``INEXACT_SOLVE_RTOL`` sends the retry to double precision."""
+    pytest.importorskip("pypardiso")
+    import sim.fe.solver as solver_module
+    from sim.fe._linear import PardisoSingle
+    from sim.fe.solver import model_newton
+
+    options = model_newton(NewtonOptions(), 3)  # factorisations kept, as in 3D
+    top = pressed.top_height()
+    reference = Body(pressed.disc, Plate(), options)
+    body = Body(pressed.disc, Plate(), options)
+    body.single_precision = True
+    for b in (reference, body):
+        assert b.advance(0.1, Control.position(top - 0.1)).converged
+    assert 1e-10 < body.last_factor_residual() < 1e-4  # single precision, and good
+    assert reference.last_factor_residual() != reference.last_factor_residual()  # nan: exact
+    stalls = {"left": 1}
+    stalled = solver_module._stalled
+
+    def stall_once(norms, opts):  # the first attempt is abandoned after one iteration
+        if len(norms) == 2 and stalls["left"]:
+            stalls["left"] -= 1
+            return True
+        return stalled(norms, opts)
+
+    monkeypatch.setattr(solver_module, "_stalled", stall_once)
+    assert body.advance(0.2, Control.position(top - 0.2)).converged  # began with the kept one
+    assert (body.fresh_retries, body.precision_fallbacks) == (1, 0)
+    assert body.solver_name == "pardiso-single" and body.linear_solver is None
+    assert reference.advance(0.2, Control.position(top - 0.2)).converged
+    # both within Newton's tolerance of the answer (modified Newton stops just inside it,
+    # as in test_modified_newton_saves_factorisations_for_the_same_answer)
+    scale = np.abs(reference.u).max()
+    print(
+        f"retried: |du| {np.abs(body.u - reference.u).max() / scale:.1e} of the largest u, "
+        f"force {body.force:.8f} against {reference.force:.8f} N/mm"
+    )
+    np.testing.assert_allclose(body.u, reference.u, rtol=0, atol=1e-4 * scale)
+    np.testing.assert_allclose(body.force, reference.force, rtol=1e-4)
+    # a first step factorises afresh: abandoned, it is left to the protocol to cut
+    first = Body(pressed.disc, Plate(), options)
+    first.single_precision = True
+    stalls["left"] = 1
+    assert not first.advance(0.1, Control.position(top - 0.1)).converged
+    assert (first.fresh_retries, first.precision_fallbacks, first.linear_solver) == (0, 0, None)
+    # the same step with single precision's solves made useless goes to double precision
+    monkeypatch.setattr(PardisoSingle, "solve", lambda self, b: -_double_solve(self, b))
+    assert first.advance(0.1, Control.position(top - 0.1)).converged
+    assert first.last_factor_residual() != first.last_factor_residual()  # double's: none kept
+    assert (first.fresh_retries, first.precision_fallbacks) == (0, 1)
+    assert first.solver_name == "pardiso"
+
+
 def _double_solve(solver, b):
     """The double-precision class's solve on a single-precision solver (its own bytes)."""
     from sim.fe._linear import Pardiso

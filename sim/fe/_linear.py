@@ -11,8 +11,8 @@ with the upper triangle (CSC, the pattern of ``Discretization.upper_matrix``) th
   (``mtype = -2``), through pypardiso (``pip install pypardiso``, which brings MKL): 10-20
   times faster than qdldl on 3D systems of 6 000 dofs and more
   (``python benchmarks/bench_linear_solvers.py``, ``docs/fe_speed.md``).
-* ``pardiso-single``: the same in single precision (``PardisoSingle``), for the 3D tapping
-  and plate (``sim.simulate.SINGLE_PRECISION_PROTOCOLS``); its ``fallback`` is ``pardiso``.
+* ``pardiso-single``: the same in single precision (``PardisoSingle``), for the 3D
+  protocols (``sim.simulate.SINGLE_PRECISION_PROTOCOLS``); its ``fallback`` is ``pardiso``.
 
 ``default_solver(n)`` picks by the system's size. The FE runs every factorisation on one
 thread (the same design gives the same bits whatever the machine's load), so PARDISO is told
@@ -273,13 +273,14 @@ class PardisoSingle(Pardiso):
     Half the factor's bytes: on the pad's tangent (10 622 dofs) a refactorisation took 50.3
     against 84.2 ms, a solve 1.1 against 3.3 ms, the relative residual 7.9e-6 against 2.3e-14
     (quiet: ``python benchmarks/bench_linear_solvers.py --systems pad --solvers pardiso
-    pardiso-single --repeats 5``). A step Newton fails with it is tried again in double
-    precision (``fallback``), and the body goes back to this solver at the next step that
-    converges (``Body.advance``)."""
+    pardiso-single --repeats 5``). A step Newton fails with it is tried again from a fresh
+    factorisation, in double precision (``fallback``) where this one's last factorisation
+    solved its tangent worse than ``sim.fe.solver.INEXACT_SOLVE_RTOL``, and the body goes
+    back to this solver at the next step that converges (``Body.advance``)."""
 
     name = "pardiso-single"
     dtype = np.float32
-    #: the solver a body goes over to where this one's directions fail a step
+    #: the solver a body goes over to where this one's solves are too inexact for Newton
     fallback: ClassVar[str] = "pardiso"
 
 

@@ -294,9 +294,13 @@ class Body:
         #: with ``linear_solver`` None: PARDISO may factorise in single precision
         #: (``sim.fe._linear.default_solver``); set per protocol by ``sim.simulate``
         self.single_precision = False
-        #: steps tried again in double precision after the single precision's directions
-        #: failed them (``advance``)
+        #: steps tried again in double precision after a failed attempt whose single-precision
+        #: factorisation solved its tangent worse than ``INEXACT_SOLVE_RTOL`` (``advance``)
         self.precision_fallbacks = 0
+        #: steps tried again from a fresh factorisation in the same precision (``advance``)
+        self.fresh_retries = 0
+        self._last_factored: tuple[Any, np.ndarray] | None = None  # ``last_factor_residual``
+        self._began_fresh = False  # the last attempt's first iteration factorised afresh
         #: (``linear_solver``,) to go back to after a fallback (``advance``); None: not in one
         self._own_solver: tuple[str | None] | None = None
         self._factored_by: str | None = None  # ``solver_name``
@@ -687,6 +691,8 @@ class Body:
         self._serial = self.factorizations
         self._solver = solver.view(slot)
         self._factored_by = name
+        # an inexact solver's last factorisation and its tangent: ``last_factor_residual``
+        self._last_factored = (self._solver, data) if solver.fallback is not None else None
         self._factored_active, self._factored_blocks = active, blocks
         self._kept_columns.clear()  # the columns of the factorisation replaced or left
         self._kept_columns = _KeptColumns()
@@ -772,28 +778,64 @@ class Body:
         before (``_take_step_factor``), and one it makes is kept in the key's own slot.
 
         A step that Newton fails with an inexact linear solver (single-precision PARDISO) is
-        tried again with that solver's ``fallback`` (double precision). The body keeps the
-        fallback until a step converges with it (the step the protocol cuts after a failed
-        retry, its halves, ...), then goes back to the body's own solver: most such failures
-        are a step too large for any precision (the wedge's first ramp step fails in double
-        too), and one such step made the whole rest of the run double before solver 2.14."""
+        tried once more from a fresh factorisation (``_retry``): with that solver's
+        ``fallback`` (double precision) where its last factorisation solves its own tangent
+        worse than ``INEXACT_SOLVE_RTOL``, else with the same solver, unless the failed
+        attempt already began with a fresh factorisation (the retry would repeat it bit for
+        bit). The body keeps the retry's solver until a step converges with it (the step the
+        protocol cuts after a failed retry, its halves, ...), then goes back to the body's own
+        solver and its kept factorisations: most such failures are a step too large for any
+        start (the wedge's first ramp step fails in double too), and one such step made the
+        whole rest of the run double before solver 2.14. Until solver 2.16 every retry was in
+        double precision; the directions of the failed attempts were as good as Newton needs
+        (docs/fe_speed.md, "What rescues a failed 3D step")."""
         self._key = factor_key
         if factor_key is not None:
             self._take_step_factor()
         result = self._advance(t_new, control, frozen_history, guess)
-        fallback = getattr(self._solver, "fallback", None)
-        if not result.converged and fallback is not None:
-            if self._own_solver is None:
-                self._own_solver = (self.linear_solver,)
-            self.linear_solver = fallback
-            self._forget_factorization()
-            self.precision_fallbacks += 1
+        if not result.converged and self._retry():
             result = self._advance(t_new, control, frozen_history, guess)
         if result.converged and self._own_solver is not None:  # back to the body's own
             (self.linear_solver,) = self._own_solver
             self._own_solver = None
             self._forget_factorization()
         return result
+
+    def _retry(self) -> bool:
+        """After a failed attempt with an inexact solver: set the body up to try the step
+        again from a fresh factorisation (``advance``); False where it would not."""
+        fallback = getattr(self._solver, "fallback", None)
+        if fallback is None:
+            return False
+        inexact = self.last_factor_residual() > INEXACT_SOLVE_RTOL
+        if not inexact and self._began_fresh:
+            return False
+        if self._own_solver is None:
+            self._own_solver = (self.linear_solver,)
+        if inexact:
+            self.linear_solver = fallback
+            self.precision_fallbacks += 1
+        else:  # the same solver (its shared slot), afresh
+            self.linear_solver = self._solver_name()
+            self.fresh_retries += 1
+        self._forget_factorization()
+        return True
+
+    def last_factor_residual(self) -> float:
+        """The relative residual ``|K x - b| / |b|`` of a solve with the last factorisation
+        made by an inexact solver, on its own tangent ``K`` (in double precision) and a fixed
+        random ``b``: in single precision on the 3D pads mostly 1e-4-1e-2 (float32's epsilon
+        times the tangent's conditioning), a few beyond 1 (``INEXACT_SOLVE_RTOL``); nan where
+        the last factorisation was exact (double precision) or before the first."""
+        if self._last_factored is None:
+            return float("nan")
+        solver, data = self._last_factored
+        K = self.disc.pattern_matrix(data)
+        b = np.random.default_rng(0).standard_normal(K.shape[0])
+        with np.errstate(all="ignore"):
+            x = solver.solve(b)
+            out = float(np.linalg.norm(K @ x - b) / np.linalg.norm(b))
+        return out if np.isfinite(out) else float("inf")
 
     @property
     def step_factors_kept(self) -> int:
@@ -868,6 +910,8 @@ class Body:
             if not fresh:
                 solver = self._contact_corrected(parts) if opts.contact_update else self._solver
                 fresh = solver is None
+            if it == 1:
+                self._began_fresh = fresh
             if fresh:
                 tangent = data()
                 if not np.all(np.isfinite(tangent)):  # the material tangent, computed lazily
@@ -1038,6 +1082,18 @@ class Body:
 #: Resident memory the factorisations kept per tapping step may take in one body (MB;
 #: ``Body.step_factors_MB``): two sweep workers then hold 4 GB of them on this 24 GB machine.
 STEP_FACTORS_MB = 2048.0
+
+#: A failed step is retried in double precision only where the single-precision factorisation
+#: it ended with solves its own tangent worse than this (``Body.last_factor_residual``, on a
+#: random right-hand side; ``Body.advance``). Newton with directions of relative residual eta
+#: converges at a rate of about eta (Dembo, Eisenstat & Steihaug 1982, SIAM J. Numer. Anal.
+#: 19:400-408). On the 3D pads whose steps fail most (default-space designs 3's tapping, a
+#: soft compressible foam core, and 4's plate) the single-precision factorisations gave a
+#: median of 1.0e-3 and 3.4e-4 and a 90th percentile of 6.5e-3 and 1.2e-3, but a few up to 17
+#: and 0.33: a factorisation beyond 1e-2 is in the worst tenth, and its step goes to double
+#: precision; the others' steps are retried in single precision from a fresh factorisation,
+#: which rescues as many (docs/fe_speed.md, "What rescues a failed 3D step").
+INEXACT_SOLVE_RTOL = 1e-2
 
 
 @dataclass(frozen=True)
