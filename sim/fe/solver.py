@@ -300,7 +300,7 @@ class Body:
         #: steps tried again from a fresh factorisation in the same precision (``advance``)
         self.fresh_retries = 0
         self._last_factored: tuple[Any, np.ndarray] | None = None  # ``last_factor_residual``
-        self._began_fresh = False  # the last attempt's first iteration factorised afresh
+        self._began_fresh = False  # the last attempt's first direction was a fresh factorisation's
         #: (``linear_solver``,) to go back to after a fallback (``advance``); None: not in one
         self._own_solver: tuple[str | None] | None = None
         self._factored_by: str | None = None  # ``solver_name``
@@ -825,7 +825,7 @@ class Body:
         """The relative residual ``|K x - b| / |b|`` of a solve with the last factorisation
         made by an inexact solver, on its own tangent ``K`` (in double precision) and a fixed
         random ``b``: in single precision on the 3D pads mostly 1e-4-1e-2 (float32's epsilon
-        times the tangent's conditioning), a few beyond 1 (``INEXACT_SOLVE_RTOL``); nan where
+        times the tangent's conditioning), a few up to 0.3 (``INEXACT_SOLVE_RTOL``); nan where
         the last factorisation was exact (double precision) or before the first."""
         if self._last_factored is None:
             return float("nan")
@@ -876,6 +876,7 @@ class Body:
                 d = guess[1]
         else:
             u, d = self._predict(u, d, control)
+        self._began_fresh = False
         ev = self._evaluate(u, control, d, dt, True, frozen_history)
         if ev is None:
             return StepResult(False, 0, "inverted element at start of step")
@@ -910,7 +911,7 @@ class Body:
             if not fresh:
                 solver = self._contact_corrected(parts) if opts.contact_update else self._solver
                 fresh = solver is None
-            if it == 1:
+            if len(norms) == 1:  # the attempt's first direction (after a re-seat, a stale one)
                 self._began_fresh = fresh
             if fresh:
                 tangent = data()
@@ -1089,8 +1090,8 @@ STEP_FACTORS_MB = 2048.0
 #: converges at a rate of about eta (Dembo, Eisenstat & Steihaug 1982, SIAM J. Numer. Anal.
 #: 19:400-408). On the 3D pads whose steps fail most (default-space designs 3's tapping, a
 #: soft compressible foam core, and 4's plate) the single-precision factorisations gave a
-#: median of 1.0e-3 and 3.4e-4 and a 90th percentile of 6.5e-3 and 1.2e-3, but a few up to 17
-#: and 0.33: a factorisation beyond 1e-2 is in the worst tenth, and its step goes to double
+#: median of 9.5e-4 and 3.4e-4 and a 90th percentile of 3.6e-3 and 1.2e-3, but a few up to 0.29
+#: and 0.33: a factorisation beyond 1e-2 is in the worst twentieth, and its step goes to double
 #: precision; the others' steps are retried in single precision from a fresh factorisation,
 #: which rescues as many (docs/fe_speed.md, "What rescues a failed 3D step").
 INEXACT_SOLVE_RTOL = 1e-2
