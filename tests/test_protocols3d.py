@@ -268,3 +268,34 @@ def test_the_3d_tapping_keeps_a_factorisation_per_loading_step(monkeypatch):
         if isinstance(value, float) and name.startswith(("disp", "hyst", "sag", "contact")):
             tol = scale.get(name, 1e-9)
             assert kept.metrics[name] == pytest.approx(value, rel=1e-3, abs=tol), name
+
+
+def test_the_wedge_ramp_moves_its_edge_half_a_band_element_a_sub_step(monkeypatch):
+    """The 3D wedge's ramp goes in sub-steps in which its edge travels at most
+    ``WEDGE_BAND_TRAVEL`` (half) of the band's element size, from the first one on. An elastic
+    pad under a frictionless wedge does not depend on the path to its state: the force at the
+    end of the ramp is the one of the schedule's single step (``WEDGE_BAND_TRAVEL = 0``, as
+    until solver 2.17) within Newton's tolerance."""
+    from sim.protocols import loading
+
+    design = design_from_dict({"layers": [{"material": ELASTIC}]})
+    wedge = dataclasses.replace(OPTS_3D.wedge, depth_mm=0.3, ramp_steps=1, hold_s=1.0)
+    band = dataclasses.replace(
+        OPTS_3D, mesh3d=dataclasses.replace(COARSE, edge_h_mm=0.1), wedge=wedge
+    )
+    assert loading.WEDGE_BAND_TRAVEL == 0.5
+    res = simulate(design, ("wedge",), band)
+    assert res.ok, res.failures
+    t = np.asarray(res.curves["wedge"]["time_s"])
+    ramp = t[(t > 0.0) & (t <= wedge.ramp_s + 1e-9)]
+    # 0.05 mm of the 0.3 mm ramp a sub-step: six of 1/6 s
+    np.testing.assert_allclose(ramp, np.arange(1, 7) / 6.0, atol=1e-9)
+    monkeypatch.setattr(loading, "WEDGE_BAND_TRAVEL", 0.0)
+    schedule = simulate(design, ("wedge",), band)
+    t_schedule = np.asarray(schedule.curves["wedge"]["time_s"])
+    assert t_schedule[(t_schedule > 0.0) & (t_schedule <= wedge.ramp_s + 1e-9)][0] > 0.2
+    peak = res.metrics["wedge_peak_force_N"]
+    assert peak > 0.0
+    # Newton stops at a residual of 1e-6 E0 a (NewtonOptions.rtol), a few 1e-5 of this
+    # 0.04 N force (3e-5 apart here)
+    assert schedule.metrics["wedge_peak_force_N"] == pytest.approx(peak, rel=2e-4)

@@ -106,8 +106,19 @@ def test_a_halved_step_grows_back_after_easy_steps():
     assert sizes == [0.1, 0.05, 0.05, 0.1, 0.05]
 
 
+def test_largest_bounds_every_sub_step_from_the_first():
+    # a quarter of the schedule's 0.1 from the start, where 0.1 itself would converge
+    body = _run(StepGrowth(4, 2, shrink_above=8, largest=0.25), largest=0.1)
+    assert {round(b - a, 6) for a, b, _ in body.log} == {0.025}
+    assert len(body.log) == 40 and all(ok for *_, ok in body.log)
+    # after a cut the step grows back to the bound, not to the schedule's spacing
+    cut = _run(StepGrowth(4, 2, largest=0.5), largest=0.025)
+    sizes = [round(b - a, 6) for a, b, _ in cut.log]
+    assert sizes[:5] == [0.05, 0.025, 0.025, 0.05, 0.025] and max(sizes) == 0.05
+
+
 def test_the_2d_wedge_keeps_the_rule_its_records_were_made_with():
-    assert WEDGE_STEP_GROWTH[2] == StepGrowth(within_iterations=5, easy_steps=1)
+    assert WEDGE_STEP_GROWTH[2] == StepGrowth(within_iterations=5, easy_steps=1, largest=1.0)
     assert WEDGE_STEP_GROWTH[3] != WEDGE_STEP_GROWTH[2]
 
 

@@ -259,6 +259,8 @@ class PadMesh:
         thicknesses_mm: the thicknesses of all layers but the last.
         half: the half pad x >= 0 (symmetric about x = 0 only), not the quarter.
         inclination_deg: the plate inclination the mesh is graded for (``first_touch_mm``).
+        edge_h_mm: the element size of the band along the wedge's edge (``MeshOptions3D``;
+            0: no band).
     """
 
     nodes: np.ndarray
@@ -273,6 +275,7 @@ class PadMesh:
     thicknesses_mm: tuple[float, ...] = ()
     half: bool = False
     inclination_deg: float = 0.0
+    edge_h_mm: float = 0.0
 
     @property
     def mirrors(self) -> int:
@@ -393,6 +396,7 @@ def _build_quarter(
         geometry=geometry,
         thicknesses_mm=thicknesses_mm,
         inclination_deg=float(inclination_deg),
+        edge_h_mm=float(options.edge_h_mm),
     )
     return _read_only(out)
 
@@ -461,6 +465,7 @@ def half_pad_mesh(quarter: PadMesh, heel: PadMesh | None = None) -> PadMesh:
         thicknesses_mm=quarter.thicknesses_mm,
         half=True,
         inclination_deg=quarter.inclination_deg,
+        edge_h_mm=quarter.edge_h_mm,
     )
     return _read_only(out)
 
