@@ -1,6 +1,8 @@
 """Runs of one protocol on default-space 3D designs in two variants at once, in two processes,
 so that both share whatever else the machine is doing (``wedge_precision.py``,
-``tap_factors.py``)."""
+``tap_factors.py``, ``wedge_steps.py``, ``retry_precision.py``), with the counts these studies
+print: the step attempts that failed (``count_failed``) and each variant's totals
+(``Totals``)."""
 
 from __future__ import annotations
 
@@ -62,3 +64,39 @@ def largest_change(new: dict, old: dict) -> float:
         ),
         default=float("nan"),
     )
+
+
+def count_failed(method: str = "advance") -> dict[str, int]:
+    """Count, in this process from now on, the calls of ``Body.<method>`` that did not converge
+    and the factorisations they made: ``advance``, a step after any retry of it; ``_advance``,
+    every attempt. Returns the live counts ``{"attempts": ..., "factorizations": ...}``."""
+    body_class = importlib.import_module("sim.fe.solver").Body
+    failed = {"attempts": 0, "factorizations": 0}
+    original = getattr(body_class, method)
+
+    def counted(self, *args, **kwargs):
+        before = self.factorizations
+        res = original(self, *args, **kwargs)
+        if not res.converged:
+            failed["attempts"] += 1
+            failed["factorizations"] += self.factorizations - before
+        return res
+
+    setattr(body_class, method, counted)
+    return failed
+
+
+class Totals:
+    """Seconds and factorisations of each variant, summed over a study's runs."""
+
+    def __init__(self, variants: tuple[str, ...]) -> None:
+        self.sums = {v: {"seconds": 0.0, "factorizations": 0} for v in variants}
+
+    def add(self, variant: str, run: dict) -> None:
+        """Add a run of ``simulate_design`` (its ``seconds`` and figures)."""
+        self.sums[variant]["seconds"] += run["seconds"]
+        self.sums[variant]["factorizations"] += run["figures"].get("factorizations") or 0
+
+    def print(self) -> None:
+        for variant, t in self.sums.items():
+            print(f"{variant}: {t['factorizations']} factorisations, {t['seconds']:.1f} s in all")

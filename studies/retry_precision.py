@@ -27,7 +27,7 @@ import functools
 import importlib
 
 import numpy as np
-from paired import in_pairs, largest_change, simulate_design
+from paired import Totals, count_failed, in_pairs, largest_change, simulate_design
 
 VARIANTS = ("now", "double", "refined")
 
@@ -92,15 +92,7 @@ def run_protocol(design_index: int, variant: str, protocol: str, residuals: bool
     if variant == "refined":
         _refine_single_precision_solves()
     body_class = importlib.import_module("sim.fe.solver").Body
-    failed = {"attempts": 0}
-    advance = body_class._advance
-
-    def counted(self, *args, **kwargs):
-        res = advance(self, *args, **kwargs)
-        failed["attempts"] += not res.converged
-        return res
-
-    body_class._advance = counted
+    failed = count_failed("_advance")
     solved: list[float] = []
     if residuals:
         factor = body_class._factor
@@ -124,14 +116,13 @@ def main() -> None:
     ap.add_argument("--residuals", action="store_true")
     args = ap.parse_args()
     variants = ("now", args.against)
-    totals = {v: {"seconds": 0.0, "factorizations": 0} for v in variants}
+    totals = Totals(variants)
     for protocol in args.protocols:
         run = functools.partial(run_protocol, protocol=protocol, residuals=args.residuals)
         for d, runs in in_pairs(run, args.designs, variants):
             for variant, res in runs.items():
                 fig = res["figures"]
-                totals[variant]["seconds"] += res["seconds"]
-                totals[variant]["factorizations"] += fig.get("factorizations") or 0
+                totals.add(variant, res)
                 print(
                     f"design {d} {protocol}, {variant}: ok {res['ok']}, retries in double "
                     f"{fig.get('precision_fallbacks')}, in single {fig.get('fresh_retries')}, "
@@ -151,8 +142,7 @@ def main() -> None:
                     )
             change = largest_change(runs["now"]["metrics"], runs[variants[1]]["metrics"])
             print(f"design {d} {protocol}: largest relative change of a metric {change:.1e}")
-    for variant, t in totals.items():
-        print(f"{variant}: {t['factorizations']} factorisations, {t['seconds']:.1f} s in all")
+    totals.print()
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ import argparse
 import dataclasses
 import importlib
 
-from paired import in_pairs, largest_change, simulate_design
+from paired import Totals, count_failed, in_pairs, largest_change, simulate_design
 
 VARIANTS = ("halve", "without")
 
@@ -29,25 +29,13 @@ def run_wedge(design_index: int, variant: str) -> dict:
     (``"travel F"``); its figures, metrics and seconds, and its failed step attempts with
     their factorisations."""
     loading = importlib.import_module("sim.protocols.loading")
-    body_class = importlib.import_module("sim.fe.solver").Body
     if variant.startswith("travel "):
         loading.WEDGE_BAND_TRAVEL = float(variant.split()[1])
     elif variant != "halve":
         rule = loading.WEDGE_STEP_GROWTH[3]
         shrink_above = None if variant == "without" else int(variant)
         loading.WEDGE_STEP_GROWTH[3] = dataclasses.replace(rule, shrink_above=shrink_above)
-    failed = {"attempts": 0, "factorizations": 0}
-    advance = body_class.advance
-
-    def counted(self, *args, **kwargs):
-        before = self.factorizations
-        res = advance(self, *args, **kwargs)
-        if not res.converged:
-            failed["attempts"] += 1
-            failed["factorizations"] += self.factorizations - before
-        return res
-
-    body_class.advance = counted
+    failed = count_failed("advance")
     return {**simulate_design(design_index, "wedge"), "failed": failed}
 
 
@@ -63,12 +51,11 @@ def main() -> None:
         variants = ("halve", str(args.against))
     elif args.travel is not None:
         variants = ("halve", f"travel {args.travel:g}")
-    totals = {v: {"seconds": 0.0, "factorizations": 0} for v in variants}
+    totals = Totals(variants)
     for d, runs in in_pairs(run_wedge, args.designs, variants):
         for variant, run in runs.items():
             fig, failed = run["figures"], run["failed"]
-            totals[variant]["seconds"] += run["seconds"]
-            totals[variant]["factorizations"] += fig.get("factorizations") or 0
+            totals.add(variant, run)
             print(
                 f"design {d}, {variant}: ok {run['ok']}, failed attempts {failed['attempts']} "
                 f"({failed['factorizations']} factorisations), factorisations "
@@ -78,8 +65,7 @@ def main() -> None:
             )
         change = largest_change(runs["halve"]["metrics"], runs[variants[1]]["metrics"])
         print(f"design {d}: largest relative change of a wedge metric {change:.1e}", flush=True)
-    for variant, t in totals.items():
-        print(f"{variant}: {t['factorizations']} factorisations, {t['seconds']:.1f} s in all")
+    totals.print()
 
 
 if __name__ == "__main__":
