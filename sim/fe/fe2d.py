@@ -115,6 +115,9 @@ class Discretization(KernelAssembly, PatternAccess):
         return Basis(MeshTri(self.mesh.p, self.mesh.t), ElementTriP2(), intorder=intorder)
 
     # ------------------------------------------------------------------ helpers
+    #: the element size of a band along the wedge's edge (mm): the 2D mesh has none
+    band_h_mm = 0.0
+
     def force_scale(self, length_mm: float) -> float:
         """The whole fingertip's force (N) per unit of the model's indenter force: the half
         section's force per unit thickness (N/mm) times 2 (both halves) times the out-of-plane

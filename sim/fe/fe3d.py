@@ -97,6 +97,12 @@ class Discretization3D(KernelAssembly, PatternAccess):
         self.upper_indices, self.upper_indptr = pat.upper_indices, pat.upper_indptr
 
     # ------------------------------------------------------------------ helpers
+    @property
+    def band_h_mm(self) -> float:
+        """The element size of the band along the wedge's edge (mm; 0: no band), the wedge's
+        mesh's (``MeshOptions3D.edge_h_mm``)."""
+        return self.pmesh.edge_h_mm
+
     def force_scale(self, length_mm: float) -> float:
         """The whole pad's force (N) per unit of the model's indenter force (N, on the quarter
         x >= 0, z >= 0): 4; on the half x >= 0: 2 (``PadMesh.mirrors``); ``length_mm``, the

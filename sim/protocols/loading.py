@@ -884,7 +884,7 @@ def run_wedge(body: Body, opts: WedgeOptions = WedgeOptions()) -> ProtocolResult
 
     growth = WEDGE_STEP_GROWTH[body.disc.dim]
     travel = opts.depth_mm / opts.ramp_steps  # the edge's travel in a step of the ramp
-    band = WEDGE_BAND_TRAVEL * getattr(getattr(body.disc, "pmesh", None), "edge_h_mm", 0.0)
+    band = WEDGE_BAND_TRAVEL * body.disc.band_h_mm  # 0 without a band (2D: none)
     ramp_growth = replace(growth, largest=min(1.0, band / travel)) if band > 0.0 else growth
     steps = _march(body, ramp, position, "wedge", record, growth=ramp_growth)
     steps += _march(body, hold, position, "wedge", record, growth=growth)
