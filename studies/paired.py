@@ -1,8 +1,8 @@
 """Runs of one protocol on default-space 3D designs in two variants at once, in two processes,
 so that both share whatever else the machine is doing (``wedge_precision.py``,
 ``tap_factors.py``, ``wedge_steps.py``, ``retry_precision.py``), with the counts these studies
-print: the step attempts that failed (``count_failed``) and each variant's totals
-(``Totals``)."""
+print: the step attempts that failed (``count_failed``), each pair's lines
+(``print_pair``) and each variant's totals (``Totals``)."""
 
 from __future__ import annotations
 
@@ -16,11 +16,19 @@ from pathlib import Path
 
 from same_metrics import sweep_options
 
-from sim.design import point_to_design
+from sim.design import Design, point_to_design
 from sim.sweep import read_config, sample_points
 from sim.sweep.run import load_space_config
 
 FOLDER = Path(__file__).resolve().parents[1] / "datasets" / "default3d" / "seg_0-31"
+
+
+def default3d_design(design_index: int) -> Design:
+    """Design ``design_index`` of the default 3D space's sample (its dataset's space, seed and
+    sampler)."""
+    config, space = read_config(FOLDER), load_space_config(FOLDER)
+    points = sample_points(space, design_index + 1, config["seed"], config["sampler"])
+    return point_to_design(points[design_index])
 
 
 def simulate_design(design_index: int, protocol: str) -> dict:
@@ -28,12 +36,9 @@ def simulate_design(design_index: int, protocol: str) -> dict:
     through ``protocol`` with ``sim`` as it is now: its figures, metrics, seconds and the
     process's peak resident memory."""
     simulate_module = importlib.import_module("sim.simulate")
-    config, space = read_config(FOLDER), load_space_config(FOLDER)
-    points = sample_points(space, design_index + 1, config["seed"], config["sampler"])
+    design = default3d_design(design_index)
     t0 = time.perf_counter()
-    res = simulate_module.simulate(
-        point_to_design(points[design_index]), (protocol,), sweep_options(FOLDER)
-    )
+    res = simulate_module.simulate(design, (protocol,), sweep_options(FOLDER))
     return {
         "ok": res.ok,
         "figures": res.protocols.get(protocol, {}),
@@ -100,3 +105,21 @@ class Totals:
     def print(self) -> None:
         for variant, t in self.sums.items():
             print(f"{variant}: {t['factorizations']} factorisations, {t['seconds']:.1f} s in all")
+
+
+def print_pair(
+    label: str,
+    runs: dict[str, dict],
+    describe: Callable[[dict], str],
+    totals: Totals,
+    what: str = "metric",
+) -> None:
+    """Print ``label, variant: describe(run)`` for each run of a pair (``in_pairs``), add them
+    to ``totals``, then the largest relative change of a ``what`` from the second variant's
+    metrics to the first's."""
+    first, second = runs
+    for variant, run in runs.items():
+        totals.add(variant, run)
+        print(f"{label}, {variant}: {describe(run)}", flush=True)
+    change = largest_change(runs[first]["metrics"], runs[second]["metrics"])
+    print(f"{label}: largest relative change of a {what} {change:.1e}", flush=True)

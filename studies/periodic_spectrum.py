@@ -41,22 +41,12 @@ import importlib
 
 import numpy as np
 import scipy.linalg as sla
-from paired import FOLDER
+from paired import default3d_design
 
-from sim.design import point_to_design
 from sim.fe import Body, model_newton
 from sim.options import SimOptions
 from sim.protocols import periodic
 from sim.protocols.loading import REGISTRY, _Taps
-from sim.sweep import read_config, sample_points
-from sim.sweep.run import load_space_config
-
-
-def design_2d(index: int):
-    """Design ``index`` of the default 3D space's sample (its 2D section is simulated)."""
-    config, space = read_config(FOLDER), load_space_config(FOLDER)
-    points = sample_points(space, index + 1, config["seed"], config["sampler"])
-    return point_to_design(points[index])
 
 
 def tapping_body(design, options: SimOptions) -> tuple[Body, _Taps]:
@@ -84,7 +74,7 @@ class TightSet(periodic.PeriodicState):
 
 def spectrum(args: argparse.Namespace) -> None:
     TightSet.tight = args.tight
-    design = design_2d(args.design[0])
+    design = default3d_design(args.design[0])
     options = SimOptions()
     body, taps = tapping_body(design, options)
     state = TightSet(body, taps.t_load + options.tapping.rest_s)
@@ -179,7 +169,7 @@ def stress_jump(state: periodic.PeriodicState, period_s: float):
 
 def variant_run(index: int, variant: str) -> dict:
     """A whole tapping of design ``index``'s 2D section with the scheme's ``variant``."""
-    design = design_2d(index)
+    design = default3d_design(index)
     options = SimOptions()
     cls = periodic.PeriodicState
     original_init, original_after = cls.__init__, cls.after_tap

@@ -27,7 +27,7 @@ import functools
 import importlib
 
 import numpy as np
-from paired import Totals, count_failed, in_pairs, largest_change, simulate_design
+from paired import Totals, count_failed, in_pairs, print_pair, simulate_design
 
 VARIANTS = ("now", "double", "refined")
 
@@ -108,6 +108,25 @@ def run_protocol(design_index: int, variant: str, protocol: str, residuals: bool
     return {**res, "failed": failed["attempts"], "residuals": solved}
 
 
+def _describe(res: dict) -> str:
+    """A run's line, and its factorisations' residuals (``--residuals``) on a line below."""
+    fig = res["figures"]
+    out = (
+        f"ok {res['ok']}, retries in double {fig.get('precision_fallbacks')}, in single "
+        f"{fig.get('fresh_retries')}, failed attempts {res['failed']}, factorisations "
+        f"{fig.get('factorizations')}, Newton iterations {fig.get('newton_iterations')}, "
+        f"{res['seconds']:.1f} s"
+    )
+    if res["residuals"]:
+        r = np.array(res["residuals"])
+        out += (
+            f"\n  single-precision factorisations: {len(r)}, relative residual median "
+            f"{np.median(r):.1e}, 90th percentile {np.percentile(r, 90):.1e}, largest "
+            f"{r.max():.1e}, beyond 1e-2 {int(np.sum(r > 1e-2))}"
+        )
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--designs", type=int, nargs="+", default=[0, 1, 2, 3, 4, 5])
@@ -120,28 +139,7 @@ def main() -> None:
     for protocol in args.protocols:
         run = functools.partial(run_protocol, protocol=protocol, residuals=args.residuals)
         for d, runs in in_pairs(run, args.designs, variants):
-            for variant, res in runs.items():
-                fig = res["figures"]
-                totals.add(variant, res)
-                print(
-                    f"design {d} {protocol}, {variant}: ok {res['ok']}, retries in double "
-                    f"{fig.get('precision_fallbacks')}, in single {fig.get('fresh_retries')}, "
-                    f"failed attempts {res['failed']}, "
-                    f"factorisations {fig.get('factorizations')}, Newton iterations "
-                    f"{fig.get('newton_iterations')}, {res['seconds']:.1f} s",
-                    flush=True,
-                )
-                if res["residuals"]:
-                    r = np.array(res["residuals"])
-                    print(
-                        f"  single-precision factorisations: {len(r)}, relative residual "
-                        f"median {np.median(r):.1e}, 90th percentile "
-                        f"{np.percentile(r, 90):.1e}, largest {r.max():.1e}, beyond 1e-2 "
-                        f"{int(np.sum(r > 1e-2))}",
-                        flush=True,
-                    )
-            change = largest_change(runs["now"]["metrics"], runs[variants[1]]["metrics"])
-            print(f"design {d} {protocol}: largest relative change of a metric {change:.1e}")
+            print_pair(f"design {d} {protocol}", runs, _describe, totals)
     totals.print()
 
 

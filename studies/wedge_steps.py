@@ -18,7 +18,7 @@ import argparse
 import dataclasses
 import importlib
 
-from paired import Totals, count_failed, in_pairs, largest_change, simulate_design
+from paired import Totals, count_failed, in_pairs, print_pair, simulate_design
 
 VARIANTS = ("halve", "without")
 
@@ -39,6 +39,16 @@ def run_wedge(design_index: int, variant: str) -> dict:
     return {**simulate_design(design_index, "wedge"), "failed": failed}
 
 
+def _describe(run: dict) -> str:
+    fig, failed = run["figures"], run["failed"]
+    return (
+        f"ok {run['ok']}, failed attempts {failed['attempts']} "
+        f"({failed['factorizations']} factorisations), factorisations "
+        f"{fig.get('factorizations')}, Newton iterations {fig.get('newton_iterations')}, "
+        f"steps {fig.get('steps')}, {run['seconds']:.1f} s"
+    )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--designs", type=int, nargs="+", default=[0, 1, 2, 3, 4, 5])
@@ -53,18 +63,7 @@ def main() -> None:
         variants = ("halve", f"travel {args.travel:g}")
     totals = Totals(variants)
     for d, runs in in_pairs(run_wedge, args.designs, variants):
-        for variant, run in runs.items():
-            fig, failed = run["figures"], run["failed"]
-            totals.add(variant, run)
-            print(
-                f"design {d}, {variant}: ok {run['ok']}, failed attempts {failed['attempts']} "
-                f"({failed['factorizations']} factorisations), factorisations "
-                f"{fig.get('factorizations')}, Newton iterations {fig.get('newton_iterations')}, "
-                f"steps {fig.get('steps')}, {run['seconds']:.1f} s",
-                flush=True,
-            )
-        change = largest_change(runs["halve"]["metrics"], runs[variants[1]]["metrics"])
-        print(f"design {d}: largest relative change of a wedge metric {change:.1e}", flush=True)
+        print_pair(f"design {d}", runs, _describe, totals, "wedge metric")
     totals.print()
 
 

@@ -188,7 +188,7 @@ WEDGE_STEP_GROWTH = {
 #: (``MeshOptions3D.edge_h_mm``; the Q2 nodes' spacing is half of it) in one sub-step, from the
 #: ramp's first (since solver 2.18; 0: the schedule's steps, as until 2.17). With the
 #: schedule's 0.1 mm steps the edge's first bite into the band (0.05 mm elements) took up to
-#: 17 Newton iterations and 11 factorisations, and the halving rules above then took the
+#: 16 Newton iterations and 11 factorisations, and the halving rules above then took the
 #: sub-step down to 0.025 mm, where the ramp went on. Starting there, on six default-space
 #: designs: 334 factorisations of the wedge against 382 and 12 % less time, the metrics within
 #: 2.1e-4; on four of them a whole element a sub-step made 317 and a quarter 369 against half's
