@@ -662,6 +662,39 @@ def test_pardiso_keeps_one_factorisation_per_slot(pressed):
     assert make_solver("qdldl", slots=3).view(2).slots == 1  # qdldl keeps one
 
 
+@pytest.mark.parametrize("name", ["qdldl", "pardiso", "pardiso-single"])
+def test_refactor_gathers_the_upper_triangle_from_the_tangent(pressed, name):
+    """``refactor(data, index)`` (the body's call: the tangent's data and the upper triangle's
+    positions in it, gathered once into the solver's order) factorises the same matrix as
+    ``refactor(data[index])``: the same solution bits, in every slot, also after ``factor``
+    analysed another pattern."""
+    if name != "qdldl":
+        pytest.importorskip("pypardiso")
+    from sim.fe._linear import make_solver
+
+    disc = pressed.disc
+    data = disc.evaluate(pressed.u, pressed.states, 0.0, frozen_history=True).tangent()
+    index = disc.upper_data
+    b = np.random.default_rng(1).standard_normal(disc.n_free)
+    stiffer = data * 1.25
+    solvers = [make_solver(name, slots=2) for _ in range(2)]
+    for solver in solvers:
+        solver.factor(disc.upper_matrix(data))
+    for slot in (1, 2) if name != "qdldl" else (1,):
+        for solver in solvers:
+            solver.slot = slot
+        solvers[0].refactor(stiffer, index)
+        solvers[1].refactor(np.take(stiffer, index))
+        np.testing.assert_array_equal(solvers[0].solve(b), solvers[1].solve(b))
+    small = disc.upper_matrix(data)[:60, :60]  # another pattern: the composed order follows it
+    for solver in solvers:
+        solver.slot = 1
+        solver.factor(small)
+    solvers[0].refactor(small.data * 2.0, np.arange(small.nnz))
+    solvers[1].refactor(small.data * 2.0)
+    np.testing.assert_array_equal(solvers[0].solve(b[:60]), solvers[1].solve(b[:60]))
+
+
 def _step_keyed_body(step_factors_MB: float = 1e6) -> Body:
     """A viscoelastic pad under modified Newton that keeps a factorisation per step key."""
     pmesh = build_pad_mesh(PAD, (), COARSE)

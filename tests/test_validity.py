@@ -39,6 +39,7 @@ from sim.protocols.validity import (
     PAPER_LOG_STRAIN,
     DeformationTracker,
     LayerLimit,
+    _smallest_stretch_sq,
     assess,
     check,
     compressive_log_strain,
@@ -91,6 +92,23 @@ def test_log_strain_and_J_of_a_rotated_stretch() -> None:
     np.testing.assert_allclose(volume_ratio(F), 0.84, rtol=1e-13)
     stretched = np.broadcast_to(np.diag([1.3, 1.1])[:, :, None], (2, 2, 5))
     np.testing.assert_array_equal(compressive_log_strain(stretched), 0.0)  # F33 = 1 is the least
+
+
+def test_smallest_stretch_in_3d_against_lapack() -> None:
+    """3D (the tracker's compiled Jacobi): the smallest eigenvalue of C = F^T F equals LAPACK's
+    ``eigvalsh`` to rounding on random deformation gradients (both backward stable: within a
+    few eps |C|), and is 0.7^2 for a stretch diag(0.7, 1.2, 1.05) under any rotation."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(3)
+    F = np.eye(3)[:, :, None, None] + 0.3 * rng.standard_normal((3, 3, 40, 27))
+    got = _smallest_stretch_sq(F, volume_ratio(F))
+    C = np.einsum("kI...,kJ...->...IJ", F, F)
+    rounding = 8 * np.finfo(float).eps * np.linalg.norm(C, axis=(-2, -1))
+    assert np.all(np.abs(got - np.linalg.eigvalsh(C)[..., 0]) <= rounding)
+    R = Rotation.random(12, random_state=4).as_matrix()  # (12, 3, 3)
+    F = np.moveaxis(R @ np.diag([0.7, 1.2, 1.05]), 0, -1)[:, :, None, :]  # (3, 3, 1, 12)
+    np.testing.assert_allclose(_smallest_stretch_sq(F, volume_ratio(F)), 0.49, rtol=1e-13)
 
 
 def test_uniaxial_patch_against_closed_form() -> None:

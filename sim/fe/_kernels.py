@@ -62,13 +62,17 @@ def deformation_gradient(u: np.ndarray, conn: np.ndarray, dN: np.ndarray) -> np.
 def _deformation_gradient(u: np.ndarray, conn: np.ndarray, dN: np.ndarray, d: int) -> np.ndarray:
     E, Q, A, _ = dN.shape
     F = np.empty((d, d, E, Q))
+    ue = np.empty((A, d))  # the element's nodal displacements, gathered once for its points
     for e in range(E):
+        for a in range(A):
+            for i in range(d):
+                ue[a, i] = u[conn[e, a], i]
         for q in range(Q):
             for i in range(d):
                 for J in range(d):
                     s = 0.0
                     for a in range(A):
-                        s += u[conn[e, a], i] * dN[e, q, a, J]
+                        s += ue[a, i] * dN[e, q, a, J]
                     F[i, J, e, q] = s + 1.0 if i == J else s
     return F
 

@@ -3,7 +3,8 @@
 The tangent's sparsity pattern never changes during a simulation, so each solver does its
 symbolic analysis (ordering) once and then only numeric factorisations: ``factor(upper)``
 with the upper triangle (CSC, the pattern of ``Discretization.upper_matrix``) the first time,
-``refactor(values)`` with new values of the same entries after that, ``solve(b)``.
+``refactor(values)`` with new values of the same entries after that (or ``refactor(data,
+index)``: the values ``data[index]``, gathered once into the solver's own order), ``solve(b)``.
 
 * ``qdldl``: LDL^T with AMD ordering (OSQP's QDLDL, a dependency): the fastest on the 2D
   systems (a few thousand dofs), where supernodes do not pay.
@@ -86,7 +87,11 @@ class LinearSolver:
     def factor(self, upper: Any) -> None:
         raise NotImplementedError
 
-    def refactor(self, values: np.ndarray) -> None:
+    def refactor(self, values: np.ndarray, index: np.ndarray | None = None) -> None:
+        """Factorise new values of the entries of ``factor``'s upper triangle (its CSC order):
+        ``values``, or ``values[index]`` (``index``: the triangle's positions in the tangent's
+        data, ``Pattern.upper_data``; one gather, where ``np.take(values, index)`` and then
+        the solver's own reordering would copy the values twice)."""
         raise NotImplementedError
 
     def solve(self, b: np.ndarray) -> np.ndarray:
@@ -134,11 +139,14 @@ class Qdldl(LinearSolver):
     def factor(self, upper: Any) -> None:
         import qdldl  # here: `import sim` stays light
 
-        self._upper = upper
-        self._solver = qdldl.Solver(upper, upper=True)
+        self._upper = upper.copy()  # ``refactor`` writes its values: not the caller's matrix
+        self._solver = qdldl.Solver(self._upper, upper=True)
 
-    def refactor(self, values: np.ndarray) -> None:
-        np.copyto(self._upper.data, values)
+    def refactor(self, values: np.ndarray, index: np.ndarray | None = None) -> None:
+        if index is None:
+            np.copyto(self._upper.data, values)
+        else:
+            np.take(values, index, out=self._upper.data)
         self._solver.update(self._upper, upper=True)
 
     def solve(self, b: np.ndarray) -> np.ndarray:
@@ -175,6 +183,8 @@ class Pardiso(LinearSolver):
         self.slots = slots
         self.slot = 1
         self._values: dict[int, np.ndarray] = {}  # per slot, the CSR values in ``dtype``
+        self._composed_from: np.ndarray | None = None  # the ``index`` of ``_composed_order``
+        self._composed_order = np.zeros(0, dtype=np.int64)
 
     def factor(self, upper: Any) -> None:
         # the upper triangle as CSR is what PARDISO reads for a symmetric matrix: the CSC upper
@@ -182,6 +192,7 @@ class Pardiso(LinearSolver):
         csr = upper.tocsr()
         csr.sort_indices()
         self._order = _csr_order(upper)  # CSC values -> CSR values
+        self._composed_from = None
         self._csr = csr
         self._values = {self.slot: csr.data.astype(self.dtype)}
         self._ps._check_A(csr)
@@ -191,11 +202,20 @@ class Pardiso(LinearSolver):
         # one factorisation's memory (kB): iparm(17) grows with each slot factorised
         self._factor_kB = int(self._ps.iparm[16])
 
-    def refactor(self, values: np.ndarray) -> None:
+    def refactor(self, values: np.ndarray, index: np.ndarray | None = None) -> None:
         if self.slot not in self._values:
             self._values[self.slot] = np.zeros(len(self._order), dtype=self.dtype)
-        np.take(values, self._order, out=self._values[self.slot])  # cast to ``dtype``
+        order = self._order if index is None else self._composed(index)
+        np.take(values, order, out=self._values[self.slot])  # cast to ``dtype``
         self._call(22, np.zeros((self._csr.shape[0], 1), dtype=self.dtype))
+
+    def _composed(self, index: np.ndarray) -> np.ndarray:
+        """``index[_order]``: the tangent's data positions in PARDISO's CSR order, composed
+        once per ``index`` (a body's discretisation hands the same array every time)."""
+        if self._composed_from is not index:
+            self._composed_order = index[self._order]
+            self._composed_from = index
+        return self._composed_order
 
     def solve(self, b: np.ndarray) -> np.ndarray:
         rhs = np.ascontiguousarray(b, dtype=self.dtype).reshape(-1, 1)

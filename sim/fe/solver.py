@@ -686,7 +686,7 @@ class Body:
         if first:
             solver.factor(self.disc.upper_matrix(data))
         else:  # same pattern: new values, the symbolic analysis kept
-            solver.refactor(np.take(data, self.disc.upper_data))
+            solver.refactor(data, self.disc.upper_data)
         self.factorizations += 1
         self._serial = self.factorizations
         self._solver = solver.view(slot)
