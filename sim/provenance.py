@@ -41,6 +41,7 @@ __all__ = [
     "nan_if_none",
     "package_versions",
     "provenance",
+    "recorded_path",
     "replacing",
     "run_folder",
     "sha256_file",
@@ -49,6 +50,18 @@ __all__ = [
 ]
 
 _PACKAGES = ("numpy", "scipy", "scikit-fem", "qdldl", "triangle", "meshio", "matplotlib", "torch")
+#: the repository's root: a path inside it is recorded relative to it (``recorded_path``)
+REPO = Path(__file__).resolve().parents[1]
+
+
+def recorded_path(path: str | Path) -> str:
+    """``path`` as a record names it: relative to the repository when inside it (a POSIX
+    path, the same on every checkout), else absolute."""
+    path = Path(path).resolve()
+    try:
+        return path.relative_to(REPO).as_posix()
+    except ValueError:
+        return str(path)
 
 
 def sha256_file(path: str | Path) -> str:
@@ -76,14 +89,13 @@ def package_versions() -> dict[str, str]:
 
 def git_commit() -> str:
     """The checkout's commit (with ``-dirty`` if it has uncommitted changes), or ``unknown``."""
-    root = Path(__file__).resolve().parent.parent
     try:
         commit = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
+            ["git", "rev-parse", "HEAD"], cwd=REPO, capture_output=True, text=True, check=True
         ).stdout.strip()
         dirty = subprocess.run(
             ["git", "status", "--porcelain", "--untracked-files=no"],
-            cwd=root,
+            cwd=REPO,
             capture_output=True,
             text=True,
             check=True,

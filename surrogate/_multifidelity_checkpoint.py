@@ -25,7 +25,7 @@ import numpy as np
 
 from sim.design import space_from_dict
 from sim.metrics import SOLVER_VERSION, same_metrics
-from sim.provenance import json_safe, json_text, replacing, sha256_file
+from sim.provenance import REPO, json_safe, json_text, recorded_path, replacing, sha256_file
 
 from ._checkpoint import (
     _digest,
@@ -56,17 +56,6 @@ __all__ = [
 FORMAT = "fingertip-multifidelity"
 SCHEMA_VERSION = 1
 META_KEY = "fingertip_multifidelity"
-#: the repository: a low fidelity inside it is recorded by its path relative to it
-REPO = Path(__file__).resolve().parents[1]
-
-
-def recorded_path(path: Path) -> str:
-    """``path`` relative to the repository when inside it (as a POSIX path), else absolute."""
-    path = Path(path).resolve()
-    try:
-        return path.relative_to(REPO).as_posix()
-    except ValueError:
-        return str(path)
 
 
 def low_fidelity_path(recorded: str) -> Path:

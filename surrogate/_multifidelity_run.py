@@ -21,7 +21,14 @@ from typing import Any
 import numpy as np
 
 from sim.errors import DesignError, check_seed
-from sim.provenance import check_new_folder, provenance, run_folder, sha256_file, write_json
+from sim.provenance import (
+    check_new_folder,
+    provenance,
+    recorded_path,
+    run_folder,
+    sha256_file,
+    write_json,
+)
 
 from ._checkpoint import CHECKPOINT_NAME, checkpoint_file, load_checkpoint
 from ._evaluate import evaluate, parity_data, score, write_report
@@ -33,7 +40,7 @@ from ._multifidelity import (
     split_rows,
     validation_size,
 )
-from ._multifidelity_checkpoint import recorded_path, save_multifidelity
+from ._multifidelity_checkpoint import save_multifidelity
 from ._run import default_out, train_config
 from ._train import TrainConfig
 

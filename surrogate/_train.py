@@ -15,7 +15,6 @@ from collections.abc import Callable, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass, field, fields, replace
 from datetime import UTC, datetime
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,7 +22,7 @@ import torch
 
 from sim.metrics import metric_registry
 from sim.protocols import LAYER_STRAIN_OUTPUTS, TRUST_OUTPUTS
-from sim.provenance import finite_or_none, git_commit
+from sim.provenance import finite_or_none, git_commit, recorded_path
 
 from ._encoding import Encoder
 from ._io import SweepData
@@ -206,7 +205,7 @@ def training_header(
             "torch_threads": threads,
         },
         "training_data": {
-            "sweep": str(Path(data.folder).resolve()),
+            "sweep": recorded_path(data.folder),  # the same on every checkout
             "table_sha256": data.table_sha256,
             "n_rows": data.n_rows,
             "n_used": len(data.points),

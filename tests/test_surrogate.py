@@ -610,6 +610,7 @@ def test_checkpoint_round_trip_gives_identical_predictions(data, sweep, tmp_path
     h = loaded.header
     assert h["schema_version"] == SCHEMA_VERSION and h["solver_version"] == SOLVER_VERSION
     assert h["training_data"]["table_sha256"] == sha256_file(sweep / "table.csv")
+    assert h["training_data"]["sweep"] == str(sweep.resolve())  # outside the repository
     # each layer's strain by role: the roles the sweep's designs have (no middle layer here)
     assert [m["name"] for m in h["metrics"]] == [*METRICS, *TRUST_OUTPUTS, *TWO_LAYERS]
     units = {m["name"]: m["unit"] for m in h["metrics"]}
@@ -1174,3 +1175,17 @@ def test_a_3d_sweep_is_refused_for_training(sweep, tmp_path):
     (copy / "config.json").write_text(json.dumps(config))
     with pytest.raises(DesignError, match="sweep of the 3d model"):
         read_sweep(copy)
+
+
+def test_recorded_paths_are_relative_inside_the_repository(tmp_path) -> None:
+    """A path inside the repository is recorded relative to it (the same on every checkout:
+    a checkpoint trained on ``runs/sweep`` names it so wherever the clone is), any other
+    absolute, and the low fidelity's recorded path leads back to its file."""
+    from sim.provenance import REPO, recorded_path
+    from surrogate._multifidelity_checkpoint import low_fidelity_path
+
+    shipped = REPO / "surrogate" / "pretrained" / "default" / "model.safetensors"
+    assert recorded_path(shipped) == "surrogate/pretrained/default/model.safetensors"
+    assert recorded_path(REPO / "runs" / ".." / "runs" / "sweep") == "runs/sweep"
+    assert recorded_path(tmp_path / "sweep") == str((tmp_path / "sweep").resolve())
+    assert low_fidelity_path(recorded_path(shipped)) == shipped
