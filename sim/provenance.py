@@ -30,6 +30,7 @@ from .metrics import SOLVER_VERSION
 
 __all__ = [
     "KINDS",
+    "REPO",
     "atomic_write",
     "check_folder_kind",
     "check_new_folder",
