@@ -37,6 +37,9 @@ from same_metrics import sweep_options
 from sim.options import SimOptions
 from sim.protocols import periodic
 
+#: the default of both tolerances (``TappingOptions.residual_tol``, ``settle_tol``) and two
+#: looser ones, up to the size of the time-step study's 0.5 % (docs/simulation.md, "The
+#: periodic state of the taps")
 TOLERANCES = (1e-3, 3e-3, 1e-2)
 
 
