@@ -102,7 +102,8 @@ class SimOptions:
         ``mesh``. ``options_from_dict`` gives the defaults to the sections left out. The 3D
         model's ``model.inclination_deg`` is there only when it is not 0 (so the records of
         the flat plate keep the keys they had before the option existed), and the wedge's
-        band (``mesh3d.edge_h_mm``, ``edge_grading``) only when it is on (``edge_h_mm`` > 0)."""
+        band (``mesh3d.edge_h_mm``, ``edge_grading``) only when it is on, and the 3D model's stall
+        rule (``newton.stall_rule_3d``) only when it is not the default."""
         d = dataclasses.asdict(self)
         if "model" in d and d["model"]["inclination_deg"] == 0.0:
             del d["model"]["inclination_deg"]
@@ -110,6 +111,10 @@ class SimOptions:
         # made before it existed keep their keys
         if "mesh3d" in d and d["mesh3d"]["edge_h_mm"] == 0.0:
             del d["mesh3d"]["edge_h_mm"], d["mesh3d"]["edge_grading"]
+        # the 3D model's stall rule, only when not its default (the records made before the
+        # option existed keep their keys; their solver version tells the rule they ran)
+        if d["newton"]["stall_rule_3d"] == NewtonOptions.stall_rule_3d:
+            del d["newton"]["stall_rule_3d"]
         return {k: v for k, v in d.items() if k not in _UNREAD[self.dimension]}
 
     def with_steps_scaled(self, factor: float) -> SimOptions:
@@ -225,6 +230,7 @@ _ONLY_IN = {
     ("plate", "length_mm"): "2d",
     ("wedge", "length_mm"): "2d",
     ("model", "inclination_deg"): "3d",
+    ("newton", "stall_rule_3d"): "3d",
 }
 
 

@@ -10,13 +10,14 @@ import importlib
 import math
 import resource
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from same_metrics import sweep_options
 
-from sim.design import Design, point_to_design
+from sim.design import Design, load_design, point_to_design
+from sim.options import apply_overrides
 from sim.sweep import read_config, sample_points
 from sim.sweep.run import load_space_config
 
@@ -31,14 +32,21 @@ def default3d_design(design_index: int) -> Design:
     return point_to_design(points[design_index])
 
 
-def simulate_design(design_index: int, protocol: str) -> dict:
-    """Design ``design_index`` of the default 3D space (its dataset's sample and options) run
-    through ``protocol`` with ``sim`` as it is now: its figures, metrics, seconds and the
-    process's peak resident memory."""
+def simulate_design(
+    design_index: int | str, protocol: str, overrides: Mapping[str, str] | None = None
+) -> dict:
+    """Design ``design_index`` of the default 3D space, or the design file of that path, run
+    with the default 3D dataset's options (``overrides`` as ``--set`` gives them) through
+    ``protocol`` with ``sim`` as it is now: its figures, metrics, seconds and the process's
+    peak resident memory."""
     simulate_module = importlib.import_module("sim.simulate")
-    design = default3d_design(design_index)
+    if isinstance(design_index, str) and not design_index.isdigit():
+        design = load_design(design_index)
+    else:
+        design = default3d_design(int(design_index))
+    options = apply_overrides(sweep_options(FOLDER), dict(overrides or {}))
     t0 = time.perf_counter()
-    res = simulate_module.simulate(design, (protocol,), sweep_options(FOLDER))
+    res = simulate_module.simulate(design, (protocol,), options)
     return {
         "ok": res.ok,
         "figures": res.protocols.get(protocol, {}),

@@ -284,11 +284,11 @@ def test_a_failed_step_with_good_single_precision_is_retried_afresh_in_single(pr
     stalls = {"left": 1}
     stalled = solver_module._stalled
 
-    def stall_once(norms, opts):  # the first attempt is abandoned after one iteration
+    def stall_once(norms, opts, dim):  # the first attempt is abandoned after one iteration
         if len(norms) == 2 and stalls["left"]:
             stalls["left"] -= 1
             return True
-        return stalled(norms, opts)
+        return stalled(norms, opts, dim)
 
     monkeypatch.setattr(solver_module, "_stalled", stall_once)
     assert body.advance(0.2, Control.position(top - 0.2)).converged  # began with the kept one

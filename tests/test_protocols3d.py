@@ -182,12 +182,28 @@ def test_the_pad_keys_round_trip_and_stay_out_of_2d_dicts():
         design_from_dict({"geometry": {"length_exponent": 9}, "layers": [{"material": ELASTIC}]})
 
 
+def test_the_3d_stall_rule_is_in_the_options_dict_only_when_not_the_default():
+    """``newton.stall_rule_3d`` (solver 2.20, "stagnation"): the options' dict of either model
+    leaves it out at its default, so the records made before it keep their keys; another rule
+    is there and reads back; an unknown one names the rules."""
+    three = SimOptions(model=ModelOptions("3d"))
+    for opts in (SimOptions(), three):
+        assert "stall_rule_3d" not in opts.as_dict()["newton"]
+        assert options_from_dict(opts.as_dict()) == opts
+    old = apply_overrides(three, {"newton.stall_rule_3d": "halving"})
+    assert old.as_dict()["newton"]["stall_rule_3d"] == "halving"
+    assert options_from_dict(old.as_dict()) == old
+    with pytest.raises(DesignError, match=r"3d: the stall rule must be one of halving, "):
+        apply_overrides(three, {"newton.stall_rule_3d": "never"})
+
+
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
         ({"model.dimension": "3d", "mesh.h_apex_mm": "0.1"}, r"mesh\.h_apex_mm: applies to the 2d"),
         ({"mesh3d.h_apex_mm": "0.5"}, r"mesh3d\.h_apex_mm: applies to the 3d model only"),
         ({"model.dimension": "3d", "tapping.length_mm": "5"}, r"tapping\.length_mm: applies to"),
+        ({"newton.stall_rule_3d": "off"}, r"newton\.stall_rule_3d: applies to the 3d model only"),
         (
             {"model.dimension": "3d", "mesh3d.contact_fraction": "2"},
             r"contact_fraction: .*\(0, 1\]",

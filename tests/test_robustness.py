@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import subprocess
 import sys
@@ -232,6 +233,57 @@ def test_newton_abandons_a_stalled_step_but_never_a_converging_one():
     assert not any(_stalled(creeping[: k + 1], opts) for k in range(7))
     assert _stalled(creeping, opts)
     assert not any(_stalled(slow_but_steady[: k + 1], opts) for k in range(20))
+    never = dataclasses.replace(opts, stall_window=0)  # 0: the rule off
+    assert not any(_stalled(creeping[: k + 1], never) for k in range(len(creeping)))
+
+
+#: Newton's residuals (/ its tolerance) per iteration in 3D steps pursued without a stall rule
+#: (``--set newton.stall_rule_3d=off``; the step logs of docs/fe_speed.md, "The stall rule in
+#: 3D"). Two converge after their residual rose for a few iterations: a tapping step of a
+#: two-layer Ecoflex 00-10 pad (0.4506 -> 0.5 s), which "halving" abandoned, and its halves down
+#: to 1e-4 s, so that the design failed; and a plate step of default-space design 3. Two fail at
+#: the 20-iteration limit: design 3's tapping (a plateau after a jump) and design 7's wedge
+#: (a slow creep).
+RISES_THEN_CONVERGES = (
+    [3.7e4, 1.4e2, 3.6e2, 1.2e3, 4.1e3, 3.6e3, 6.8e3, 2.9e3, 3.9e3, 3.4e3, 7.3e2, 5.9e2, 77, 13,
+     3.1],
+    [3.1e6, 2.7e4, 3.7e4, 8.7e4, 8.6e4, 8.3e4, 5.9e4, 3.3e4, 1.8e4, 4.9e3, 3.3e3, 6.6e2, 1.2e2, 48,
+     11, 4.6, 1.1],
+)  # fmt: skip
+NEVER_CONVERGES = (
+    [1e7, 7.1e4, 5.3e4, 5e4, 2.6e4, 2.3e4, 3.4e6, 3.3e6, 3.3e6, 3e6, 3e6, 4.6e6, 4.6e6, 4.5e6,
+     4.4e6, 4.1e6, 4.1e6, 4e6, 3.9e6, 3.9e6],
+    [2.6e3, 1.5e3, 3.3e5, 3.1e5, 3.1e5, 3.1e5, 3e5, 2.4e5, 2.3e5, 2.2e5, 2.2e5, 2.2e5, 1.9e5,
+     1.9e5, 1.6e5, 1.6e5, 1.5e5, 1.4e5, 1.4e5, 1.4e5],
+)  # fmt: skip
+
+
+def test_the_3d_model_pursues_a_step_whose_residual_rises_before_it_falls():
+    """Solver 2.20: the 3D model abandons a step whose residual stagnates ("stagnation"), not
+    one whose residual rises for a few iterations and then falls; the 2D model keeps
+    "halving", which abandons both (``_stalled``)."""
+    from sim.fe.solver import NewtonOptions, _stalled
+
+    def stops(norms, opts, dim):
+        return next((k for k in range(1, len(norms) + 1) if _stalled(norms[:k], opts, dim)), None)
+
+    opts = NewtonOptions()
+    for norms in RISES_THEN_CONVERGES:
+        assert stops(norms, opts, 2) == 8  # 2D: not halved over 6 iterations
+        assert stops(norms, opts, 3) is None
+    # the plateau within a factor 2 over 7 residuals, after the jump at iteration 7; the
+    # creep within a factor 2 from its jump at iteration 3
+    assert [stops(n, opts, 3) for n in NEVER_CONVERGES] == [13, 9]
+    assert [stops(n, opts, 2) for n in NEVER_CONVERGES] == [8, 8]
+    halving = dataclasses.replace(opts, stall_rule_3d="halving")  # solver 2.19's 3D rule
+    assert [stops(n, halving, 3) for n in RISES_THEN_CONVERGES] == [8, 8]
+    off = dataclasses.replace(opts, stall_rule_3d="off")
+    assert [stops(n, off, 3) for n in (*RISES_THEN_CONVERGES, *NEVER_CONVERGES)] == [None] * 4
+    # slow, not flat: not halved over 12 iterations
+    slow = [1.0 * 0.96**k for k in range(20)]  # within a factor 2 over 7, at iteration 8
+    assert stops(slow, opts, 3) == 8
+    bumpy = [1.0, 0.4, 0.9, 0.35, 0.85, 0.3, 0.8, 0.3, 0.75, 0.3, 0.7, 0.3, 0.65, 0.3, 0.6]
+    assert stops(bumpy, opts, 3) == 14  # never flat, but 0.3 has not halved 0.4 in 12 iterations
 
 
 # ----------------------------------------------------------------------------- issue 31, item 4

@@ -105,9 +105,19 @@ class NewtonOptions:
     # creeping down between jumps as surface nodes enter and leave contact. (6, 8) saved 14-27 %
     # of the factorisations and 29-38 % of the residual evaluations on three samples; (4, 6)
     # cost more than it saved (docs/fe_speed.md, "Newton"; studies/newton_study.py).
+    # 0: never abandon a step for stalling (``_stalled``).
     stall_window: int = 6
     stall_from: int = 8
     stall_reduction: float = 0.5
+    # The 3D model's rule for a stalled step (``STALL_RULES``; the 2D model's is "halving",
+    # the rule above). "stagnation" since solver 2.20: the last stall_window + 1 residuals
+    # within a factor 1 / stall_reduction of each other, or not reduced by stall_reduction over
+    # 2 stall_window iterations. In 3D (modified Newton, the contact set's corrected solves)
+    # a step's residual often rises for a few iterations while the contact set settles and
+    # then falls to convergence; "halving" abandoned such steps, and where their halves did
+    # the same down to 1e-4 s the design failed (docs/fe_speed.md, "The stall rule in 3D";
+    # studies/stall_rule3d.py). "off": pursue every step to max_iterations.
+    stall_rule_3d: str = "stagnation"
     # plate and base penalty per unit area: kappa = penalty_per_mm * E0_max (N/mm^3), so the
     # penetration is the contact pressure / kappa, about 1e-4 of a strain-level pressure in mm
     penalty_per_mm: float = 3000.0
@@ -145,14 +155,24 @@ class NewtonOptions:
     # records were made without), on in 3D (``model_newton``).
     active_set_solves: int = 0
 
+    def __post_init__(self) -> None:
+        if self.stall_rule_3d not in STALL_RULES:
+            rules = ", ".join(STALL_RULES)
+            raise ValueError(f"the stall rule must be one of {rules}, got {self.stall_rule_3d!r}")
+
 
 def model_newton(options: NewtonOptions, dim: int) -> NewtonOptions:
     """Newton as a model of ``dim`` dimensions runs it: in 3D, where a factorisation costs as
     much as a few residual evaluations, modified Newton kept across changes of the contact set
     (``reuse_factorization``, ``contact_update``; docs/fe_speed.md, "Contact update"); the 2D
-    model runs full Newton (its records were made so)."""
+    model runs full Newton (its records were made so). Each model's stall rule: ``_stalled``."""
     if dim == 3:
-        return replace(options, reuse_factorization=True, contact_update=True, active_set_solves=4)
+        return replace(
+            options,
+            reuse_factorization=True,
+            contact_update=True,
+            active_set_solves=4,
+        )
     return options
 
 
@@ -201,14 +221,49 @@ def _penalty_factors(p: np.ndarray, curv: np.ndarray | None, k: np.ndarray):
     return ka, c
 
 
-def _stalled(norms: list[float], opts: NewtonOptions) -> bool:
-    """True when the residual has not fallen by ``stall_reduction`` over ``stall_window``
-    iterations, judged from iteration ``stall_from`` on: the step is better cut than pursued."""
+def _halving(norms: list[float], opts: NewtonOptions) -> bool:
+    """The residual has not fallen by ``stall_reduction`` over ``stall_window`` iterations,
+    judged from iteration ``stall_from`` on (the 2D model's rule since solver 2.2, the 3D
+    model's until 2.19)."""
     k = opts.stall_window
     return (
         len(norms) >= max(opts.stall_from, k + 1)
         and norms[-1] > opts.stall_reduction * norms[-1 - k]
     )
+
+
+def _stagnation(norms: list[float], opts: NewtonOptions) -> bool:
+    """The 3D model's rule since solver 2.20: the last ``stall_window`` + 1 residuals lie within
+    a factor 1 / ``stall_reduction`` of each other (judged from ``stall_from`` on: the residual
+    has stopped moving), or it has not fallen by ``stall_reduction`` over 2 ``stall_window``
+    iterations (judged from ``stall_from`` + ``stall_window`` on: it moves, but too slowly to
+    converge within ``max_iterations``). A residual that rises for a few iterations while the
+    contact set settles, then falls, is pursued."""
+    k = opts.stall_window
+    if len(norms) >= max(opts.stall_from, k + 1):
+        last = norms[-1 - k :]
+        if max(last) * opts.stall_reduction < min(last):
+            return True
+    slow = replace(opts, stall_window=2 * k, stall_from=opts.stall_from + k)
+    return _halving(norms, slow)
+
+
+#: The stall rules by name (``NewtonOptions.stall_rule_3d``): whether Newton abandons a step
+#: with the residuals ``norms`` so far (one per iteration), for the protocol to cut it.
+STALL_RULES: dict[str, Callable[[list[float], NewtonOptions], bool]] = {
+    "halving": _halving,
+    "stagnation": _stagnation,
+    "off": lambda norms, opts: False,
+}
+
+
+def _stalled(norms: list[float], opts: NewtonOptions, dim: int = 2) -> bool:
+    """True when the step is better cut than pursued: by ``_halving`` in 2D, by
+    ``opts.stall_rule_3d`` in 3D; never with ``stall_window`` 0."""
+    if opts.stall_window <= 0:
+        return False
+    rule = STALL_RULES["halving" if dim == 2 else opts.stall_rule_3d]
+    return rule(norms, opts)
 
 
 class Body:
@@ -902,7 +957,7 @@ class Body:
                 self.newton_iterations += it - 1
                 return StepResult(True, it - 1)
             norms.append(norm0)
-            if _stalled(norms, opts):
+            if _stalled(norms, opts, self.disc.dim):
                 self.newton_iterations += it - 1
                 return StepResult(False, it - 1, "stalled")
             active = coupling > 0
