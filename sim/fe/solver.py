@@ -167,12 +167,7 @@ def model_newton(options: NewtonOptions, dim: int) -> NewtonOptions:
     (``reuse_factorization``, ``contact_update``; docs/fe_speed.md, "Contact update"); the 2D
     model runs full Newton (its records were made so). Each model's stall rule: ``_stalled``."""
     if dim == 3:
-        return replace(
-            options,
-            reuse_factorization=True,
-            contact_update=True,
-            active_set_solves=4,
-        )
+        return replace(options, reuse_factorization=True, contact_update=True, active_set_solves=4)
     return options
 
 
