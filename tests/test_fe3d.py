@@ -753,3 +753,33 @@ def test_keyed_factorisations_stay_within_their_memory():
     for k, (f, key) in enumerate(zip([0.1, 0.2, 0.3], "ABC", strict=True)):
         assert body.advance(0.05 * (k + 1), Control.force(f * scale), factor_key=key).converged
     assert body.step_factors_kept == 1 and body.factorizations >= 3
+
+
+def test_an_entry_beyond_single_precision_is_cast_quietly_and_solves_its_tangent_badly():
+    """A tangent entry beyond float32's range (a pursued iterate far from the solution) becomes
+    inf in the single-precision factorisation without a warning, and that factorisation then
+    solves its own tangent worse than ``INEXACT_SOLVE_RTOL``, so a failed attempt with it is
+    retried in double precision (``Body._retry``)."""
+    pytest.importorskip("pypardiso")
+    import warnings
+
+    import scipy.sparse as sp
+
+    from sim.fe._linear import PardisoSingle
+    from sim.fe.solver import INEXACT_SOLVE_RTOL
+
+    n = 6
+    K = sp.diags([np.full(n - 1, -1.0), np.full(n, 4.0), np.full(n - 1, -1.0)], [-1, 0, 1])
+    upper = sp.triu(K).tocsc()
+    solver = PardisoSingle()
+    solver.factor(upper)
+    data = upper.data.copy()
+    data[0] = 1e39  # finite in double, beyond float32's 3.4e38
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        solver.refactor(data)
+    big = sp.csc_matrix((data, upper.indices, upper.indptr), shape=upper.shape)
+    big = big + sp.triu(big, k=1).T
+    b = np.random.default_rng(0).standard_normal(n)
+    x = solver.solve(b)
+    assert np.linalg.norm(big @ x - b) / np.linalg.norm(b) > INEXACT_SOLVE_RTOL

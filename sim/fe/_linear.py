@@ -206,7 +206,13 @@ class Pardiso(LinearSolver):
         if self.slot not in self._values:
             self._values[self.slot] = np.zeros(len(self._order), dtype=self.dtype)
         order = self._order if index is None else self._composed(index)
-        np.take(values, order, out=self._values[self.slot])  # cast to ``dtype``
+        # cast to ``dtype``: in single precision an entry beyond float32's range (a pursued
+        # Newton iterate far from the solution, which stiffens a crushed element without bound)
+        # becomes inf, silently: Newton judges the direction by its line search as always, and
+        # a failed attempt is retried in double precision, since this factorisation then
+        # solves its own tangent badly (``Body.last_factor_residual``, ``Body._retry``)
+        with np.errstate(over="ignore"):
+            np.take(values, order, out=self._values[self.slot])
         self._call(22, np.zeros((self._csr.shape[0], 1), dtype=self.dtype))
 
     def _composed(self, index: np.ndarray) -> np.ndarray:
