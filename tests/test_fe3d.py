@@ -390,6 +390,13 @@ def test_contact_corrected_solve_is_the_new_matrixs_solve():
         K2[np.ix_(dofs2, dofs2)] += D2
         np.testing.assert_allclose(corrected2.solve(b), np.linalg.solve(K2, b), rtol=1e-10)
 
+    class Overflowed:  # a factorisation whose solves are not finite (float32 overflow)
+        def solve_many(self, B: np.ndarray) -> np.ndarray:
+            return np.full(B.shape, np.nan)
+
+    # not usable, without LAPACK's "SVD did not converge" (it failed a tapping, solver 2.20)
+    assert not _ContactCorrected(Overflowed(), dofs, D, n).ok
+
 
 def _pressed_body(opts: NewtonOptions) -> Body:
     """A viscoelastic pad pressed by force control to 1 N in 8 steps, its patch growing over

@@ -1224,7 +1224,13 @@ class _ContactCorrected:
         if s == 0:
             return
         self._Z = (kept if kept is not None else _KeptColumns()).columns(solver, dofs, n_free)
-        M = np.eye(s) + D @ self._Z[dofs]
+        with np.errstate(all="ignore"):
+            M = np.eye(s) + D @ self._Z[dofs]
+        # columns that are not finite (a single-precision factorisation of a tangent beyond
+        # float32's range: ``Pardiso.refactor``) correct nothing, and LAPACK's SVD would raise
+        if not np.all(np.isfinite(M)):
+            self.ok = False
+            return
         with np.errstate(all="ignore"):
             cond = float(np.linalg.cond(M))
         # beyond 1e12 the small system would keep only ~4 of double precision's 16 digits:
