@@ -76,8 +76,10 @@ DEFAULTS_BEFORE: dict[tuple[str, str], tuple[str, float]] = {
 #      iterations while the contact set settles, then falls to convergence; "halving"
 #      abandoned such steps and their halves, and the designs whose every half did so failed
 #      (docs/fe_speed.md, "The stall rule in 3D"; studies/stall_rule3d.py). The same
-#      tolerances: the metrics change only where a step is pursued that was cut. 2D: the
-#      same bits.
+#      tolerances: the metrics change only where a step is pursued that was cut. A kept
+#      factorisation whose contact-correction columns are not finite (a pursued iterate's
+#      tangent beyond float32's range) is replaced by a fresh one instead of failing the
+#      protocol with LAPACK's "SVD did not converge". 2D: the same bits.
 # 2.19: the same metrics, bit for bit, in less time: the deformation gradient's kernel gathers
 #      an element's nodal displacements once for its quadrature points (the same sums);
 #      PARDISO's values are gathered from the tangent's data in one pass (was: the upper
