@@ -131,3 +131,14 @@ def print_pair(
         print(f"{label}, {variant}: {describe(run)}", flush=True)
     change = largest_change(runs[first]["metrics"], runs[second]["metrics"])
     print(f"{label}: largest relative change of a {what} {change:.1e}", flush=True)
+
+
+def describe(run: dict) -> str:
+    """One run's outcome and counts (``simulate_design`` with ``count_failed``'s ``failed``)."""
+    fig, failed = run["figures"], run["failed"]
+    return (
+        f"ok {run['ok']}, failed attempts {failed['attempts']} "
+        f"({failed['factorizations']} factorisations), factorisations "
+        f"{fig.get('factorizations')}, Newton iterations {fig.get('newton_iterations')}, "
+        f"steps {fig.get('steps')}, {run['seconds']:.1f} s"
+    )

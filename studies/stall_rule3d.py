@@ -24,7 +24,7 @@ import json
 import re
 from pathlib import Path
 
-from paired import FOLDER, count_failed, in_pairs, largest_change, simulate_design
+from paired import FOLDER, count_failed, describe, in_pairs, largest_change, simulate_design
 
 from sim.fe.solver import STALL_RULES
 
@@ -52,15 +52,6 @@ def run(job: str, rule: str) -> dict:
     failed = count_failed("_advance")
     res = simulate_design(design, protocol, {"newton.stall_rule_3d": rule})
     return {**res, "failed": dict(failed)}
-
-
-def describe(run: dict) -> str:
-    fig, failed = run["figures"], run["failed"]
-    return (
-        f"{'completed' if run['ok'] else 'FAILED   '}  failed attempts {failed['attempts']:3d}, "
-        f"Newton iterations {fig.get('newton_iterations')}, factorisations "
-        f"{fig.get('factorizations')}, {run['seconds']:.0f} s"
-    )
 
 
 def jobs_for(designs: list[str]) -> list[str]:

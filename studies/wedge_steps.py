@@ -18,7 +18,7 @@ import argparse
 import dataclasses
 import importlib
 
-from paired import Totals, count_failed, in_pairs, print_pair, simulate_design
+from paired import Totals, count_failed, describe, in_pairs, print_pair, simulate_design
 
 VARIANTS = ("halve", "without")
 
@@ -39,16 +39,6 @@ def run_wedge(design_index: int, variant: str) -> dict:
     return {**simulate_design(design_index, "wedge"), "failed": failed}
 
 
-def _describe(run: dict) -> str:
-    fig, failed = run["figures"], run["failed"]
-    return (
-        f"ok {run['ok']}, failed attempts {failed['attempts']} "
-        f"({failed['factorizations']} factorisations), factorisations "
-        f"{fig.get('factorizations')}, Newton iterations {fig.get('newton_iterations')}, "
-        f"steps {fig.get('steps')}, {run['seconds']:.1f} s"
-    )
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--designs", type=int, nargs="+", default=[0, 1, 2, 3, 4, 5])
@@ -63,7 +53,7 @@ def main() -> None:
         variants = ("halve", f"travel {args.travel:g}")
     totals = Totals(variants)
     for d, runs in in_pairs(run_wedge, args.designs, variants):
-        print_pair(f"design {d}", runs, _describe, totals, "wedge metric")
+        print_pair(f"design {d}", runs, describe, totals, "wedge metric")
     totals.print()
 
 

@@ -216,15 +216,16 @@ def _penalty_factors(p: np.ndarray, curv: np.ndarray | None, k: np.ndarray):
     return ka, c
 
 
+def _not_halved(norms: list[float], window: int, start: int, reduction: float) -> bool:
+    """The residual has not fallen by ``reduction`` over the last ``window`` iterations,
+    judged from iteration ``start`` on."""
+    return len(norms) >= max(start, window + 1) and norms[-1] > reduction * norms[-1 - window]
+
+
 def _halving(norms: list[float], opts: NewtonOptions) -> bool:
-    """The residual has not fallen by ``stall_reduction`` over ``stall_window`` iterations,
-    judged from iteration ``stall_from`` on (the 2D model's rule since solver 2.2, the 3D
-    model's until 2.19)."""
-    k = opts.stall_window
-    return (
-        len(norms) >= max(opts.stall_from, k + 1)
-        and norms[-1] > opts.stall_reduction * norms[-1 - k]
-    )
+    """Not halved (``stall_reduction``) over ``stall_window`` iterations, judged from iteration
+    ``stall_from`` on (the 2D model's rule since solver 2.2, the 3D model's until 2.19)."""
+    return _not_halved(norms, opts.stall_window, opts.stall_from, opts.stall_reduction)
 
 
 def _stagnation(norms: list[float], opts: NewtonOptions) -> bool:
@@ -239,8 +240,7 @@ def _stagnation(norms: list[float], opts: NewtonOptions) -> bool:
         last = norms[-1 - k :]
         if max(last) * opts.stall_reduction < min(last):
             return True
-    slow = replace(opts, stall_window=2 * k, stall_from=opts.stall_from + k)
-    return _halving(norms, slow)
+    return _not_halved(norms, 2 * k, opts.stall_from + k, opts.stall_reduction)
 
 
 #: The stall rules by name (``NewtonOptions.stall_rule_3d``): whether Newton abandons a step
