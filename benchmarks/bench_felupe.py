@@ -1,15 +1,18 @@
 """Benchmark: the 3D elastic plate, ours against FElupe on the same problem, whole process.
 
-    python benchmarks/bench_felupe.py [--mesh {tiny,coarse,default}] [--repeats 3]
-        [--formulation q1p0 [q2-displacement q2-mixed]] [--step-mm 0.1] [--json out.json]
+    python benchmarks/bench_felupe.py [--mesh {tiny,coarse,default,xF}] [--ours-mesh MESH]
+        [--repeats 3] [--formulation q1p0 [q2-displacement q2-mixed]] [--step-mm 0.1]
+        [--json out.json]
 
 The problem (``tests/test_fe3d_felupe.py``'s): the elastic quarter pad (the reference
 ``PadGeometry()``, one layer of neo-Hookean mu = 0.05 MPa, nu = 0.49), a rigid frictionless flat
 plate pressed 1 mm into it from first touch at the apex, in plate increments of ``--step-mm``
 (the same plate positions in both codes: a uniform grid plus the recorded depths, a failed
 increment halved), the force on the quarter pad recorded at 0.25, 0.5 and 1 mm. The mesh is
-shared: ``sim.geometry.build_pad_mesh`` with the tests' tiny or coarse options or the default
-``MeshOptions3D()``.
+shared: ``sim.geometry.build_pad_mesh`` with the tests' tiny or coarse options, the default
+``MeshOptions3D()`` or ``xF``, ``MeshOptions3D().refined(F)`` (``x1`` is the default).
+``--ours-mesh`` gives ours another mesh than FElupe's: at equal accuracy rather than at equal
+nodes (``studies/felupe_work_precision.py`` measures which meshes those are).
 
 - ``ours``: the project's 3D model (``sim.fe.Discretization3D`` + ``sim.fe.solver.Body`` +
   ``Plate``), 27-node hexahedra, pure displacement, as ``our_plate_force`` in the tests but
@@ -64,7 +67,7 @@ from pathlib import Path  # noqa: E402
 
 MU, NU = 0.05, 0.49  # tests/test_fe3d_felupe.py's material (a soft, nearly incompressible skin)
 DEPTHS = (0.25, 0.5, 1.0)
-MESHES = ("tiny", "coarse", "default")
+MESHES = ("tiny", "coarse", "default", "xF")
 FORMULATIONS = ("q1p0", "q2-mixed", "q2-displacement")  # sim.verification.felupe_pad's
 #: FElupe / ours - 1 at 0.25, 0.5, 1 mm as documented in sim/verification/felupe_pad.py (and
 #: tests/test_fe3d_felupe.py) for context; None where nothing is documented
@@ -77,20 +80,37 @@ DOCUMENTED = {
 }
 
 
+def mesh_name(text: str) -> str:
+    """``--mesh``'s argument checked: a name of ``MESHES`` or ``x`` and a refinement factor in
+    [0.25, 4] (``x0.7``)."""
+    if text in MESHES[:-1]:
+        return text
+    try:
+        factor = float(text[1:]) if text.startswith("x") else math.nan
+    except ValueError:
+        factor = math.nan
+    if not 0.25 <= factor <= 4.0:
+        raise argparse.ArgumentTypeError(
+            f"mesh must be tiny, coarse, default or xF with F in [0.25, 4], got {text!r}"
+        )
+    return f"x{factor:g}"
+
+
 def mesh_options(name: str):
     """The mesh options by name: ``tiny`` is the FElupe comparison's smallest
     (``sim.verification.felupe_pad.TINY_MESH_3D``, 76 elements, 2421 dofs), ``coarse``
-    ``sim.geometry.COARSE_MESH_3D`` (180 elements, 5373 dofs), ``default`` ``MeshOptions3D()``."""
+    ``sim.geometry.COARSE_MESH_3D`` (180 elements, 5373 dofs), ``default`` ``MeshOptions3D()``
+    (1448 elements, 38 901 dofs), ``xF`` ``MeshOptions3D().refined(F)``."""
     from sim.geometry import COARSE_MESH_3D, MeshOptions3D
 
+    name = mesh_name(name)
     if name == "tiny":  # sim.verification only here: it is no part of our whole process
         from sim.verification.felupe_pad import TINY_MESH_3D
 
         return TINY_MESH_3D
-    meshes = {"coarse": COARSE_MESH_3D, "default": MeshOptions3D()}
-    if name not in meshes:
-        raise ValueError(f"mesh must be one of {MESHES}, got {name!r}")
-    return meshes[name]
+    if name.startswith("x"):
+        return MeshOptions3D().refined(float(name[1:]))
+    return {"coarse": COARSE_MESH_3D, "default": MeshOptions3D()}[name]
 
 
 def plate_positions(depths, step_mm: float) -> list[float]:
@@ -257,7 +277,8 @@ def report(rows: list[dict], args) -> None:
     f_ours = ours["force_quarter_N"]
     depth_cols = " | ".join(f"F {d:g} mm (N)" for d in DEPTHS)
     print(
-        f"\nPlate on the elastic quarter pad (mu = {MU} MPa, nu = {NU}), {args.mesh} mesh, "
+        f"\nPlate on the elastic quarter pad (mu = {MU} MPa, nu = {NU}), meshes: ours "
+        f"{ours['mesh']}, FElupe {args.mesh}, "
         f"steps of {args.step_mm:g} mm, one thread, {args.repeats} fresh processes per code "
         f"(after {args.warmup} untimed), load average {os.getloadavg()[0]:.2f}\n"
     )
@@ -307,7 +328,10 @@ def report(rows: list[dict], args) -> None:
 
 def main(argv: list[str] | None = None) -> list[dict]:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--mesh", choices=MESHES, default="default")
+    ap.add_argument(
+        "--mesh", type=mesh_name, default="default", help="both codes' (" + ", ".join(MESHES) + ")"
+    )
+    ap.add_argument("--ours-mesh", type=mesh_name, help="ours' mesh, if not --mesh")
     ap.add_argument("--repeats", type=int, default=3, help="timed fresh processes per code")
     ap.add_argument("--warmup", type=int, default=1, help="untimed processes per code first")
     ap.add_argument(
@@ -317,13 +341,14 @@ def main(argv: list[str] | None = None) -> list[dict]:
     ap.add_argument("--json", type=Path, help="write the rows here")
     ap.add_argument("--child", choices=["ours", "felupe"], help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
-    if args.child == "ours":
+    if args.child == "ours":  # the parent passes ours' mesh as --mesh
         print(json.dumps(child_ours(args.mesh, args.step_mm)))
         return []
     if args.child == "felupe":
         print(json.dumps(child_felupe(args.mesh, args.step_mm, args.formulation[0])))
         return []
-    rows = [measure("ours", args.mesh, args.step_mm, None, args.repeats, args.warmup)]
+    ours_mesh = args.ours_mesh or args.mesh
+    rows = [measure("ours", ours_mesh, args.step_mm, None, args.repeats, args.warmup)]
     for formulation in args.formulation:
         rows.append(
             measure("felupe", args.mesh, args.step_mm, formulation, args.repeats, args.warmup)
