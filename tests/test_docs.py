@@ -165,3 +165,17 @@ def test_doc_commands_are_real_with_real_options_and_files(page: Path) -> None:
         for word in argv:
             if word.startswith(("docs/", "sim/", "datasets/", "surrogate/")) and "*" not in word:
                 assert (ROOT / word).exists(), f"{page.name}: {word} does not exist"
+
+
+@pytest.mark.parametrize(
+    "path",
+    sorted((ROOT / "docs").glob("*/*.toml")),
+    ids=lambda p: f"{p.parent.name}/{p.name}",
+)
+def test_the_design_files_in_the_docs_load(path: Path) -> None:
+    """The design files the docs hand to users (``docs/designs``, ``docs/answers``) are designs
+    ``fingertip simulate`` reads, with the catalogue's materials."""
+    from sim.design import load_design
+
+    design = load_design(path)
+    assert len(design.layers) >= 1
