@@ -23,8 +23,10 @@ after an untimed warm-up run of each code), and then:
    (the force-indentation curve to that accuracy).
 3. **The speed-up at equal accuracy** (``equal_accuracy``): for each timed FElupe run, the
    cheapest timed run of ours whose error is at most FElupe's, by each measure (at 1 mm; the
-   largest over the depths), and the ratio of their whole-process medians. Conservative: ours
-   is taken on a mesh at least as accurate, never interpolated.
+   largest over the depths), and the ratio of their whole-process medians: conservative, ours
+   on a mesh at least as accurate. Beside it, ours' seconds interpolated to FElupe's error
+   on ours' work-precision line (log seconds linear in log error between the two runs of
+   ours that bracket it, ``interpolated_seconds``), where two neighbouring runs do.
 
 Meshes above ``--time-up-to`` dofs are run once, untimed (the extrapolation's finest meshes:
 they take minutes to tens of minutes, FElupe's ``x1.5`` about 20 minutes of a core); their
@@ -40,6 +42,7 @@ measures (the info object ``work_precision_info`` and its renderer ``render``).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import sys
@@ -154,10 +157,33 @@ class Match:
     ours_mesh: str | None
     ours_error: float | None
     ours_s: float | None
+    #: ours' seconds at exactly FElupe's error, interpolated (``interpolated_seconds``)
+    ours_interpolated_s: float | None = None
 
     @property
     def speedup(self) -> float | None:
         return None if self.ours_s is None else self.felupe_s / self.ours_s
+
+    @property
+    def interpolated_speedup(self) -> float | None:
+        s = self.ours_interpolated_s
+        return None if s is None else self.felupe_s / s
+
+
+def interpolated_seconds(points: list[tuple[float, float]], error: float) -> float | None:
+    """The seconds at ``error`` on the work-precision line of ``points`` ((seconds, error),
+    any order): log-linear between the two runs, in order of seconds, where the line first
+    comes down to it (the run before above, the run after at or below). None where the
+    cheapest run is already that accurate (its seconds are the answer, no interpolation) or
+    the line never comes down to it (no extrapolation)."""
+    pts = sorted(points)
+    for (s0, e0), (s1, e1) in itertools.pairwise(pts):
+        if e0 <= error:
+            return None
+        if error >= e1 > 0.0:
+            w = np.log(e0 / error) / np.log(e0 / e1)
+            return float(np.exp((1.0 - w) * np.log(s0) + w * np.log(s1)))
+    return None
 
 
 def equal_accuracy(rows: list[dict], lim: Limits) -> list[Match]:
@@ -170,6 +196,7 @@ def equal_accuracy(rows: list[dict], lim: Limits) -> list[Match]:
         for fe in (r for r in timed if r["code"] == "FElupe"):
             e_fe = errors(fe, lim)[measure]
             best = next((r for r in ours if errors(r, lim)[measure] <= e_fe), None)
+            line = [(r["whole_median_s"], errors(r, lim)[measure]) for r in ours]
             out.append(
                 Match(
                     measure,
@@ -179,6 +206,7 @@ def equal_accuracy(rows: list[dict], lim: Limits) -> list[Match]:
                     None if best is None else best["mesh"],
                     None if best is None else errors(best, lim)[measure],
                     None if best is None else best["whole_median_s"],
+                    interpolated_seconds(line, e_fe),
                 )
             )
     return out
@@ -333,10 +361,16 @@ def main(argv: list[str] | None = None) -> dict:
                 "no timed run of ours is as accurate"
             )
         else:
+            between = (
+                ""
+                if m.interpolated_speedup is None
+                else f"; {m.interpolated_speedup:.1f}x against ours interpolated to "
+                f"{m.felupe_error:.2%} ({m.ours_interpolated_s:.1f} s)"
+            )
             print(
                 f"{m.measure}: FElupe {m.felupe_mesh} ({m.felupe_error:.2%}, {m.felupe_s:.1f} s) "
                 f"against ours {m.ours_mesh} ({m.ours_error:.2%}, {m.ours_s:.2f} s): "
-                f"{m.speedup:.1f}x faster at equal accuracy (target >= 10x)"
+                f"{m.speedup:.1f}x faster at equal accuracy{between} (target >= 10x)"
             )
     if args.figure:
         render(info, args.figure)

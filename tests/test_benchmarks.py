@@ -114,6 +114,17 @@ def test_felupe_accuracy_fits_limits_and_matches_runs_of_equal_accuracy():
     assert m.speedup == pytest.approx(10.0)
     m = match[("at 1 mm", "x0.5")]  # FElupe 1.64 %: ours x0.5 (1.66 %) is not enough
     assert m.ours_mesh == "x0.7" and m.ours_error == pytest.approx(0.00873, abs=1e-5)
+    # interpolated on ours' line: error 0.4 % h^2 against seconds 40 / h^3, so the seconds at
+    # an error e are 40 (e / 0.4 %)^(-3/2), here at FElupe x1's 0.544 % shifted by the reference
+    m = match[("at 1 mm", "x1")]
+    assert m.ours_interpolated_s < m.ours_s and m.interpolated_speedup > m.speedup
+    line = [(40.0 / h**3, 0.004 * h**2) for h in (2.0, 1.0, 0.5)]
+    assert module.interpolated_seconds(line, 0.002) == pytest.approx(40 * 0.5**-1.5)
+    assert module.interpolated_seconds(line, 0.1) is None  # beyond the line: not extrapolated
+    # the cheapest run is already as accurate: no interpolation (the conservative match holds)
+    assert module.interpolated_seconds([(1.0, 0.01), (2.0, 0.02), (3.0, 0.001)], 0.015) is None
+    # it comes down to the error first between the second and the third run
+    assert module.interpolated_seconds([(1.0, 0.03), (2.0, 0.02), (4.0, 0.01)], 0.015) < 4.0
     info = module.work_precision_info(rows, lim)
     assert [p[2] for p in info.points["at 1 mm"]["FElupe"]] == ["x0.5", "x0.7", "x1", "x1.41"]
     # no run of ours as accurate: ours' finest timed run is less accurate than FElupe's
