@@ -240,6 +240,7 @@ def render(info: WorkPrecisionInfo, path: Path) -> None:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     fig, axes = plt.subplots(1, len(MEASURES), figsize=(10, 4), sharey=True)
     for ax, measure in zip(axes, MEASURES, strict=True):
@@ -250,6 +251,10 @@ def render(info: WorkPrecisionInfo, path: Path) -> None:
                 ax.annotate(
                     mesh, (s, 100 * e), textcoords="offset points", xytext=(4, 4), fontsize=7
                 )
+        plain = matplotlib.ticker.FuncFormatter(lambda y, _: f"{y:g}")
+        ax.yaxis.set_major_formatter(plain)
+        ax.yaxis.set_minor_formatter(plain)
+        ax.xaxis.set_major_formatter(plain)
         ax.set_title(f"plate force error, {measure}")
         ax.set_xlabel("whole process (s, one core)")
         ax.grid(True, which="both", alpha=0.3)
