@@ -28,14 +28,13 @@ after an untimed warm-up run of each code), and then:
    on ours' work-precision line (log seconds linear in log error between the two runs of
    ours that bracket it, ``interpolated_seconds``), where two neighbouring runs do.
 
-Meshes above ``--time-up-to`` dofs are run once, untimed (the extrapolation's finest meshes:
-they take minutes to tens of minutes, FElupe's ``x1.5`` about 20 minutes of a core); their
-seconds are printed but take no part in a speed-up. Each run is saved in ``--json`` as it ends;
-a rerun with the same file skips the runs already there (resume), and ``--also`` adds runs
-saved in other files (the untimed finest meshes can run at the same time, one file each).
-Seconds mean something only
-on a QUIET machine: the printout gives the load average at each run; the forces and counts do
-not depend on the load. ``--figure`` draws error against whole-process seconds, both codes, both
+Meshes above ``--time-up-to`` dofs are run once, untimed (the reference's finest meshes: ours
+``x2`` took about an hour, FElupe's ``x1.5`` 25 minutes, beside each other); their seconds are
+printed but take no part in a speed-up. Each run is saved in ``--json`` as it ends; a rerun
+with the same file skips the runs already there (resume), and ``--also`` adds runs saved in
+other files (the untimed finest meshes can run at the same time, one file each). Seconds mean
+something only on a QUIET machine: the printout gives the load average before each run; the
+forces and counts do not depend on the load. ``--figure`` draws error against whole-process seconds, both codes, both
 measures (the info object ``work_precision_info`` and its renderer ``render``).
 """
 
