@@ -34,8 +34,9 @@ printed but take no part in a speed-up. Each run is saved in ``--json`` as it en
 with the same file skips the runs already there (resume), and ``--also`` adds runs saved in
 other files (the untimed finest meshes can run at the same time, one file each). Seconds mean
 something only on a QUIET machine: the printout gives the load average before each run; the
-forces and counts do not depend on the load. ``--figure`` draws error against whole-process seconds, both codes, both
-measures (the info object ``work_precision_info`` and its renderer ``render``).
+forces and counts do not depend on the load. ``--figure`` draws error against whole-process
+seconds, both codes, both measures (the info object ``work_precision_info`` and its renderer
+``render``).
 """
 
 from __future__ import annotations
