@@ -18,6 +18,7 @@ never changes. Failed steps are cut by the caller
 from __future__ import annotations
 
 import logging
+import math
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -1226,16 +1227,13 @@ class _ContactCorrected:
         self._Z = (kept if kept is not None else _KeptColumns()).columns(solver, dofs, n_free)
         with np.errstate(all="ignore"):
             M = np.eye(s) + D @ self._Z[dofs]
-        # columns that are not finite (a single-precision factorisation of a tangent beyond
-        # float32's range: ``Pardiso.refactor``) correct nothing, and LAPACK's SVD would raise
-        if not np.all(np.isfinite(M)):
-            self.ok = False
-            return
-        with np.errstate(all="ignore"):
-            cond = float(np.linalg.cond(M))
+            # columns that are not finite (a single-precision factorisation of a tangent
+            # beyond float32's range: ``Pardiso.refactor``) correct nothing, and LAPACK's SVD
+            # would raise on them
+            cond = float(np.linalg.cond(M)) if np.all(np.isfinite(M)) else math.inf
         # beyond 1e12 the small system would keep only ~4 of double precision's 16 digits:
         # K is then (nearly) singular, and a fresh factorisation says so
-        self.ok = bool(np.isfinite(cond) and cond < 1e12)
+        self.ok = cond < 1e12
         self._M = M
 
     def solve(self, b: np.ndarray) -> np.ndarray:
