@@ -67,6 +67,8 @@ from pathlib import Path  # noqa: E402
 
 MU, NU = 0.05, 0.49  # tests/test_fe3d_felupe.py's material (a soft, nearly incompressible skin)
 DEPTHS = (0.25, 0.5, 1.0)
+#: our 3D elements (``sim.fe.fe3d.ELEMENTS``) by the name the rows give their formulation
+OUR_FORMULATIONS = {"q2": "q2-displacement", "q2p1": "q2p1-projected"}
 MESHES = ("tiny", "coarse", "default", "xF")
 FORMULATIONS = ("q1p0", "q2-mixed", "q2-displacement")  # sim.verification.felupe_pad's
 #: FElupe / ours - 1 at 0.25, 0.5, 1 mm as documented in sim/verification/felupe_pad.py (and
@@ -130,11 +132,12 @@ def plate_positions(depths, step_mm: float) -> list[float]:
 
 
 # ---------------------------------------------------------------------------- children
-def child_ours(mesh: str, step_mm: float) -> dict:
+def child_ours(mesh: str, step_mm: float, element: str = "q2") -> dict:
     """Our quarter-pad plate force, as ``our_plate_force`` in ``tests/test_fe3d_felupe.py``
     at FElupe's plate positions: ``sim.verification.press_plate``'s loop written out, because
     importing ``sim.verification`` (scipy.optimize and the verification cases, ~0.7 s) is no
-    part of our model's whole process, and the steps and cuts are counted here."""
+    part of our model's whole process, and the steps and cuts are counted here. ``element``:
+    ``sim.fe.fe3d.ELEMENTS``."""
     t0 = time.perf_counter()
     from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate, model_newton
     from sim.geometry import PadGeometry, build_pad_mesh
@@ -147,7 +150,8 @@ def child_ours(mesh: str, step_mm: float) -> dict:
     mat = material_from_table({"model": "neo_hookean", "mu_MPa": MU, "nu": NU})
     # Newton and the linear solver as the 3D model's plate runs them (sim.simulate): modified
     # Newton with the contact update, PARDISO in single precision (SINGLE_PRECISION_PROTOCOLS)
-    body = Body(Discretization3D(pmesh, [mat]), Plate(), model_newton(NewtonOptions(), 3))
+    disc = Discretization3D(pmesh, [mat], element=element)
+    body = Body(disc, Plate(), model_newton(NewtonOptions(), 3))
     body.single_precision = "plate" in SINGLE_PRECISION_PROTOCOLS
     top = body.top_height()
     d = 0.0
@@ -170,7 +174,7 @@ def child_ours(mesh: str, step_mm: float) -> dict:
     t_end = time.perf_counter()
     return {
         "code": "ours",
-        "formulation": "q2-displacement",
+        "formulation": OUR_FORMULATIONS[element],
         "mesh": mesh,
         "dofs": 3 * body.disc.n_nodes,
         "dofs_free": int(body.disc.n_free),
@@ -233,12 +237,17 @@ def child_felupe(mesh: str, step_mm: float, formulation: str) -> dict:
     }
 
 
-def run_child(code: str, mesh: str, step_mm: float, formulation: str | None) -> tuple[float, dict]:
-    """One fresh child process: (its wall time measured here, its JSON result)."""
+def run_child(
+    code: str, mesh: str, step_mm: float, formulation: str | None, element: str = "q2"
+) -> tuple[float, dict]:
+    """One fresh child process: (its wall time measured here, its JSON result); ``element``:
+    ours' (``OUR_FORMULATIONS``)."""
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child", code, "--mesh", mesh]
     cmd += ["--step-mm", repr(step_mm)]
     if formulation is not None:
         cmd += ["--formulation", formulation]
+    if code == "ours":
+        cmd += ["--ours-element", element]
     env = dict(os.environ, **dict.fromkeys(THREAD_VARS, "1"), PYTHONWARNINGS="ignore")
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, env=env, capture_output=True, text=True)
@@ -249,12 +258,14 @@ def run_child(code: str, mesh: str, step_mm: float, formulation: str | None) -> 
 
 
 # ---------------------------------------------------------------------------- parent
-def measure(code, mesh, step_mm, formulation, repeats: int, warmup: int) -> dict:
+def measure(
+    code, mesh, step_mm, formulation, repeats: int, warmup: int, element: str = "q2"
+) -> dict:
     for _ in range(warmup):
-        run_child(code, mesh, step_mm, formulation)
+        run_child(code, mesh, step_mm, formulation, element)
     walls, results = [], []
     for _ in range(repeats):
-        wall, res = run_child(code, mesh, step_mm, formulation)
+        wall, res = run_child(code, mesh, step_mm, formulation, element)
         walls.append(wall)
         results.append(res)
     best = results[walls.index(min(walls))]
@@ -332,6 +343,9 @@ def main(argv: list[str] | None = None) -> list[dict]:
         "--mesh", type=mesh_name, default="default", help="both codes' (" + ", ".join(MESHES) + ")"
     )
     ap.add_argument("--ours-mesh", type=mesh_name, help="ours' mesh, if not --mesh")
+    ap.add_argument(
+        "--ours-element", choices=tuple(OUR_FORMULATIONS), default="q2", help="ours' element"
+    )
     ap.add_argument("--repeats", type=int, default=3, help="timed fresh processes per code")
     ap.add_argument("--warmup", type=int, default=1, help="untimed processes per code first")
     ap.add_argument(
@@ -342,13 +356,15 @@ def main(argv: list[str] | None = None) -> list[dict]:
     ap.add_argument("--child", choices=["ours", "felupe"], help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child == "ours":  # the parent passes ours' mesh as --mesh
-        print(json.dumps(child_ours(args.mesh, args.step_mm)))
+        print(json.dumps(child_ours(args.mesh, args.step_mm, args.ours_element)))
         return []
     if args.child == "felupe":
         print(json.dumps(child_felupe(args.mesh, args.step_mm, args.formulation[0])))
         return []
     ours_mesh = args.ours_mesh or args.mesh
-    rows = [measure("ours", ours_mesh, args.step_mm, None, args.repeats, args.warmup)]
+    rows = [
+        measure("ours", ours_mesh, args.step_mm, None, args.repeats, args.warmup, args.ours_element)
+    ]
     for formulation in args.formulation:
         rows.append(
             measure("felupe", args.mesh, args.step_mm, formulation, args.repeats, args.warmup)

@@ -2,7 +2,8 @@
 
     python benchmarks/bench_felupe_accuracy.py --json docs/felupe_accuracy.json
         [--ours x0.5 x0.7 x1 x1.41 x2] [--felupe x0.5 x0.7 x1 x1.5] [--repeats 3]
-        [--time-up-to 110000] [--also OTHER.json ...] [--figure docs/figures/felupe_accuracy.png]
+        [--ours-element q2p1] [--time-up-to 110000] [--also OTHER.json ...]
+        [--figure docs/figures/felupe_accuracy.png]
 
 ``benchmarks/bench_felupe.py`` compares the two codes on the same nodes. But the issue's target
 is the speed-up at equal accuracy, and the two discretisations err differently (ours: 27-node
@@ -27,6 +28,11 @@ after an untimed warm-up run of each code), and then:
    on a mesh at least as accurate. Beside it, ours' seconds interpolated to FElupe's error
    on ours' work-precision line (log seconds linear in log error between the two runs of
    ours that bracket it, ``interpolated_seconds``), where two neighbouring runs do.
+
+``--ours-element q2p1`` runs ours' ladder with the locking-free Q2/P1 element
+(``sim.fe._mixed``) as the series "ours q2p1", beside the pure-displacement "ours" (q2): the
+reference stays the mean of "ours" and FElupe's finest meshes, and each series of ours is
+matched against FElupe.
 
 Meshes above ``--time-up-to`` dofs are run once, untimed (the reference's finest meshes: ours
 ``x2`` took about an hour, FElupe's ``x1.5`` 25 minutes, beside each other); their seconds are
@@ -54,7 +60,11 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_felupe as bf  # the sibling benchmark: its children and meshes
 
+#: the two codes whose finest meshes make the reference
 CODES = ("ours", "FElupe")
+#: ours' series by element (``bench_felupe.OUR_FORMULATIONS``): the pure-displacement "ours"
+#: keeps the name it had before the element was an option
+OUR_SERIES = {"q2": "ours", "q2p1": "ours q2p1"}
 MEASURES = ("at 1 mm", "largest over the depths")
 
 
@@ -117,15 +127,25 @@ class Limits:
     rate: dict[str, tuple[float | None, ...]]
 
 
+def series(rows: list[dict]) -> tuple[str, ...]:
+    """The series present: "FElupe", then ours' in the order of ``OUR_SERIES``."""
+    present = {r["code"] for r in rows}
+    return tuple(c for c in ("FElupe", *OUR_SERIES.values()) if c in present)
+
+
 def limits(rows: list[dict], fit_meshes: int = 3) -> Limits:
-    """The reference: the mean of the two codes' finest meshes, its uncertainty their half
-    difference. Not an extrapolation, because near the contact's edge the forces need not
-    converge monotonically (the edge moves from node to node); where the ``fit_meshes`` finest
-    values of a code are monotone, its extrapolation is given beside, as a check."""
+    """The reference: the mean of the two codes' finest meshes (``CODES``), its uncertainty
+    their half difference. Not an extrapolation, because near the contact's edge the forces
+    need not converge monotonically (the edge moves from node to node); where the
+    ``fit_meshes`` finest values of a series are monotone, its extrapolation is given beside,
+    as a check."""
     f_inf, rate, finest = {}, {}, {}
-    for code in CODES:
+    for code in series(rows):
         mine = sorted((r for r in rows if r["code"] == code), key=lambda r: r["refine"])
         finest[code] = mine[-1]
+        if len(mine) < fit_meshes:
+            f_inf[code] = rate[code] = (None,) * len(bf.DEPTHS)
+            continue
         mine = mine[-fit_meshes:]
         h = np.array([1.0 / r["refine"] for r in mine])
         fits = []
@@ -162,6 +182,8 @@ class Match:
     ours_s: float | None
     #: ours' seconds at exactly FElupe's error, interpolated (``interpolated_seconds``)
     ours_interpolated_s: float | None = None
+    #: the series of ours (``OUR_SERIES``)
+    ours_code: str = "ours"
 
     @property
     def speedup(self) -> float | None:
@@ -194,8 +216,8 @@ def equal_accuracy(rows: list[dict], lim: Limits) -> list[Match]:
     most FElupe's (None when no run of ours is that accurate)."""
     timed = [r for r in rows if r.get("whole_median_s") is not None]
     out = []
-    for measure in MEASURES:
-        ours = sorted((r for r in timed if r["code"] == "ours"), key=lambda r: r["whole_median_s"])
+    for measure, code in itertools.product(MEASURES, series(rows)[1:]):
+        ours = sorted((r for r in timed if r["code"] == code), key=lambda r: r["whole_median_s"])
         for fe in (r for r in timed if r["code"] == "FElupe"):
             e_fe = errors(fe, lim)[measure]
             best = next((r for r in ours if errors(r, lim)[measure] <= e_fe), None)
@@ -210,6 +232,7 @@ def equal_accuracy(rows: list[dict], lim: Limits) -> list[Match]:
                     None if best is None else errors(best, lim)[measure],
                     None if best is None else best["whole_median_s"],
                     interpolated_seconds(line, e_fe),
+                    code,
                 )
             )
     return out
@@ -231,7 +254,7 @@ def work_precision_info(rows: list[dict], lim: Limits) -> WorkPrecisionInfo:
                 for r in sorted(rows, key=lambda r: r["refine"])
                 if r["code"] == code and r.get("whole_median_s") is not None
             )
-            for code in CODES
+            for code in series(rows)
         }
         for m in MEASURES
     }
@@ -247,7 +270,7 @@ def render(info: WorkPrecisionInfo, path: Path) -> None:
 
     fig, axes = plt.subplots(1, len(MEASURES), figsize=(10, 4), sharey=True)
     for ax, measure in zip(axes, MEASURES, strict=True):
-        for code, marker in zip(CODES, ("o-", "s--"), strict=True):
+        for code, marker in zip(info.points[measure], ("s--", "o-", "^-"), strict=False):
             pts = info.points[measure][code]
             ax.loglog([p[0] for p in pts], [100 * p[1] for p in pts], marker, label=code)
             for s, e, mesh in pts:
@@ -270,15 +293,17 @@ def render(info: WorkPrecisionInfo, path: Path) -> None:
 
 
 def measure_row(code: str, mesh: str, repeats: int, timed: bool) -> dict:
-    formulation = None if code == "ours" else "q1p0"
-    child = "ours" if code == "ours" else "felupe"
+    """One run of a series ("FElupe" or one of ``OUR_SERIES``), timed or not."""
+    element = {v: k for k, v in OUR_SERIES.items()}.get(code)
+    formulation = None if element else "q1p0"
+    child = "ours" if element else "felupe"
     load = os.getloadavg()[0]
     if timed:
-        row = bf.measure(child, mesh, 0.1, formulation, repeats, 1)
+        row = bf.measure(child, mesh, 0.1, formulation, repeats, 1, element or "q2")
     else:
-        wall, row = bf.run_child(child, mesh, 0.1, formulation)
+        wall, row = bf.run_child(child, mesh, 0.1, formulation, element or "q2")
         row = {**row, "whole_s": [wall], "whole_median_s": None, "untimed_wall_s": wall}
-    return {**row, "refine": float(mesh[1:]), "load_average_before": load}
+    return {**row, "code": code, "refine": float(mesh[1:]), "load_average_before": load}
 
 
 def main(argv: list[str] | None = None) -> dict:
@@ -293,6 +318,9 @@ def main(argv: list[str] | None = None) -> dict:
     ap.add_argument(
         "--also", nargs="+", type=Path, default=[], help="runs saved by other runs of this script"
     )
+    ap.add_argument(
+        "--ours-element", choices=tuple(OUR_SERIES), default="q2", help="the element of ours' runs"
+    )
     ap.add_argument("--repeats", type=int, default=3, help="timed fresh processes per run")
     # 110 000 dofs: ours x1.41 (103 401, 98 s a run) is timed, FElupe x1.5 (132 117, about
     # 25 minutes a run) and ours x2 (284 985, about an hour) are not
@@ -306,7 +334,8 @@ def main(argv: list[str] | None = None) -> dict:
     doc = json.loads(args.json.read_text()) if args.json.exists() else {"runs": []}
     others = [r for path in args.also for r in json.loads(path.read_text())["runs"]]
     done = {run_key(r["code"], r["mesh"]) for r in doc["runs"] + others}
-    todo = [("ours", m) for m in args.ours] + [("FElupe", m) for m in args.felupe]
+    ours = OUR_SERIES[args.ours_element]
+    todo = [(ours, m) for m in args.ours] + [("FElupe", m) for m in args.felupe]
     for code, mesh in todo:
         if run_key(code, mesh) in done:
             continue
@@ -338,12 +367,18 @@ def main(argv: list[str] | None = None) -> dict:
         f"and FElupe {lim.finest['FElupe']} (+- half their difference); beside it, "
         f"F(h) = F_inf + C h^p fitted to each code's {args.fit_meshes} finest meshes:\n"
     )
-    print("| depth (mm) | reference (N) | +- | ours: F_inf (N), p | FElupe: F_inf (N), p |")
-    print("|---|---|---|---|---|")
+    names = series(rows)
+    print(
+        "| depth (mm) | reference (N) | +- | "
+        + " | ".join(f"{c}: F_inf (N), p" for c in names)
+        + " |"
+    )
+    print("|---|---|---|" + "---|" * len(names))
     for k, d in enumerate(lim.depths_mm):
         print(
-            f"| {d:g} | {lim.reference_N[k]:.5f} | {lim.uncertainty[k]:.2%} "
-            f"| {fit('ours', k)} | {fit('FElupe', k)} |"
+            f"| {d:g} | {lim.reference_N[k]:.5f} | {lim.uncertainty[k]:.2%} | "
+            + " | ".join(fit(c, k) for c in names)
+            + " |"
         )
     print(
         "\n| code | mesh | dofs | whole-process s (median of timed runs) | Newton iterations "
@@ -368,7 +403,7 @@ def main(argv: list[str] | None = None) -> dict:
         if m.ours_mesh is None:
             print(
                 f"{m.measure}: FElupe {m.felupe_mesh} ({m.felupe_error:.2%}, {m.felupe_s:.1f} s): "
-                "no timed run of ours is as accurate"
+                f"no timed run of {m.ours_code} is as accurate"
             )
         else:
             between = (
@@ -379,7 +414,7 @@ def main(argv: list[str] | None = None) -> dict:
             )
             print(
                 f"{m.measure}: FElupe {m.felupe_mesh} ({m.felupe_error:.2%}, {m.felupe_s:.1f} s) "
-                f"against ours {m.ours_mesh} ({m.ours_error:.2%}, {m.ours_s:.2f} s): "
+                f"against {m.ours_code} {m.ours_mesh} ({m.ours_error:.2%}, {m.ours_s:.2f} s): "
                 f"{m.speedup:.1f}x faster at equal accuracy{between} (target >= 10x)"
             )
     if args.figure:

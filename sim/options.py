@@ -15,6 +15,7 @@ from .geometry import DEFAULT_MESH, DEFAULT_MESH_3D, MeshOptions, MeshOptions3D
 from .protocols import PlateOptions, TappingOptions, ValidityOptions, WedgeOptions
 
 __all__ = [
+    "ELEMENTS_3D",
     "INCLINATION_RANGE_DEG",
     "MODELS",
     "ModelOptions",
@@ -37,6 +38,13 @@ MODELS = ("2d", "3d")
 #: "Should the 3D model have a finger-inclination option?".
 INCLINATION_RANGE_DEG = (0.0, 45.0)
 
+#: The 3D model's elements (``ModelOptions.element``, ``sim.fe.fe3d.ELEMENTS``, repeated here
+#: so that ``import sim`` does not load the 3D discretisation): "q2", the 27-node hexahedron in
+#: displacements alone, and "q2p1", the same with the volume ratio projected on linear
+#: polynomials per element, free of volumetric locking (``sim.fe._mixed``; docs/model_3d.md,
+#: "The locking-free element").
+ELEMENTS_3D = ("q2", "q2p1")
+
 
 @dataclass(frozen=True)
 class ModelOptions:
@@ -50,10 +58,15 @@ class ModelOptions:
     (``sim.geometry.mesh3d.half_pad_mesh``); forces and displacements are read along the
     plate's normal, the contact patch in its plane. 0 (the default) is the quarter model,
     unchanged, and is left out of the dict form (``SimOptions.as_dict``) so that records keep
-    their keys. 3D only; the wedge is not inclined (``sim.simulate`` refuses it)."""
+    their keys. 3D only; the wedge is not inclined (``sim.simulate`` refuses it).
+
+    ``element`` (``--set model.element=q2p1``): the 3D model's element (``ELEMENTS_3D``); left
+    out of the dict form when it is "q2", so that the records made before it existed keep
+    their keys. 3D only."""
 
     dimension: str = "2d"
     inclination_deg: float = 0.0
+    element: str = "q2"
 
     def __post_init__(self) -> None:
         if self.dimension not in MODELS:
@@ -70,6 +83,15 @@ class ModelOptions:
             raise DesignError(
                 "model.inclination_deg",
                 f"applies to the 3d model only, not to --model {self.dimension}",
+            )
+        if self.element not in ELEMENTS_3D:
+            raise DesignError(
+                "model.element",
+                f"must be one of {', '.join(ELEMENTS_3D)}, got {self.element!r}",
+            )
+        if self.element != "q2" and self.dimension != "3d":
+            raise DesignError(
+                "model.element", f"applies to the 3d model only, not to --model {self.dimension}"
             )
 
 
@@ -107,6 +129,8 @@ class SimOptions:
         d = dataclasses.asdict(self)
         if "model" in d and d["model"]["inclination_deg"] == 0.0:
             del d["model"]["inclination_deg"]
+        if "model" in d and d["model"]["element"] == "q2":
+            del d["model"]["element"]
         # the wedge's band, only when on (its grading means nothing without it): the records
         # made before it existed keep their keys
         if "mesh3d" in d and d["mesh3d"]["edge_h_mm"] == 0.0:

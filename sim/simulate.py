@@ -308,7 +308,7 @@ def discretize(design: Design, options: SimOptions = SimOptions(), protocol: str
         inclination = options.model.inclination_deg
         mesh = options.mesh3d if protocol == "wedge" else options.mesh3d.without_edge()
         pmesh = build_pad_mesh(pad, design.thicknesses_mm, mesh, inclination)
-        return Discretization3D(pmesh, design.materials)
+        return Discretization3D(pmesh, design.materials, element=options.model.element)
     from .geometry import build_mesh
 
     fmesh = build_mesh(design.geometry, design.thicknesses_mm, options.mesh)

@@ -4,6 +4,7 @@
     python studies/mesh3d_convergence.py                 # every level, resumes
     python studies/mesh3d_convergence.py --levels 1 1.41  # a quick look
     python studies/mesh3d_convergence.py --wedge --levels 1 1.41 2   # the wedge instead
+    python studies/mesh3d_convergence.py --element q2p1 --levels 1 1.41 2  # locking-free
 
 Each design is simulated on the mesh family ``BASE.refined(f)`` (every target size / f) with
 the elastic tap (one tap to 5 N) and the plate; the validity stop is off so every level gives
@@ -14,7 +15,8 @@ Results are written after each run, so an interrupted study resumes where it sto
 ``--wedge`` runs the wedge (its default protocol: the edge pressed 1 mm in 1 s, held 100 s)
 instead of the tap and the plate, and reports the wedge's metrics (its runs are kept in the
 same file under ``name@f:wedge``; the wedge refined along its edge alone:
-``studies/wedge3d_band.py``)."""
+``studies/wedge3d_band.py``). ``--element q2p1`` runs the locking-free Q2/P1 element
+(``model.element``; its runs are kept under ``name@f:q2p1``, ``name@f:wedge:q2p1``)."""
 
 from __future__ import annotations
 
@@ -29,7 +31,7 @@ import numpy as np
 
 from sim.design import design_from_dict
 from sim.geometry import COARSE_MESH_3D
-from sim.options import ModelOptions, SimOptions
+from sim.options import ELEMENTS_3D, ModelOptions, SimOptions
 from sim.simulate import simulate
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "mesh3d_convergence.json"
@@ -93,17 +95,20 @@ def run_cases(out: Path, cases: Iterable[tuple[str, Callable[[], dict]]]) -> dic
     return done
 
 
-def run(levels: tuple[float, ...], wedge: bool = False) -> dict:
+def run(levels: tuple[float, ...], wedge: bool = False, element: str = "q2") -> dict:
     protocols, metrics, tag = (
         (("wedge",), WEDGE_METRICS, ":wedge") if wedge else (("tapping", "plate"), METRICS, "")
     )
+    if element != "q2":  # the pure-displacement runs keep the keys they had before the option
+        tag += f":{element}"
 
     def case(name: str, f: float) -> dict:
-        options = SimOptions(model=ModelOptions("3d"), mesh3d=BASE.refined(f))
+        model = ModelOptions("3d", element=element)
+        options = SimOptions(model=model, mesh3d=BASE.refined(f))
         figures = measured(
             design_from_dict(DESIGNS[name]), protocols, options.without_validity_stop(), metrics
         )
-        return {"design": name, "refine": f, **figures}
+        return {"design": name, "refine": f, "element": element, **figures}
 
     return run_cases(
         OUT,
@@ -122,16 +127,22 @@ def richardson(h: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     return p, float(y[-1] + (y[-1] - y[-2]) / ((h[-2] / h[-1]) ** p - 1.0))
 
 
-def report(done: dict, wedge: bool = False) -> None:
+def report(done: dict, wedge: bool = False, element: str = "q2") -> None:
     metrics = WEDGE_METRICS if wedge else METRICS
     for name in DESIGNS:
         rows = sorted(
-            (v for k, v in done.items() if v["design"] == name and k.endswith(":wedge") == wedge),
+            (
+                v
+                for k, v in done.items()
+                if v["design"] == name
+                and (":wedge" in k) == wedge
+                and v.get("element", "q2") == element
+            ),
             key=lambda v: v["refine"],
         )
         if len(rows) < 3:
             continue
-        print(f"\n{name}: dofs {[r['dofs'] for r in rows]}")
+        print(f"\n{name} ({element}): dofs {[r['dofs'] for r in rows]}")
         h = 1.0 / np.array([r["refine"] for r in rows])
         for m in metrics:
             y = np.array([r["metrics"][m] or np.nan for r in rows])
@@ -144,5 +155,6 @@ if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--levels", type=float, nargs="+", default=list(LEVELS))
     ap.add_argument("--wedge", action="store_true", help="the wedge instead of tap and plate")
+    ap.add_argument("--element", choices=ELEMENTS_3D, default="q2", help="the 3D element")
     args = ap.parse_args()
-    report(run(tuple(args.levels), args.wedge), args.wedge)
+    report(run(tuple(args.levels), args.wedge, args.element), args.wedge, args.element)

@@ -70,12 +70,29 @@ class KernelAssembly:
     conn: np.ndarray
     dN: np.ndarray
     w: np.ndarray
+    #: the P1 modes and inverse Gram matrices of the projected volume ratio
+    #: (``sim.fe._mixed.dilatation_basis``) of the 3D Q2/P1 element; None: pure displacement
+    dilatation: tuple[np.ndarray, np.ndarray] | None = None
 
     def deformation_gradient(self, u: np.ndarray) -> np.ndarray:
         """F with shape (d, d, n_el, n_q) for nodal displacements u (n_nodes, d)."""
         from . import _kernels
 
         return _kernels.deformation_gradient(np.ascontiguousarray(u), self.conn, self.dN)
+
+    def material_deformation_gradient(self, u: np.ndarray) -> np.ndarray:
+        """The deformation gradient the material laws see (d, d, n_el, n_q): ``F`` itself, or
+        for the Q2/P1 element ``F̄ = (J̄ / J)^(1/3) F`` with the projected volume ratio
+        (``sim.fe._mixed``). The validity's strains and volume ratios are read from it."""
+        F = self.deformation_gradient(u)
+        if self.dilatation is None:
+            return F
+        from . import _mixed
+
+        with np.errstate(all="ignore"):
+            J = determinant(F)
+            Jbar = _mixed.project(J, self.w, *self.dilatation)
+            return F * np.cbrt(Jbar / J)
 
     def evaluate(
         self,
@@ -102,6 +119,8 @@ class KernelAssembly:
         if not min_J > 1e-8:  # also catches NaN from an overflowing trial
             return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
         C = _kernels.right_cauchy_green(F, voigt)
+        if self.dilatation is not None:
+            return self._evaluate_mixed(F, J, C, states, dt_s, tangent, frozen_history)
         S, _, new_states = layer_stresses(
             self.materials, self.slices, C, states, dt_s, False, frozen_history
         )
@@ -111,6 +130,66 @@ class KernelAssembly:
         r = _kernels.internal_forces(F, S, self.dN, self.w, voigt, pat.scatter_r, pat.n_free + 1)
         args = (F, S, C, states, dt_s, frozen_history) if tangent else None
         return Evaluation(r[:-1], args, new_states, ok=True, min_J=min_J, _assemble=self._tangent)
+
+    def _evaluate_mixed(self, F, J, C, states, dt_s, tangent, frozen_history) -> Evaluation:
+        """``evaluate`` for the Q2/P1 element (``sim.fe._mixed``): the laws at ``C̄ = θ C``,
+        the residual from the effective stress; ``min_J`` the least of ``J`` and ``J̄``."""
+        from . import _kernels, _mixed
+
+        basis, mode = self.dilatation
+        Jbar = _mixed.project(J, self.w, basis, mode)
+        min_J = min(float(J.min()), float(Jbar.min()))
+        if not min_J > 1e-8:
+            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
+        Cbar = C * np.cbrt(Jbar / J) ** 2
+        Sbar, _, new_states = layer_stresses(
+            self.materials, self.slices, Cbar, states, dt_s, False, frozen_history
+        )
+        if not np.all(np.isfinite(Sbar)):
+            return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
+        S, beta, eta = _mixed.effective_stress(C, J, Jbar, Sbar, self.w, basis, mode)
+        pat = self.pattern
+        voigt = _kernels.VOIGT[3]
+        r = _kernels.internal_forces(F, S, self.dN, self.w, voigt, pat.scatter_r, pat.n_free + 1)
+        args = (F, J, Jbar, Cbar, Sbar, beta, eta, states, dt_s, frozen_history)
+        return Evaluation(
+            r[:-1],
+            args if tangent else None,
+            new_states,
+            ok=True,
+            min_J=min_J,
+            _assemble=self._tangent_mixed,
+        )
+
+    def _tangent_mixed(
+        self, F, J, Jbar, Cbar, Sbar, beta, eta, states, dt_s: float, frozen_history: bool
+    ) -> np.ndarray:
+        """The Q2/P1 tangent's data (``sim.fe._mixed.stiffness``), its material part
+        computed here (lazily) from the same ``C̄`` and history as the residual's."""
+        from . import _kernels, _mixed
+
+        _, Dbar, _ = layer_stresses(
+            self.materials, self.slices, Cbar, states, dt_s, True, frozen_history
+        )
+        pat = self.pattern
+        basis, mode = self.dilatation
+        data = _mixed.stiffness(
+            F,
+            J,
+            Jbar,
+            Sbar,
+            Dbar,
+            beta,
+            eta,
+            self.dN,
+            self.w,
+            basis,
+            mode,
+            _kernels.VOIGT[3],
+            pat.scatter_K,
+            pat.nnz + 1,
+        )
+        return data[:-1]
 
     def _tangent(self, F, S, C, states, dt_s: float, frozen_history: bool) -> np.ndarray:
         """The tangent's data, its material part computed here (lazily): the same

@@ -32,7 +32,12 @@ if TYPE_CHECKING:
     from ..geometry import PadMesh
     from ..materials import Material
 
-__all__ = ["Discretization3D"]
+__all__ = ["ELEMENTS", "Discretization3D"]
+
+#: The 3D elements: "q2", the 27-node hexahedron in displacements alone; "q2p1", the same with
+#: the volume ratio projected on linear polynomials per element (locking-free for nearly
+#: incompressible layers; ``sim.fe._mixed``). The options' copy: ``sim.options.ELEMENTS_3D``.
+ELEMENTS = ("q2", "q2p1")
 
 
 class Discretization3D(KernelAssembly, PatternAccess):
@@ -50,8 +55,13 @@ class Discretization3D(KernelAssembly, PatternAccess):
         pmesh: PadMesh,
         materials: list[Material],
         fixed: Callable[[np.ndarray], np.ndarray] | None = None,
+        element: str = "q2",
     ) -> None:
-        """``fixed(X) -> mask``: optional function of the node coordinates X (n_nodes, 3)
+        """``element``: "q2", pure displacement, or "q2p1", the locking-free Q2/P1 element
+        (the volume ratio projected on linear polynomials per element, ``sim.fe._mixed``;
+        ``ELEMENTS``).
+
+        ``fixed(X) -> mask``: optional function of the node coordinates X (n_nodes, 3)
         returning the (n_nodes, 3) mask of constrained dofs, replacing the default (base fully
         fixed, u_x = 0 on x = 0, u_z = 0 on z = 0). Constrained dofs keep whatever value the
         displacement array holds, so prescribed displacements are set there."""
@@ -70,6 +80,13 @@ class Discretization3D(KernelAssembly, PatternAccess):
         self.n_nodes = len(self.X)
         self.dN, self.w = reference_gradients(self.X, self.conn)
         self.n_el, self.n_q = self.w.shape
+        if element not in ELEMENTS:
+            raise ValueError(f"element must be one of {', '.join(ELEMENTS)}, got {element!r}")
+        self.element = element
+        if element == "q2p1":
+            from ._mixed import dilatation_basis
+
+            self.dilatation = dilatation_basis(self.quadrature_points(), self.w)
 
         if fixed is None:
             mask = np.zeros((self.n_nodes, 3), dtype=bool)

@@ -150,7 +150,7 @@ def write_vtu(result: SimResult, folder: Path, whole_pad: bool = True) -> list[P
         if id(disc) not in mirrors:
             mirrors[id(disc)] = _mirror_map(disc, cells) if disc.dim == 3 and whole_pad else None
         mirror = mirrors[id(disc)]
-        F = disc.deformation_gradient(u)
+        F = disc.material_deformation_gradient(u)  # the strains the laws see
         cell_data = {
             "layer": layer,
             "compressive_log_strain": compressive_log_strain(F).max(axis=1),

@@ -515,7 +515,7 @@ class DeformationTracker:
     def observe(self, body: Body) -> None:
         """Update the extremes from the body's committed state (u, indenter position)."""
         # contiguous components: the arithmetic on F's strided views costs 3x more
-        F = np.ascontiguousarray(self.disc.deformation_gradient(body.u))
+        F = np.ascontiguousarray(self.disc.material_deformation_gradient(body.u))
         J = volume_ratio(F)
         lam_sq = _smallest_stretch_sq(F, J)  # the log is taken of the extremes only
         worst = int(np.argmin(lam_sq))
