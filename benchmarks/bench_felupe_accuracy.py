@@ -240,10 +240,12 @@ def equal_accuracy(rows: list[dict], lim: Limits) -> list[Match]:
 
 @dataclass(frozen=True)
 class WorkPrecisionInfo:
-    """What the figure shows: per measure and code, the timed runs' (seconds, error, mesh)."""
+    """What the figure shows: per measure and code, the timed runs' (seconds, error, mesh),
+    and per measure the reference's own uncertainty (errors below it are not resolved)."""
 
     points: dict[str, dict[str, tuple[tuple[float, float, str], ...]]]
     matches: tuple[Match, ...]
+    uncertainty: dict[str, float]
 
 
 def work_precision_info(rows: list[dict], lim: Limits) -> WorkPrecisionInfo:
@@ -258,7 +260,9 @@ def work_precision_info(rows: list[dict], lim: Limits) -> WorkPrecisionInfo:
         }
         for m in MEASURES
     }
-    return WorkPrecisionInfo(points, tuple(equal_accuracy(rows, lim)))
+    at_1mm = lim.uncertainty[list(lim.depths_mm).index(1.0)]
+    floor = {MEASURES[0]: at_1mm, MEASURES[1]: max(lim.uncertainty)}
+    return WorkPrecisionInfo(points, tuple(equal_accuracy(rows, lim)), floor)
 
 
 def render(info: WorkPrecisionInfo, path: Path) -> None:
@@ -278,12 +282,25 @@ def render(info: WorkPrecisionInfo, path: Path) -> None:
                     mesh, (s, 100 * e), textcoords="offset points", xytext=(4, 4), fontsize=7
                 )
         plain = matplotlib.ticker.FuncFormatter(lambda y, _: f"{y:g}")
+        # label the minor ticks 2 and 5 of each decade only: all of them overlap
+        sparse = matplotlib.ticker.FuncFormatter(
+            lambda y, _: f"{y:g}" if f"{y:.0e}"[0] in "25" else ""
+        )
         ax.yaxis.set_major_formatter(plain)
-        ax.yaxis.set_minor_formatter(plain)
+        ax.yaxis.set_minor_formatter(sparse)
         ax.xaxis.set_major_formatter(plain)
         ax.set_title(f"plate force error, {measure}")
         ax.set_xlabel("whole process (s, one core)")
         ax.grid(True, which="both", alpha=0.3)
+    low, high = axes[0].get_ylim()  # shared: every series plotted
+    for ax, measure in zip(axes, MEASURES, strict=True):
+        floor = 100 * info.uncertainty[measure]
+        ax.axhspan(min(low, floor), floor, color="0.88", zorder=0)
+        ax.text(
+            0.02, floor, " reference's uncertainty", transform=ax.get_yaxis_transform(),
+            va="bottom", fontsize=7, color="0.35",
+        )  # fmt: skip
+    axes[0].set_ylim(min(low, 0.5 * min(100 * u for u in info.uncertainty.values())), high)
     axes[0].set_ylabel("relative error (%)")
     axes[0].legend()
     fig.tight_layout()

@@ -3,6 +3,7 @@
     python benchmarks/bench_sweep.py [--n 16] [--seed 0] [--space SPACE.toml]
     python benchmarks/bench_sweep.py --model 3d --n 8 --workers 1   # the 3D pad's mean
     python benchmarks/bench_sweep.py --model 3d --n 8 --workers 1 --keep runs/seg3d_0_31
+    python benchmarks/bench_sweep.py --model 3d --n 8 --workers 1 --set model.element=q2p1
 
 Runs the same ``n`` designs of the (default) design space twice, with 1 and with 2 local worker
 processes (``--workers``: only these), in fresh temporary folders, and prints wall times,
@@ -11,9 +12,10 @@ designs per hour, the speed-up and the mean FE time per design, with each protoc
 the default 3D space (``sim/data/default_space_3d.toml``), as ``fingertip sweep --model 3d``
 runs it. ``--keep FOLDER`` (one ``--workers`` value only): run in FOLDER and keep it, so that
 the benchmark's designs start a sweep that ``fingertip sweep --start 0 --n N`` (same seed and
-model) resumes; a sweep's records do not depend on the number of workers. Targets: speed-up
->= 1.8 on this 2-core machine (the sweep issue); the FE time per default-space design
-<= 2.0 s in 2D and <= 60 s in 3D, one core (the FE speed issue).
+model) resumes; a sweep's records do not depend on the number of workers. ``--set
+SECTION.FIELD=VALUE`` (repeatable) changes an option as ``fingertip sweep --set`` does.
+Targets: speed-up >= 1.8 on this 2-core machine (the sweep issue); the FE time per
+default-space design <= 2.0 s in 2D and <= 60 s in 3D, one core (the FE speed issue).
 """
 
 from __future__ import annotations
@@ -29,8 +31,9 @@ import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from sim.design import DEFAULT_SPACE_3D_PATH, load_space  # noqa: E402
+from sim.errors import DesignError  # noqa: E402
 from sim.metrics import PROTOCOLS  # noqa: E402
-from sim.options import ModelOptions, SimOptions  # noqa: E402
+from sim.options import ModelOptions, SimOptions, apply_overrides, parse_override  # noqa: E402
 from sim.sweep import SweepStore, run_sweep  # noqa: E402
 
 
@@ -54,12 +57,17 @@ def main() -> None:
     ap.add_argument("--model", choices=["2d", "3d"], default="2d")
     ap.add_argument("--workers", type=int, nargs="+", choices=[1, 2], default=[1, 2])
     ap.add_argument("--keep", type=Path, default=None, metavar="FOLDER")
+    ap.add_argument("--set", action="append", default=[], metavar="SECTION.FIELD=VALUE")
     args = ap.parse_args()
     if args.keep is not None and len(args.workers) != 1:
         ap.error("--keep: give one --workers value (the kept folder holds one run)")
     default = DEFAULT_SPACE_3D_PATH if args.model == "3d" else None
     space = load_space(args.space or default)
     options = SimOptions(model=ModelOptions(args.model))
+    try:
+        options = apply_overrides(options, dict(parse_override(t) for t in args.set))
+    except DesignError as exc:
+        ap.error(str(exc))
     walls = {}
     with tempfile.TemporaryDirectory() as tmp:
         for workers in args.workers:

@@ -127,6 +127,25 @@ def test_felupe_accuracy_fits_limits_and_matches_runs_of_equal_accuracy():
     assert module.interpolated_seconds([(1.0, 0.03), (2.0, 0.02), (4.0, 0.01)], 0.015) < 4.0
     info = module.work_precision_info(rows, lim)
     assert [p[2] for p in info.points["at 1 mm"]["FElupe"]] == ["x0.5", "x0.7", "x1", "x1.41"]
+    assert info.uncertainty["at 1 mm"] == lim.uncertainty[2]
+    # a second series of ours (another element), ten times as accurate at the same cost: the
+    # reference is still ours' and FElupe's finest, and it is matched on its own
+    q2p1 = [
+        dict(
+            r,
+            code="ours q2p1",
+            force_quarter_N=[f * (1 + 0.0004 / r["refine"] ** 2) for f in F_INF],
+        )
+        for r in rows
+        if r["code"] == "ours"
+    ]
+    assert module.series(rows + q2p1) == ("FElupe", "ours", "ours q2p1")
+    assert module.limits(rows + q2p1).reference_N == lim.reference_N
+    by = {
+        (m.ours_code, m.measure, m.felupe_mesh): m for m in module.equal_accuracy(rows + q2p1, lim)
+    }
+    assert by[("ours", "at 1 mm", "x1")].ours_mesh == "x1"
+    assert by[("ours q2p1", "at 1 mm", "x1")].ours_mesh == "x0.5"  # 0.22 % against FElupe's 0.54 %
     # no run of ours as accurate: ours' finest timed run is less accurate than FElupe's
     worse = [
         dict(r, force_quarter_N=[f * 1.05 for f in r["force_quarter_N"]])
