@@ -252,7 +252,6 @@ def _stiffness(
     d: int,
 ) -> np.ndarray:
     E, Q, A, _ = dN.shape
-    n = A * d
     data = np.zeros(n_out)
     T = np.empty((A * d * d, Q * d))
     N = np.empty((Q * d, A))
@@ -277,11 +276,21 @@ def _stiffness(
                 for b in range(A):
                     N[q * d + L, b] = dN[e, q, b, L]
         Kt = np.dot(T, N)  # (a, i, k) x b
-        base = e * n * n
-        for a in range(A):
-            for i in range(d):
-                p = a * d + i
-                for b in range(A):
-                    for k in range(d):
-                        data[scatter_K[base + p * n + b * d + k]] += Kt[p * d + k, b]
+        _scatter_element(data, scatter_K, e, Kt, A, d)
     return data
+
+
+@nb.njit(cache=True)
+def _scatter_element(
+    data: np.ndarray, scatter_K: np.ndarray, e: int, Kt: np.ndarray, A: int, d: int
+) -> None:
+    """Add element ``e``'s matrix ``Kt`` (rows (a, i, k), columns b: ``K[(a, i), (b, k)]``)
+    into the tangent's ``data`` at its pattern positions ``scatter_K``."""
+    n = A * d
+    base = e * n * n
+    for a in range(A):
+        for i in range(d):
+            p = a * d + i
+            for b in range(A):
+                for k in range(d):
+                    data[scatter_K[base + p * n + b * d + k]] += Kt[p * d + k, b]

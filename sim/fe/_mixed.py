@@ -52,7 +52,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from ._kernels import _first_elasticity
+from ._kernels import _first_elasticity, _scatter_element
 
 __all__ = ["dilatation_basis", "effective_stress", "project", "stiffness"]
 
@@ -74,27 +74,35 @@ def dilatation_basis(points: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.
 
 
 @nb.njit(cache=True)
+def _project_element(
+    f: np.ndarray, e: int, w: np.ndarray, N: np.ndarray, Minv: np.ndarray, out: np.ndarray
+) -> None:
+    """The L2 projection of element ``e``'s point values ``f`` (E, Q) on its modes, into
+    ``out[e]``: ``N(X_q)ᵀ M⁻¹ Σ_r w_r N(X_r) f_r``."""
+    Q = f.shape[1]
+    b = np.zeros(4)
+    for q in range(Q):
+        for k in range(4):
+            b[k] += w[e, q] * N[e, q, k] * f[e, q]
+    alpha = np.empty(4)
+    for k in range(4):
+        s = 0.0
+        for m in range(4):
+            s += Minv[e, k, m] * b[m]
+        alpha[k] = s
+    for q in range(Q):
+        s = 0.0
+        for k in range(4):
+            s += N[e, q, k] * alpha[k]
+        out[e, q] = s
+
+
+@nb.njit(cache=True)
 def project(J: np.ndarray, w: np.ndarray, N: np.ndarray, Minv: np.ndarray) -> np.ndarray:
     """``J̄`` (E, Q): the L2 projection of ``J`` (E, Q) on the modes ``N`` per element."""
-    E, Q = J.shape
-    out = np.empty((E, Q))
-    b = np.empty(4)
-    alpha = np.empty(4)
-    for e in range(E):
-        b[:] = 0.0
-        for q in range(Q):
-            for k in range(4):
-                b[k] += w[e, q] * N[e, q, k] * J[e, q]
-        for k in range(4):
-            s = 0.0
-            for m in range(4):
-                s += Minv[e, k, m] * b[m]
-            alpha[k] = s
-        for q in range(Q):
-            s = 0.0
-            for k in range(4):
-                s += N[e, q, k] * alpha[k]
-            out[e, q] = s
+    out = np.empty(J.shape)
+    for e in range(J.shape[0]):
+        _project_element(J, e, w, N, Minv, out)
     return out
 
 
@@ -114,31 +122,20 @@ def effective_stress(
     _, E, Q = C.shape
     S = np.empty((6, E, Q))
     beta = np.empty((E, Q))
+    load = np.empty((E, Q))  # β / J̄, whose projection is η
     eta = np.empty((E, Q))
-    b = np.empty(4)
-    a = np.empty(4)
     for e in range(E):
-        b[:] = 0.0
         for q in range(Q):
             theta = (Jbar[e, q] / J[e, q]) ** (2.0 / 3.0)
             sc = 0.0  # S̄ : C, the shear pairs twice
             for v in range(6):
                 sc += Sbar[v, e, q] * C[v, e, q] * (1.0 if v < 3 else 2.0)
             beta[e, q] = theta * sc / 3.0
-            for k in range(4):
-                b[k] += w[e, q] * N[e, q, k] * beta[e, q] / Jbar[e, q]
-        for k in range(4):
-            s = 0.0
-            for m in range(4):
-                s += Minv[e, k, m] * b[m]
-            a[k] = s
+            load[e, q] = beta[e, q] / Jbar[e, q]
+        _project_element(load, e, w, N, Minv, eta)
         for q in range(Q):
-            s = 0.0
-            for k in range(4):
-                s += N[e, q, k] * a[k]
-            eta[e, q] = s
             theta = (Jbar[e, q] / J[e, q]) ** (2.0 / 3.0)
-            coef = J[e, q] * s - beta[e, q]
+            coef = J[e, q] * eta[e, q] - beta[e, q]
             c11, c22, c33 = C[0, e, q], C[1, e, q], C[2, e, q]
             c12, c23, c13 = C[3, e, q], C[4, e, q], C[5, e, q]
             detC = J[e, q] * J[e, q]
@@ -304,13 +301,10 @@ def stiffness(
         GM = np.dot(G, Mi)
         HG = np.dot(H, GM.T)
         Klr = HG + HG.T + np.dot(np.dot(GM, Z), GM.T)  # (a, i) x (b, k)
-        base = e * n * n
-        for a in range(A):
+        for a in range(A):  # into the kernel's layout (a, i, k) x b
             for i in range(d):
-                p = a * d + i
                 for b in range(A):
                     for k in range(d):
-                        data[scatter_K[base + p * n + b * d + k]] += (
-                            Kt[p * d + k, b] + Klr[p, b * d + k]
-                        )
+                        Kt[(a * d + i) * d + k, b] += Klr[a * d + i, b * d + k]
+        _scatter_element(data, scatter_K, e, Kt, A, d)
     return data
