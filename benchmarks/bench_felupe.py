@@ -67,7 +67,7 @@ from pathlib import Path  # noqa: E402
 
 MU, NU = 0.05, 0.49  # tests/test_fe3d_felupe.py's material (a soft, nearly incompressible skin)
 DEPTHS = (0.25, 0.5, 1.0)
-#: our 3D elements (``sim.fe.fe3d.ELEMENTS``) by the name the rows give their formulation
+#: our 3D elements (``sim.fe.ELEMENTS_3D``) by the name the rows give their formulation
 OUR_FORMULATIONS = {"q2": "q2-displacement", "q2p1": "q2p1-projected"}
 MESHES = ("tiny", "coarse", "default", "xF")
 FORMULATIONS = ("q1p0", "q2-mixed", "q2-displacement")  # sim.verification.felupe_pad's
@@ -137,7 +137,7 @@ def child_ours(mesh: str, step_mm: float, element: str = "q2") -> dict:
     at FElupe's plate positions: ``sim.verification.press_plate``'s loop written out, because
     importing ``sim.verification`` (scipy.optimize and the verification cases, ~0.7 s) is no
     part of our model's whole process, and the steps and cuts are counted here. ``element``:
-    ``sim.fe.fe3d.ELEMENTS``."""
+    ``sim.fe.ELEMENTS_3D``."""
     t0 = time.perf_counter()
     from sim.fe import Body, Control, Discretization3D, NewtonOptions, Plate, model_newton
     from sim.geometry import PadGeometry, build_pad_mesh

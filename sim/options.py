@@ -10,7 +10,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .errors import DesignError
-from .fe import NewtonOptions
+from .fe import ELEMENTS_3D, NewtonOptions
 from .geometry import DEFAULT_MESH, DEFAULT_MESH_3D, MeshOptions, MeshOptions3D
 from .protocols import PlateOptions, TappingOptions, ValidityOptions, WedgeOptions
 
@@ -37,13 +37,6 @@ MODELS = ("2d", "3d")
 #: end of the pad, where the symmetric profile is least like a finger): docs/fingertip_3d.md,
 #: "Should the 3D model have a finger-inclination option?".
 INCLINATION_RANGE_DEG = (0.0, 45.0)
-
-#: The 3D model's elements (``ModelOptions.element``, ``sim.fe.fe3d.ELEMENTS``, repeated here
-#: so that ``import sim`` does not load the 3D discretisation): "q2", the 27-node hexahedron in
-#: displacements alone, and "q2p1", the same with the volume ratio projected on linear
-#: polynomials per element, free of volumetric locking (``sim.fe._mixed``; docs/model_3d.md,
-#: "The locking-free element").
-ELEMENTS_3D = ("q2", "q2p1")
 
 
 @dataclass(frozen=True)

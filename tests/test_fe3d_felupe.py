@@ -52,7 +52,7 @@ def our_plate_force(
 ) -> np.ndarray:
     """Our quarter-pad plate force (N) at ``depths`` (mm from first touch), the plate moved
     in increments of ``step_mm``, a failed step halved (``press_plate``); ``element``: ours'
-    (``sim.fe.fe3d.ELEMENTS``)."""
+    (``sim.fe.ELEMENTS_3D``)."""
     pmesh = build_pad_mesh(PAD, (), options)
     mat = material_from_table({"model": "neo_hookean", "mu_MPa": MU, "nu": NU})
     body = Body(Discretization3D(pmesh, [mat], element=element), Plate(), NewtonOptions())

@@ -29,7 +29,15 @@ from .solver import (
 if TYPE_CHECKING:
     from .fe3d import Discretization3D
 
+#: The 3D elements (``Discretization3D(element=...)``, ``model.element``): "q2", the 27-node
+#: hexahedron in displacements alone; "q2p1", the same with the volume ratio projected on
+#: linear polynomials per element, free of volumetric locking (``sim.fe._mixed``;
+#: docs/model_3d.md, "The locking-free element"). Here, not in ``fe3d``, so that the options
+#: can name them without loading the 3D discretisation.
+ELEMENTS_3D = ("q2", "q2p1")
+
 __all__ = [
+    "ELEMENTS_3D",
     "FORCE_RTOL",
     "Base",
     "Body",

@@ -141,13 +141,14 @@ class KernelAssembly:
         min_J = min(float(J.min()), float(Jbar.min()))
         if not min_J > 1e-8:
             return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
-        Cbar = C * np.cbrt(Jbar / J) ** 2
+        theta = np.cbrt(Jbar / J) ** 2  # C̄ = θ C
+        Cbar = C * theta
         Sbar, _, new_states = layer_stresses(
             self.materials, self.slices, Cbar, states, dt_s, False, frozen_history
         )
         if not np.all(np.isfinite(Sbar)):
             return Evaluation(np.empty(0), None, states, ok=False, min_J=min_J)
-        S, beta, eta = _mixed.effective_stress(C, J, Jbar, Sbar, self.w, basis, mode)
+        S, beta, eta = _mixed.effective_stress(C, J, Jbar, theta, Sbar, self.w, basis, mode)
         pat = self.pattern
         voigt = _kernels.VOIGT[3]
         r = _kernels.internal_forces(F, S, self.dN, self.w, voigt, pat.scatter_r, pat.n_free + 1)

@@ -111,6 +111,7 @@ def effective_stress(
     C: np.ndarray,
     J: np.ndarray,
     Jbar: np.ndarray,
+    theta: np.ndarray,
     Sbar: np.ndarray,
     w: np.ndarray,
     N: np.ndarray,
@@ -118,7 +119,8 @@ def effective_stress(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(S, β, η)``: the effective stress (6, E, Q) whose usual assembly is the residual, and
     the point scalars the tangent needs (module docstring), from ``C`` (6, E, Q) in the 3D
-    Voigt order, ``J``, ``J̄`` (E, Q) and the law's stress ``S̄`` (6, E, Q) at ``C̄ = θ C``."""
+    Voigt order, ``J``, ``J̄``, ``θ = (J̄ / J)^(2/3)`` (E, Q) and the law's stress ``S̄``
+    (6, E, Q) at ``C̄ = θ C``."""
     _, E, Q = C.shape
     S = np.empty((6, E, Q))
     beta = np.empty((E, Q))
@@ -126,15 +128,13 @@ def effective_stress(
     eta = np.empty((E, Q))
     for e in range(E):
         for q in range(Q):
-            theta = (Jbar[e, q] / J[e, q]) ** (2.0 / 3.0)
             sc = 0.0  # S̄ : C, the shear pairs twice
             for v in range(6):
                 sc += Sbar[v, e, q] * C[v, e, q] * (1.0 if v < 3 else 2.0)
-            beta[e, q] = theta * sc / 3.0
+            beta[e, q] = theta[e, q] * sc / 3.0
             load[e, q] = beta[e, q] / Jbar[e, q]
         _project_element(load, e, w, N, Minv, eta)
         for q in range(Q):
-            theta = (Jbar[e, q] / J[e, q]) ** (2.0 / 3.0)
             coef = J[e, q] * eta[e, q] - beta[e, q]
             c11, c22, c33 = C[0, e, q], C[1, e, q], C[2, e, q]
             c12, c23, c13 = C[3, e, q], C[4, e, q], C[5, e, q]
@@ -149,7 +149,7 @@ def effective_stress(
                 (c12 * c23 - c13 * c22) / detC,
             )
             for v in range(6):
-                S[v, e, q] = theta * Sbar[v, e, q] + coef * inv[v]
+                S[v, e, q] = theta[e, q] * Sbar[v, e, q] + coef * inv[v]
     return S, beta, eta
 
 

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..geometry import _q2
+from . import ELEMENTS_3D
 from ._assembly import KernelAssembly
 from ._constitutive import LayerState, initial_states
 from ._pattern import PatternAccess, build_pattern
@@ -32,12 +33,7 @@ if TYPE_CHECKING:
     from ..geometry import PadMesh
     from ..materials import Material
 
-__all__ = ["ELEMENTS", "Discretization3D"]
-
-#: The 3D elements: "q2", the 27-node hexahedron in displacements alone; "q2p1", the same with
-#: the volume ratio projected on linear polynomials per element (locking-free for nearly
-#: incompressible layers; ``sim.fe._mixed``). The options' copy: ``sim.options.ELEMENTS_3D``.
-ELEMENTS = ("q2", "q2p1")
+__all__ = ["Discretization3D"]
 
 
 class Discretization3D(KernelAssembly, PatternAccess):
@@ -59,7 +55,7 @@ class Discretization3D(KernelAssembly, PatternAccess):
     ) -> None:
         """``element``: "q2", pure displacement, or "q2p1", the locking-free Q2/P1 element
         (the volume ratio projected on linear polynomials per element, ``sim.fe._mixed``;
-        ``ELEMENTS``).
+        ``sim.fe.ELEMENTS_3D``).
 
         ``fixed(X) -> mask``: optional function of the node coordinates X (n_nodes, 3)
         returning the (n_nodes, 3) mask of constrained dofs, replacing the default (base fully
@@ -80,9 +76,8 @@ class Discretization3D(KernelAssembly, PatternAccess):
         self.n_nodes = len(self.X)
         self.dN, self.w = reference_gradients(self.X, self.conn)
         self.n_el, self.n_q = self.w.shape
-        if element not in ELEMENTS:
-            raise ValueError(f"element must be one of {', '.join(ELEMENTS)}, got {element!r}")
-        self.element = element
+        if element not in ELEMENTS_3D:
+            raise ValueError(f"element must be one of {', '.join(ELEMENTS_3D)}, got {element!r}")
         if element == "q2p1":
             from ._mixed import dilatation_basis
 
