@@ -6,7 +6,7 @@ elements: every quadrature point must keep its own ``J = det F`` near 1, too man
 for the displacements, and the element is too stiff. The classic cure for the 27-node
 hexahedron is the Q2/P1 pair: the pressure discontinuous and linear in each element, which
 satisfies the inf-sup condition (Boffi, Brezzi & Fortin, *Mixed Finite Element Methods and
-Applications*, 2013, sect. 8.6.3). Its displacement-only equivalent, for any hyperelastic or
+Applications*, 2013, on the Stokes pairs). Its displacement-only equivalent, for any hyperelastic or
 viscoelastic law written in ``C`` (Simo, Taylor & Pister 1985, CMAME 51, 177; the projected
 F-bar of Elguedj, Bazilevs, Calo & Hughes 2008, CMAME 197, 2732, in its variational form):
 
@@ -17,8 +17,9 @@ F-bar of Elguedj, Bazilevs, Calo & Hughes 2008, CMAME 197, 2732, in its variatio
 The constraint on the volume is then enforced at four points' worth per element instead of
 27; the pressure modes are the inf-sup stable P1 (unmapped: polynomials in the reference
 configuration's coordinates, centred and scaled per element, which keep the optimal rate on
-distorted meshes, Boffi et al. sect. 8.6.3). Because ``Π_h`` is a potential, the residual is
-its gradient and the tangent its Hessian: symmetric, as the solver's LDLᵀ and PARDISO need.
+distorted meshes where the mapped ones lose it, Boffi et al.). Because ``Π_h`` is a
+potential, the residual is its gradient and the tangent its Hessian: symmetric, as the
+solver's LDLᵀ and PARDISO need.
 
 With ``S̄``, ``D̄`` the law's stress and tangent at ``C̄`` (Voigt, engineering shear) and
 ``P̄ = F̄ S̄``, ``β = P̄ : F̄ / 3`` (``= θ S̄ : C / 3``), ``g = F⁻ᵀ``, and per point
